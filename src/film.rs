@@ -1,0 +1,250 @@
+//! The image being accumulated: exact fixed-point sums of sample radiance per pixel, the tone
+//! map to 8-bit, and the only code that writes image files (always whole or not at all).
+
+use crate::error::{Error, Result};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Fractional bits of the fixed-point radiance sums. Integer sums are associative, so the
+/// total of a pixel does not depend on how its samples were grouped or ordered; 2⁻²⁴ is far
+/// below what 8-bit or half-float output can show.
+pub const FRAC_BITS: u32 = 24;
+const ONE: f64 = (1u64 << FRAC_BITS) as f64;
+/// Per-sample radiance is clamped to this, which bounds a sum of 2²⁰ samples below 2⁶⁴.
+const MAX_SAMPLE: f32 = (1u32 << 20) as f32;
+
+/// Converts one sample's channel to fixed point; NaN and negative values count as zero.
+#[inline]
+pub fn to_fixed(c: f32) -> u64 {
+    if c > 0.0 {
+        (f64::from(c.min(MAX_SAMPLE)) * ONE).round() as u64
+    } else {
+        0
+    }
+}
+
+/// An image of per-pixel radiance sums over `samples_per_pixel` samples each.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Film {
+    pub width: u32,
+    pub height: u32,
+    pub samples_per_pixel: u32,
+    /// Row-major, top row first; fixed-point sums of R, G and B.
+    pub sums: Vec<[u64; 3]>,
+}
+
+/// An image file format, chosen by the output path's extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    /// 8-bit, gamma-encoded PNG.
+    Png,
+    /// Plain-text P3 PPM, written as the book writes it.
+    Ppm,
+    /// Linear 32-bit float OpenEXR.
+    Exr,
+}
+
+impl Format {
+    pub fn from_path(path: &Path) -> Result<Format> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        match ext.as_deref() {
+            Some("png") => Ok(Format::Png),
+            Some("ppm") => Ok(Format::Ppm),
+            Some("exr") => Ok(Format::Exr),
+            other => Err(Error::Image {
+                path: path.to_owned(),
+                message: format!(
+                    "unsupported output extension {}; use .png, .ppm or .exr",
+                    other.map_or("(none)".to_owned(), |e| format!("`.{e}`"))
+                ),
+            }),
+        }
+    }
+}
+
+impl Film {
+    pub fn new(width: u32, height: u32, samples_per_pixel: u32) -> Self {
+        Self {
+            width,
+            height,
+            samples_per_pixel,
+            sums: vec![[0; 3]; width as usize * height as usize],
+        }
+    }
+
+    /// Copies a tile's sums (row-major, `w` wide) into place at `(x0, y0)`.
+    pub fn put_tile(&mut self, x0: u32, y0: u32, w: u32, tile: &[[u64; 3]]) {
+        for (row, chunk) in tile.chunks_exact(w as usize).enumerate() {
+            let start = (y0 as usize + row) * self.width as usize + x0 as usize;
+            self.sums[start..start + w as usize].copy_from_slice(chunk);
+        }
+    }
+
+    /// Mean linear radiance of every pixel, row-major RGB.
+    pub fn linear(&self) -> Vec<f32> {
+        let scale = 1.0 / (ONE * f64::from(self.samples_per_pixel.max(1)));
+        self.sums
+            .iter()
+            .flat_map(|s| s.map(|c| (c as f64 * scale) as f32))
+            .collect()
+    }
+
+    /// 8-bit values as the book computes them: `256 · clamp(c^(1/γ), 0, 0.999)`.
+    pub fn to_rgb8(&self, gamma: f32) -> Vec<u8> {
+        self.linear()
+            .into_iter()
+            .map(|c| encode_8bit(c, gamma))
+            .collect()
+    }
+
+    /// Mean radiance over all pixels and channels, summed in a fixed order.
+    pub fn mean_radiance(&self) -> f64 {
+        let total: u128 = self
+            .sums
+            .iter()
+            .map(|s| s.iter().map(|&c| u128::from(c)).sum::<u128>())
+            .sum();
+        total as f64
+            / (ONE * f64::from(self.samples_per_pixel.max(1)) * 3.0 * self.sums.len().max(1) as f64)
+    }
+
+    /// Encodes the image in `format`.
+    pub fn encode(&self, format: Format, gamma: f32) -> Result<Vec<u8>, String> {
+        let (w, h) = (self.width, self.height);
+        match format {
+            Format::Ppm => {
+                let rgb = self.to_rgb8(gamma);
+                let mut out = Vec::with_capacity(rgb.len() * 4 + 32);
+                write!(out, "P3\n{w} {h}\n255\n").map_err(|e| e.to_string())?;
+                for px in rgb.chunks_exact(3) {
+                    writeln!(out, "{} {} {}", px[0], px[1], px[2]).map_err(|e| e.to_string())?;
+                }
+                Ok(out)
+            }
+            Format::Png => {
+                let img = image::RgbImage::from_raw(w, h, self.to_rgb8(gamma))
+                    .ok_or("image buffer has the wrong size")?;
+                let mut out = std::io::Cursor::new(Vec::new());
+                img.write_to(&mut out, image::ImageFormat::Png)
+                    .map_err(|e| e.to_string())?;
+                Ok(out.into_inner())
+            }
+            Format::Exr => {
+                let img = image::Rgb32FImage::from_raw(w, h, self.linear())
+                    .ok_or("image buffer has the wrong size")?;
+                let mut out = std::io::Cursor::new(Vec::new());
+                img.write_to(&mut out, image::ImageFormat::OpenExr)
+                    .map_err(|e| e.to_string())?;
+                Ok(out.into_inner())
+            }
+        }
+    }
+
+    /// Writes the image to `path` in the format its extension names, atomically.
+    pub fn save(&self, path: &Path, gamma: f32) -> Result<()> {
+        let format = Format::from_path(path)?;
+        let bytes = self.encode(format, gamma).map_err(|message| Error::Image {
+            path: path.to_owned(),
+            message,
+        })?;
+        write_atomically(path, &bytes)
+    }
+}
+
+/// `256 · clamp(c^(1/γ), 0, 0.999)`, truncated, as the book's `write_color`.
+#[inline]
+pub fn encode_8bit(c: f32, gamma: f32) -> u8 {
+    let c = if gamma == 2.0 {
+        c.max(0.0).sqrt()
+    } else if gamma == 1.0 {
+        c
+    } else {
+        c.max(0.0).powf(1.0 / gamma)
+    };
+    (256.0 * c.clamp(0.0, 0.999)) as u8
+}
+
+/// Writes `bytes` to a temporary file beside `path`, syncs it and renames it over `path`, so
+/// a reader (or a crash) never sees a half-written file and an old file survives a failure.
+pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
+    let io = |cause| Error::Io {
+        path: path.to_owned(),
+        cause,
+    };
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_owned(),
+        _ => PathBuf::from("."),
+    };
+    let name = path.file_name().ok_or_else(|| Error::Image {
+        path: path.to_owned(),
+        message: "output path has no file name".to_owned(),
+    })?;
+    let mut tmp_name = std::ffi::OsString::from(".");
+    tmp_name.push(name);
+    tmp_name.push(format!(".tmp-{}", std::process::id()));
+    let tmp = dir.join(tmp_name);
+    let result = (|| {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result.map_err(io)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fixed_point_round_trips_and_ignores_nan() {
+        assert_eq!(to_fixed(1.0), 1 << FRAC_BITS);
+        assert_eq!(to_fixed(f32::NAN), 0);
+        assert_eq!(to_fixed(-3.0), 0);
+        assert_eq!(to_fixed(f32::INFINITY), (1u64 << 20) << FRAC_BITS);
+    }
+
+    #[test]
+    fn eight_bit_encoding_matches_the_book() {
+        assert_eq!(encode_8bit(0.0, 2.0), 0);
+        assert_eq!(encode_8bit(1.0, 2.0), 255);
+        assert_eq!(encode_8bit(0.25, 2.0), 128);
+        assert_eq!(encode_8bit(0.25, 1.0), 64);
+        assert_eq!(encode_8bit(7.0, 1.0), 255);
+    }
+
+    #[test]
+    fn ppm_is_the_books_plain_text() {
+        let mut film = Film::new(2, 1, 1);
+        film.sums[0] = [to_fixed(1.0), 0, to_fixed(0.25)];
+        let text = String::from_utf8(film.encode(Format::Ppm, 1.0).unwrap()).unwrap();
+        assert_eq!(text, "P3\n2 1\n255\n255 0 64\n0 0 0\n");
+    }
+
+    #[test]
+    fn formats_follow_the_extension() {
+        assert_eq!(Format::from_path(Path::new("a.PNG")).unwrap(), Format::Png);
+        assert_eq!(Format::from_path(Path::new("a.exr")).unwrap(), Format::Exr);
+        assert!(Format::from_path(Path::new("a.jpg")).is_err());
+        assert!(Format::from_path(Path::new("a")).is_err());
+    }
+
+    #[test]
+    fn atomic_write_replaces_whole_file() {
+        let dir = std::env::temp_dir().join(format!("tessera-film-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("out.ppm");
+        write_atomically(&p, b"first").unwrap();
+        write_atomically(&p, b"second").unwrap();
+        assert_eq!(std::fs::read(&p).unwrap(), b"second");
+        let leftovers = std::fs::read_dir(&dir).unwrap().count();
+        assert_eq!(leftovers, 1);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

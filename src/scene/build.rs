@@ -1,0 +1,437 @@
+//! Turns a parsed scene description into a validated runtime `Scene`, reporting the file,
+//! line, column and field of the first unacceptable value.
+
+use super::desc::{self, SceneDesc, Vec3Desc};
+use super::{Background, RenderSettings, Scene, Shading, cover};
+use crate::camera::CameraSettings;
+use crate::error::{Error, Location, Result};
+use crate::geometry::{MaterialId, Sphere};
+use crate::material::{DiffuseModel, Material, Refraction};
+use crate::math::{Color, PixelRect, Vec3};
+use std::collections::BTreeMap;
+use std::ops::Range;
+use std::path::Path;
+use toml::Spanned;
+
+/// Settings given on the command line that replace the file's.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Overrides {
+    /// New width; the height follows the file's aspect ratio.
+    pub width: Option<u32>,
+    pub samples_per_pixel: Option<u32>,
+    pub max_depth: Option<u32>,
+    pub seed: Option<u64>,
+}
+
+/// Where validation errors point: the source text and its path.
+pub(super) struct Checker<'a> {
+    text: &'a str,
+    path: &'a Path,
+}
+
+impl Checker<'_> {
+    pub(super) fn error(
+        &self,
+        span: Range<usize>,
+        field: &str,
+        message: impl Into<String>,
+    ) -> Error {
+        Error::SceneValue {
+            path: self.path.to_owned(),
+            at: Location::of_offset(self.text, span.start),
+            field: field.to_owned(),
+            message: message.into(),
+        }
+    }
+
+    fn positive_int(&self, v: &Spanned<i64>, field: &str) -> Result<u32> {
+        let n = *v.get_ref();
+        if n <= 0 {
+            return Err(self.error(v.span(), field, format!("must be positive, got {n}")));
+        }
+        u32::try_from(n).map_err(|_| self.error(v.span(), field, format!("{n} is too large")))
+    }
+
+    pub(super) fn finite(&self, v: &Spanned<f64>, field: &str) -> Result<f32> {
+        let x = *v.get_ref();
+        if !x.is_finite() || !(x as f32).is_finite() {
+            return Err(self.error(v.span(), field, format!("must be a finite number, got {x}")));
+        }
+        Ok(x as f32)
+    }
+
+    pub(super) fn in_range(
+        &self,
+        v: &Spanned<f64>,
+        field: &str,
+        ok: impl Fn(f64) -> bool,
+        what: &str,
+    ) -> Result<f32> {
+        let x = self.finite(v, field)?;
+        if !ok(f64::from(x)) {
+            return Err(self.error(v.span(), field, format!("must be {what}, got {x}")));
+        }
+        Ok(x)
+    }
+
+    pub(super) fn vec3(&self, v: &Vec3Desc, field: &str) -> Result<Vec3> {
+        let [x, y, z] = *v.get_ref();
+        if ![x, y, z]
+            .iter()
+            .all(|c| c.is_finite() && (*c as f32).is_finite())
+        {
+            return Err(self.error(
+                v.span(),
+                field,
+                format!("must have three finite numbers, got [{x}, {y}, {z}]"),
+            ));
+        }
+        Ok(Vec3::new(x as f32, y as f32, z as f32))
+    }
+
+    pub(super) fn color(&self, v: &Vec3Desc, field: &str) -> Result<Color> {
+        let c = self.vec3(v, field)?;
+        if c.min_element() < 0.0 {
+            return Err(self.error(v.span(), field, format!("must not be negative, got {c}")));
+        }
+        Ok(c)
+    }
+}
+
+pub(super) fn build(
+    desc: &SceneDesc,
+    text: &str,
+    path: &Path,
+    overrides: &Overrides,
+) -> Result<Scene> {
+    let ck = Checker { text, path };
+    let settings = render_settings(desc, &ck, overrides)?;
+    let mut camera = match &desc.camera {
+        Some(c) => camera_settings(c, &ck)?,
+        None => CameraSettings {
+            lookfrom: Vec3::ZERO,
+            lookat: -Vec3::Z,
+            vup: Vec3::Y,
+            vfov_deg: 90.0,
+            aspect_ratio: 1.0,
+            aperture: 0.0,
+            focus_dist: 1.0,
+        },
+    };
+    // The viewport keeps the file's shape, whatever width the command line asks for.
+    camera.aspect_ratio = *desc.image.width.get_ref() as f32 / *desc.image.height.get_ref() as f32;
+    let background = match &desc.background {
+        None => Background::Gradient {
+            bottom: Color::ONE,
+            top: Color::new(0.5, 0.7, 1.0),
+        },
+        Some(b) => background(b, &ck)?,
+    };
+
+    let mut materials = Vec::with_capacity(desc.materials.len());
+    let mut ids = BTreeMap::new();
+    for (name, m) in &desc.materials {
+        ids.insert(name.as_str(), MaterialId(materials.len() as u32));
+        materials.push(material(name, m, &ck)?);
+    }
+
+    let mut spheres = Vec::with_capacity(desc.spheres.len());
+    for (i, s) in desc.spheres.iter().enumerate() {
+        let field = |f: &str| format!("spheres[{i}].{f}");
+        let center = ck.vec3(&s.center, &field("center"))?;
+        let radius = ck.in_range(&s.radius, &field("radius"), |r| r != 0.0, "non-zero")?;
+        let name = s.material.get_ref();
+        let Some(&id) = ids.get(name.as_str()) else {
+            let known: Vec<&str> = ids.keys().copied().collect();
+            let known = if known.is_empty() {
+                "no materials are defined".to_owned()
+            } else {
+                format!("defined materials: {}", known.join(", "))
+            };
+            return Err(ck.error(
+                s.material.span(),
+                &field("material"),
+                format!("unknown material `{name}` ({known})"),
+            ));
+        };
+        spheres.push(Sphere::new(center, radius, id));
+    }
+
+    if let Some(random) = &desc.random_spheres {
+        let generator = cover::RandomSpheres::from_desc(random.get_ref(), &ck)?;
+        generator.generate(
+            random.get_ref().seed.unwrap_or(settings.seed),
+            &mut materials,
+            &mut spheres,
+        );
+    }
+
+    Ok(Scene::new(settings, camera, background, materials, spheres))
+}
+
+fn render_settings(desc: &SceneDesc, ck: &Checker, ov: &Overrides) -> Result<RenderSettings> {
+    let img = &desc.image;
+    let file_width = ck.positive_int(&img.width, "image.width")?;
+    let file_height = ck.positive_int(&img.height, "image.height")?;
+    let positive = |v: Option<u32>, field: &str| match v {
+        Some(0) => Err(Error::Setting {
+            field: field.to_owned(),
+            message: "must be positive, got 0".to_owned(),
+        }),
+        other => Ok(other),
+    };
+    let (width, height) = match positive(ov.width, "width")? {
+        None => (file_width, file_height),
+        // Keep the file's aspect ratio, rounding the height down as the book does.
+        Some(w) => {
+            let h = u64::from(w) * u64::from(file_height) / u64::from(file_width);
+            let h = u32::try_from(h.max(1)).map_err(|_| Error::Setting {
+                field: "width".to_owned(),
+                message: format!("{w} makes the height too large"),
+            })?;
+            (w, h)
+        }
+    };
+    let samples_per_pixel = match positive(ov.samples_per_pixel, "spp")? {
+        Some(n) => n,
+        None => ck.positive_int(&img.samples_per_pixel, "image.samples_per_pixel")?,
+    };
+    let max_depth = match positive(ov.max_depth, "depth")? {
+        Some(n) => n,
+        None => ck.positive_int(&img.max_depth, "image.max_depth")?,
+    };
+    let window = match &img.crop {
+        None => PixelRect::full(width, height),
+        Some(c) => crop(c, ck, (file_width, file_height), (width, height))?,
+    };
+    let r = &desc.render;
+    Ok(RenderSettings {
+        width,
+        height,
+        window,
+        samples_per_pixel,
+        max_depth,
+        seed: ov.seed.unwrap_or(img.seed),
+        shading: match r.shading {
+            desc::ShadingDesc::Uv => Shading::Uv,
+            desc::ShadingDesc::Gradient => Shading::Gradient,
+            desc::ShadingDesc::Flat => Shading::Flat,
+            desc::ShadingDesc::Normals => Shading::Normals,
+            desc::ShadingDesc::Path => Shading::Path,
+        },
+        diffuse: match r.diffuse {
+            desc::DiffuseDesc::UnitSphere => DiffuseModel::UnitSphere,
+            desc::DiffuseDesc::Lambertian => DiffuseModel::Lambertian,
+            desc::DiffuseDesc::Hemisphere => DiffuseModel::Hemisphere,
+        },
+        gamma: ck.in_range(&r.gamma, "render.gamma", |g| g > 0.0, "positive")?,
+        t_min: ck.in_range(&r.t_min, "render.t_min", |t| t >= 0.0, "zero or positive")?,
+        jitter: r.jitter,
+    })
+}
+
+/// The crop window, checked against the file's image size and scaled with a width override.
+fn crop(
+    c: &Spanned<[i64; 4]>,
+    ck: &Checker,
+    (file_w, file_h): (u32, u32),
+    (w, h): (u32, u32),
+) -> Result<PixelRect> {
+    let [x0, y0, cw, ch] = *c.get_ref();
+    let fits = x0 >= 0
+        && y0 >= 0
+        && cw > 0
+        && ch > 0
+        && x0 + cw <= i64::from(file_w)
+        && y0 + ch <= i64::from(file_h);
+    if !fits {
+        return Err(ck.error(
+            c.span(),
+            "image.crop",
+            format!("[{x0}, {y0}, {cw}, {ch}] is not a non-empty rectangle inside the {file_w}x{file_h} image"),
+        ));
+    }
+    let scale = |v: i64, new: u32, old: u32| (v as u64 * u64::from(new) / u64::from(old)) as u32;
+    let x0 = scale(x0, w, file_w).min(w - 1);
+    let y0 = scale(y0, h, file_h).min(h - 1);
+    Ok(PixelRect {
+        x0,
+        y0,
+        width: scale(cw, w, file_w).clamp(1, w - x0),
+        height: scale(ch, h, file_h).clamp(1, h - y0),
+    })
+}
+
+fn camera_settings(c: &desc::CameraDesc, ck: &Checker) -> Result<CameraSettings> {
+    let lookfrom = ck.vec3(&c.lookfrom, "camera.lookfrom")?;
+    let lookat = ck.vec3(&c.lookat, "camera.lookat")?;
+    let view = lookat - lookfrom;
+    if view.length_squared() == 0.0 {
+        return Err(ck.error(
+            c.lookat.span(),
+            "camera.lookat",
+            "must differ from lookfrom",
+        ));
+    }
+    let vup = match &c.vup {
+        Some(v) => {
+            let vup = ck.vec3(v, "camera.vup")?;
+            if view.normalize().cross(vup).length_squared() < 1e-12 {
+                return Err(ck.error(
+                    v.span(),
+                    "camera.vup",
+                    "must not be zero or parallel to the view direction",
+                ));
+            }
+            vup
+        }
+        None => Vec3::Y,
+    };
+    let vfov_deg = ck.in_range(
+        &c.vfov_deg,
+        "camera.vfov_deg",
+        |v| v > 0.0 && v < 180.0,
+        "between 0 and 180 degrees",
+    )?;
+    let aperture = match &c.aperture {
+        Some(a) => ck.in_range(a, "camera.aperture", |a| a >= 0.0, "zero or positive")?,
+        None => 0.0,
+    };
+    let focus_dist = match &c.focus_dist {
+        Some(f) => ck.in_range(f, "camera.focus_dist", |f| f > 0.0, "positive")?,
+        None => view.length(),
+    };
+    Ok(CameraSettings {
+        lookfrom,
+        lookat,
+        vup,
+        vfov_deg,
+        aspect_ratio: 1.0,
+        aperture,
+        focus_dist,
+    })
+}
+
+/// Rejects the fields of a typed table that do not belong to its `type`.
+fn only_fields(
+    ck: &Checker,
+    prefix: &str,
+    kind: &str,
+    allowed: &[&str],
+    present: &[(&str, Option<Range<usize>>)],
+) -> Result<()> {
+    for (name, span) in present {
+        if let Some(span) = span
+            && !allowed.contains(name)
+        {
+            return Err(ck.error(
+                span.clone(),
+                &format!("{prefix}.{name}"),
+                format!(
+                    "does not apply to type `{kind}` (allowed: {})",
+                    allowed.join(", ")
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The value of a field its table's `type` requires, or an error at the table.
+fn required<'a, T>(
+    ck: &Checker,
+    value: Option<&'a T>,
+    table: Range<usize>,
+    field: &str,
+    kind: &str,
+) -> Result<&'a T> {
+    value.ok_or_else(|| ck.error(table, field, format!("missing, required by type `{kind}`")))
+}
+
+fn background(b: &Spanned<desc::BackgroundDesc>, ck: &Checker) -> Result<Background> {
+    let d = b.get_ref();
+    let kind = d.kind.get_ref().as_str();
+    let present = [
+        ("bottom", d.bottom.as_ref().map(Spanned::span)),
+        ("top", d.top.as_ref().map(Spanned::span)),
+        ("color", d.color.as_ref().map(Spanned::span)),
+    ];
+    let need = |v, f: &str| required(ck, v, b.span(), &format!("background.{f}"), kind);
+    match kind {
+        "gradient" => {
+            only_fields(ck, "background", kind, &["bottom", "top"], &present)?;
+            Ok(Background::Gradient {
+                bottom: ck.color(need(d.bottom.as_ref(), "bottom")?, "background.bottom")?,
+                top: ck.color(need(d.top.as_ref(), "top")?, "background.top")?,
+            })
+        }
+        "uniform" => {
+            only_fields(ck, "background", kind, &["color"], &present)?;
+            let color = need(d.color.as_ref(), "color")?;
+            Ok(Background::Uniform(ck.color(color, "background.color")?))
+        }
+        other => Err(ck.error(
+            d.kind.span(),
+            "background.type",
+            format!("unknown background type `{other}`; expected `gradient` or `uniform`"),
+        )),
+    }
+}
+
+fn material(name: &str, m: &Spanned<desc::MaterialDesc>, ck: &Checker) -> Result<Material> {
+    let d = m.get_ref();
+    let prefix = format!("materials.{name}");
+    let field = |f: &str| format!("{prefix}.{f}");
+    let kind = d.kind.get_ref().as_str();
+    let present = [
+        ("albedo", d.albedo.as_ref().map(Spanned::span)),
+        ("fuzz", d.fuzz.as_ref().map(Spanned::span)),
+        ("ir", d.ir.as_ref().map(Spanned::span)),
+        ("refraction", d.refraction.as_ref().map(Spanned::span)),
+    ];
+    let albedo = || {
+        let v = required(ck, d.albedo.as_ref(), m.span(), &field("albedo"), kind)?;
+        ck.color(v, &field("albedo"))
+    };
+    Ok(match kind {
+        "lambertian" => {
+            only_fields(ck, &prefix, kind, &["albedo"], &present)?;
+            Material::Lambertian { albedo: albedo()? }
+        }
+        "metal" => {
+            only_fields(ck, &prefix, kind, &["albedo", "fuzz"], &present)?;
+            let fuzz = match &d.fuzz {
+                Some(f) => {
+                    ck.in_range(f, &field("fuzz"), |f| (0.0..=1.0).contains(&f), "in [0, 1]")?
+                }
+                None => 0.0,
+            };
+            Material::Metal {
+                albedo: albedo()?,
+                fuzz,
+            }
+        }
+        "dielectric" => {
+            only_fields(ck, &prefix, kind, &["ir", "refraction"], &present)?;
+            let ir = required(ck, d.ir.as_ref(), m.span(), &field("ir"), kind)?;
+            Material::Dielectric {
+                ir: ck.in_range(ir, &field("ir"), |i| i > 0.0, "positive")?,
+                refraction: match d.refraction.as_ref().map(|r| *r.get_ref()) {
+                    Some(desc::RefractionDesc::Always) => Refraction::Always,
+                    Some(desc::RefractionDesc::Snell) => Refraction::Snell,
+                    Some(desc::RefractionDesc::Inverted) => Refraction::Inverted,
+                    Some(desc::RefractionDesc::Schlick) | None => Refraction::Schlick,
+                },
+            }
+        }
+        other => {
+            return Err(ck.error(
+                d.kind.span(),
+                &field("type"),
+                format!(
+                    "unknown material type `{other}`; expected `lambertian`, `metal` or `dielectric`"
+                ),
+            ));
+        }
+    })
+}

@@ -1,0 +1,205 @@
+//! The scene file as written: serde types mirroring the TOML, with source spans kept for the
+//! values that are validated later. Nothing here is used by the renderer directly.
+
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use toml::Spanned;
+
+pub type Vec3Desc = Spanned<[f64; 3]>;
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneDesc {
+    pub image: ImageDesc,
+    #[serde(default)]
+    pub render: RenderDesc,
+    /// Defaults to the book's first camera: at the origin, looking down -z, 90° vertical fov.
+    #[serde(default)]
+    pub camera: Option<CameraDesc>,
+    #[serde(default)]
+    pub background: Option<Spanned<BackgroundDesc>>,
+    #[serde(default)]
+    pub materials: BTreeMap<String, Spanned<MaterialDesc>>,
+    #[serde(default)]
+    pub spheres: Vec<SphereDesc>,
+    #[serde(default)]
+    pub random_spheres: Option<Spanned<RandomSpheresDesc>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImageDesc {
+    pub width: Spanned<i64>,
+    pub height: Spanned<i64>,
+    pub samples_per_pixel: Spanned<i64>,
+    pub max_depth: Spanned<i64>,
+    #[serde(default)]
+    pub seed: u64,
+    /// Render and write only `[x, y, width, height]` of the image (pixels, top row 0).
+    #[serde(default)]
+    pub crop: Option<Spanned<[i64; 4]>>,
+}
+
+#[derive(Debug, Default, Deserialize, Clone, Copy, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum ShadingDesc {
+    Uv,
+    Gradient,
+    Flat,
+    Normals,
+    #[default]
+    Path,
+}
+
+#[derive(Debug, Default, Deserialize, Clone, Copy, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum DiffuseDesc {
+    UnitSphere,
+    #[default]
+    Lambertian,
+    Hemisphere,
+}
+
+#[derive(Debug, Default, Deserialize, Clone, Copy, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum RefractionDesc {
+    Always,
+    Snell,
+    #[default]
+    Schlick,
+    Inverted,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RenderDesc {
+    #[serde(default)]
+    pub shading: ShadingDesc,
+    #[serde(default)]
+    pub diffuse: DiffuseDesc,
+    #[serde(default = "default_gamma")]
+    pub gamma: Spanned<f64>,
+    #[serde(default = "default_t_min")]
+    pub t_min: Spanned<f64>,
+    #[serde(default = "default_true")]
+    pub jitter: bool,
+}
+
+impl Default for RenderDesc {
+    fn default() -> Self {
+        Self {
+            shading: ShadingDesc::default(),
+            diffuse: DiffuseDesc::default(),
+            gamma: default_gamma(),
+            t_min: default_t_min(),
+            jitter: true,
+        }
+    }
+}
+
+fn default_gamma() -> Spanned<f64> {
+    Spanned::new(0..0, 2.0)
+}
+
+fn default_t_min() -> Spanned<f64> {
+    Spanned::new(0..0, 0.001)
+}
+
+fn default_true() -> bool {
+    true
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraDesc {
+    pub lookfrom: Vec3Desc,
+    pub lookat: Vec3Desc,
+    #[serde(default)]
+    pub vup: Option<Vec3Desc>,
+    pub vfov_deg: Spanned<f64>,
+    #[serde(default)]
+    pub aperture: Option<Spanned<f64>>,
+    #[serde(default)]
+    pub focus_dist: Option<Spanned<f64>>,
+}
+
+/// The colour of escaping rays. `type = "gradient"` is the book's sky, `(1-t)·bottom + t·top`
+/// with `t = (dir.y + 1) / 2`; `type = "uniform"` is one `color`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BackgroundDesc {
+    #[serde(rename = "type")]
+    pub kind: Spanned<String>,
+    pub bottom: Option<Vec3Desc>,
+    pub top: Option<Vec3Desc>,
+    pub color: Option<Vec3Desc>,
+}
+
+/// A material. Which fields apply depends on `type` (lambertian: albedo; metal: albedo,
+/// fuzz; dielectric: ir, refraction); the builder rejects the others. A flat struct rather
+/// than a tagged enum keeps every value's position in the file for error messages.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialDesc {
+    #[serde(rename = "type")]
+    pub kind: Spanned<String>,
+    pub albedo: Option<Vec3Desc>,
+    pub fuzz: Option<Spanned<f64>>,
+    pub ir: Option<Spanned<f64>>,
+    pub refraction: Option<Spanned<RefractionDesc>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SphereDesc {
+    pub center: Vec3Desc,
+    pub radius: Spanned<f64>,
+    pub material: Spanned<String>,
+}
+
+/// The book's `random_scene()` grid of small spheres.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RandomSpheresDesc {
+    /// Seed of the generator; defaults to the image seed.
+    #[serde(default)]
+    pub seed: Option<u64>,
+    /// Grid cells run over `a, b in -grid..grid`.
+    #[serde(default = "default_grid")]
+    pub grid: Spanned<i64>,
+    #[serde(default = "default_radius")]
+    pub radius: Spanned<f64>,
+    /// Cells whose sphere lands within `clearance` of any of these points stay empty.
+    #[serde(default = "default_keep_clear")]
+    pub keep_clear: Vec<Vec3Desc>,
+    #[serde(default = "default_clearance")]
+    pub clearance: Spanned<f64>,
+    #[serde(default = "default_p_diffuse")]
+    pub p_diffuse: Spanned<f64>,
+    #[serde(default = "default_p_metal")]
+    pub p_metal: Spanned<f64>,
+    #[serde(default = "default_glass_ir")]
+    pub glass_ir: Spanned<f64>,
+}
+
+fn default_grid() -> Spanned<i64> {
+    Spanned::new(0..0, 11)
+}
+fn default_radius() -> Spanned<f64> {
+    Spanned::new(0..0, 0.2)
+}
+fn default_keep_clear() -> Vec<Vec3Desc> {
+    vec![Spanned::new(0..0, [4.0, 0.2, 0.0])]
+}
+fn default_clearance() -> Spanned<f64> {
+    Spanned::new(0..0, 0.9)
+}
+fn default_p_diffuse() -> Spanned<f64> {
+    Spanned::new(0..0, 0.8)
+}
+fn default_p_metal() -> Spanned<f64> {
+    Spanned::new(0..0, 0.15)
+}
+fn default_glass_ir() -> Spanned<f64> {
+    Spanned::new(0..0, 1.5)
+}

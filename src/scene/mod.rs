@@ -1,0 +1,168 @@
+//! Scenes: loading a TOML scene file, validating it, and the runtime scene the renderer reads.
+
+mod build;
+mod cover;
+pub mod desc;
+
+pub use build::Overrides;
+
+use crate::bvh::Bvh;
+use crate::camera::{Camera, CameraSettings};
+use crate::error::{Error, Location, Result};
+use crate::geometry::{Hit, PrimitiveId, Sphere};
+use crate::material::{DiffuseModel, Material};
+use crate::math::{Color, Interval, PixelRect, Vec3};
+use crate::ray::Ray;
+use std::path::Path;
+
+/// What each camera sample computes: the book's stages before path tracing, then the path
+/// tracer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Shading {
+    /// Pixel coordinates as red and green (image 1); no rays.
+    Uv,
+    /// The background seen through the camera, ignoring objects (image 2).
+    Gradient,
+    /// The surface's albedo where a ray hits, the background elsewhere (image 3).
+    Flat,
+    /// `(n + 1) / 2` of the front-facing normal (images 4–6).
+    Normals,
+    /// Full path tracing with materials (images 7 onwards).
+    Path,
+}
+
+/// The colour of rays that escape the scene.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Background {
+    Gradient { bottom: Color, top: Color },
+    Uniform(Color),
+}
+
+impl Background {
+    #[inline]
+    pub fn radiance(&self, unit_dir: Vec3) -> Color {
+        match *self {
+            Background::Gradient { bottom, top } => {
+                let t = 0.5 * (unit_dir.y + 1.0);
+                (1.0 - t) * bottom + t * top
+            }
+            Background::Uniform(c) => c,
+        }
+    }
+}
+
+/// Image size, sampling and the integrator's knobs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RenderSettings {
+    pub width: u32,
+    pub height: u32,
+    /// The pixels to render and write (the whole image unless the scene crops it).
+    pub window: PixelRect,
+    pub samples_per_pixel: u32,
+    pub max_depth: u32,
+    pub seed: u64,
+    pub shading: Shading,
+    pub diffuse: DiffuseModel,
+    /// Display gamma of 8-bit outputs (the book: 1 until §8.3, then 2).
+    pub gamma: f32,
+    /// Shadow-acne guard (§8.4): scattered rays start this far off the surface along the
+    /// normal. Zero reproduces the book's acne.
+    pub t_min: f32,
+    /// Jitter samples within the pixel (anti-aliasing, §7); off for the first figures.
+    pub jitter: bool,
+}
+
+/// A validated, ready-to-render scene.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    pub settings: RenderSettings,
+    pub camera_settings: CameraSettings,
+    pub camera: Camera,
+    pub background: Background,
+    pub materials: Vec<Material>,
+    pub spheres: Vec<Sphere>,
+    bvh: Bvh,
+}
+
+impl Scene {
+    /// Assembles a scene from runtime parts (used by the builder and by tests).
+    pub fn new(
+        settings: RenderSettings,
+        camera_settings: CameraSettings,
+        background: Background,
+        materials: Vec<Material>,
+        spheres: Vec<Sphere>,
+    ) -> Self {
+        let bvh = Bvh::build(&spheres);
+        Self {
+            settings,
+            camera: Camera::new(&camera_settings),
+            camera_settings,
+            background,
+            materials,
+            spheres,
+            bvh,
+        }
+    }
+
+    /// Reads, parses and validates a scene file, applying command-line overrides.
+    pub fn load(path: &Path, overrides: &Overrides) -> Result<Scene> {
+        let text = std::fs::read_to_string(path).map_err(|cause| Error::Io {
+            path: path.to_owned(),
+            cause,
+        })?;
+        Self::parse(&text, path, overrides)
+    }
+
+    /// Parses and validates scene text; `path` only names the source in errors.
+    pub fn parse(text: &str, path: &Path, overrides: &Overrides) -> Result<Scene> {
+        let desc: desc::SceneDesc = toml::from_str(text).map_err(|e| {
+            let at = Location::of_offset(text, e.span().map_or(0, |s| s.start));
+            Error::SceneSyntax {
+                path: path.to_owned(),
+                at,
+                message: e.message().trim().to_owned(),
+            }
+        })?;
+        build::build(&desc, text, path, overrides)
+    }
+
+    /// The closest hit along `ray` within `interval`.
+    #[inline]
+    pub fn hit(&self, ray: &Ray, interval: Interval) -> Option<Hit> {
+        self.bvh
+            .intersect(ray, interval)
+            .map(|(t, id)| self.surface(ray, t, id))
+    }
+
+    /// The closest hit, found by testing every sphere (reference for tests).
+    pub fn hit_brute_force(&self, ray: &Ray, interval: Interval) -> Option<Hit> {
+        crate::bvh::intersect_brute_force(&self.spheres, ray, interval)
+            .map(|(t, id)| self.surface(ray, t, id))
+    }
+
+    #[inline]
+    fn surface(&self, ray: &Ray, t: f32, id: PrimitiveId) -> Hit {
+        let sphere = &self.spheres[id.0 as usize];
+        let p = ray.at(t);
+        let outward = sphere.normal_at(p);
+        let front_face = ray.dir.dot(outward) < 0.0;
+        Hit {
+            t,
+            p,
+            normal: if front_face { outward } else { -outward },
+            front_face,
+            material: sphere.material,
+            primitive: id,
+        }
+    }
+
+    pub fn material(&self, hit: &Hit) -> &Material {
+        &self.materials[hit.material.0 as usize]
+    }
+
+    /// Number of camera samples in the rendered window.
+    pub fn total_samples(&self) -> u64 {
+        self.settings.window.area() * u64::from(self.settings.samples_per_pixel)
+    }
+}
