@@ -121,7 +121,7 @@ impl Scene {
             Error::SceneSyntax {
                 path: path.to_owned(),
                 at,
-                message: e.message().trim().to_owned(),
+                message: plain_types(e.message().trim()),
             }
         })?;
         build::build(&desc, text, path, overrides)
@@ -165,4 +165,13 @@ impl Scene {
     pub fn total_samples(&self) -> u64 {
         self.settings.window.area() * u64::from(self.settings.samples_per_pixel)
     }
+}
+
+/// Serde names Rust types in its messages; a scene author knows TOML's.
+fn plain_types(message: &str) -> String {
+    message
+        .replace("expected i64", "expected an integer")
+        .replace("expected u64", "expected a non-negative integer")
+        .replace("expected f64", "expected a number")
+        .replace("a spanned value", "a value")
 }

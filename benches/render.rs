@@ -1,0 +1,77 @@
+//! Criterion benchmarks: a tile of the cover scene (samples/s), the BVH build, and
+//! closest-hit queries against the cover (rays/s). Fixed seeds and sizes.
+
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use std::hint::black_box;
+use std::path::Path;
+use tessera::bvh::Bvh;
+use tessera::math::{Interval, PixelRect};
+use tessera::ray::Ray;
+use tessera::render::render_tile;
+use tessera::sampling::Sampler;
+use tessera::scene::{Overrides, Scene};
+
+fn cover(spp: u32) -> Scene {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cover.toml");
+    Scene::load(
+        &path,
+        &Overrides {
+            samples_per_pixel: Some(spp),
+            ..Overrides::default()
+        },
+    )
+    .expect("cover scene")
+}
+
+fn tile(c: &mut Criterion) {
+    let scene = cover(4);
+    // A 32x32 tile across the three big spheres and the ground, one thread.
+    let tile = PixelRect {
+        x0: 560,
+        y0: 360,
+        width: 32,
+        height: 32,
+    };
+    let mut g = c.benchmark_group("cover");
+    g.throughput(Throughput::Elements(tile.area() * 4));
+    g.bench_function("tile_32x32_4spp", |b| {
+        b.iter(|| render_tile(black_box(&scene), &tile))
+    });
+    g.finish();
+}
+
+fn bvh(c: &mut Criterion) {
+    let scene = cover(1);
+    let mut g = c.benchmark_group("bvh");
+    g.throughput(Throughput::Elements(scene.spheres.len() as u64));
+    g.bench_function("build_cover", |b| {
+        b.iter(|| Bvh::build(black_box(&scene.spheres)))
+    });
+    g.finish();
+
+    let mut rng = Sampler::from_seed(1);
+    let rays: Vec<Ray> = (0..4096)
+        .map(|_| {
+            let origin = scene.camera_settings.lookfrom;
+            let target = tessera::math::Vec3::new(
+                rng.range(-8.0, 8.0),
+                rng.range(0.0, 2.0),
+                rng.range(-4.0, 4.0),
+            );
+            Ray::new(origin, (target - origin).normalize())
+        })
+        .collect();
+    let mut g = c.benchmark_group("intersect");
+    g.throughput(Throughput::Elements(rays.len() as u64));
+    g.bench_function("cover_closest_hit", |b| {
+        b.iter(|| {
+            rays.iter()
+                .filter(|r| scene.hit(r, Interval::new(0.0, f32::INFINITY)).is_some())
+                .count()
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, tile, bvh);
+criterion_main!(benches);

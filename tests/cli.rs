@@ -1,0 +1,392 @@
+//! The `tessera` binary end to end: outputs, determinism across thread counts, and every kind
+//! of bad input giving a clear message, exit status 2, and no damage on disk.
+
+mod common;
+
+use common::*;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn tessera(args: &[&str], cwd: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_tessera"))
+        .args(args)
+        .current_dir(cwd)
+        .output()
+        .expect("run tessera")
+}
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+fn cover() -> String {
+    scene_path("cover.toml").to_string_lossy().into_owned()
+}
+
+#[test]
+fn thread_counts_give_identical_files_in_every_format() {
+    let dir = temp_dir("threads");
+    for ext in ["png", "ppm", "exr"] {
+        let mut files: Vec<Vec<u8>> = Vec::new();
+        for threads in ["1", "2", "3"] {
+            let out = format!("t{threads}.{ext}");
+            let o = tessera(
+                &[
+                    "render",
+                    &cover(),
+                    "--width",
+                    "60",
+                    "--spp",
+                    "3",
+                    "--threads",
+                    threads,
+                    "-o",
+                    &out,
+                    "--quiet",
+                ],
+                &dir,
+            );
+            assert!(o.status.success(), "{}", stderr(&o));
+            files.push(std::fs::read(dir.join(&out)).unwrap());
+        }
+        assert!(
+            files.windows(2).all(|w| w[0] == w[1]),
+            "{ext} differs across threads"
+        );
+    }
+    let ppm = String::from_utf8(std::fs::read(dir.join("t1.ppm")).unwrap()).unwrap();
+    assert!(ppm.starts_with("P3\n60 40\n255\n"), "{}", &ppm[..20]);
+    assert_eq!(ppm.lines().count(), 3 + 60 * 40);
+}
+
+#[test]
+fn default_output_is_named_after_the_scene_and_summary_is_printed() {
+    let dir = temp_dir("default-out");
+    let o = tessera(&["render", &cover(), "--width", "30", "--spp", "1"], &dir);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(dir.join("cover.png").exists());
+    let err = stderr(&o);
+    for word in ["samples/s", "Mrays/s", "rays/sample", "wall"] {
+        assert!(err.contains(word), "summary lacks {word}: {err}");
+    }
+    let quiet = tessera(
+        &["render", &cover(), "--width", "30", "--spp", "1", "-q"],
+        &dir,
+    );
+    assert!(
+        quiet.status.success() && quiet.stderr.is_empty(),
+        "{}",
+        stderr(&quiet)
+    );
+}
+
+#[test]
+fn compare_reports_rmse_and_psnr() {
+    let dir = temp_dir("compare");
+    for (name, spp) in [("a.png", "2"), ("b.png", "2"), ("c.png", "8")] {
+        let o = tessera(
+            &[
+                "render",
+                &cover(),
+                "--width",
+                "40",
+                "--spp",
+                spp,
+                "-o",
+                name,
+                "-q",
+            ],
+            &dir,
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let same = tessera(&["compare", "a.png", "b.png"], &dir);
+    let same = String::from_utf8_lossy(&same.stdout).into_owned();
+    assert!(
+        same.contains("RMSE 0.000000") && same.contains("inf dB"),
+        "{same}"
+    );
+    let differ = tessera(&["compare", "a.png", "c.png"], &dir);
+    let differ = String::from_utf8_lossy(&differ.stdout).into_owned();
+    assert!(
+        differ.contains("PSNR") && !differ.contains("inf"),
+        "{differ}"
+    );
+    let o = tessera(
+        &[
+            "render",
+            &cover(),
+            "--width",
+            "20",
+            "-o",
+            "d.png",
+            "-q",
+            "--spp",
+            "1",
+        ],
+        &dir,
+    );
+    assert!(o.status.success());
+    let mismatch = tessera(&["compare", "a.png", "d.png"], &dir);
+    assert_eq!(mismatch.status.code(), Some(2));
+    assert!(
+        stderr(&mismatch).contains("differ in size"),
+        "{}",
+        stderr(&mismatch)
+    );
+}
+
+#[test]
+fn bench_prints_json() {
+    let dir = temp_dir("bench");
+    let o = tessera(
+        &[
+            "bench",
+            &cover(),
+            "--width",
+            "40",
+            "--spp",
+            "2",
+            "--threads",
+            "2",
+            "--json",
+        ],
+        &dir,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("one JSON object");
+    for key in [
+        "samples_per_sec",
+        "mrays_per_sec",
+        "rays_per_sample",
+        "wall_s",
+        "threads",
+        "width",
+        "height",
+        "spp",
+    ] {
+        assert!(v.get(key).is_some(), "missing {key} in {v}");
+    }
+    assert_eq!(v["width"], 40);
+    assert_eq!(v["height"], 26);
+    assert_eq!(v["threads"], 2);
+    let rps = v["rays_per_sample"].as_f64().unwrap();
+    assert!((2.0..3.5).contains(&rps), "rays per sample {rps}");
+}
+
+/// A valid small scene to break one line at a time.
+const GOOD: &str = r#"[image]
+width = 16
+height = 9
+samples_per_pixel = 1
+max_depth = 5
+
+[materials.red]
+type = "lambertian"
+albedo = [0.9, 0.1, 0.1]
+
+[[spheres]]
+center = [0.0, 0.0, -1.0]
+radius = 0.5
+material = "red"
+"#;
+
+/// Writes `text` as a scene, renders it over an existing output, and checks the failure:
+/// exit status 2, every expected fragment in the message, no panic, the old output intact.
+fn assert_rejected(name: &str, text: &str, expected: &[&str]) {
+    let dir = temp_dir(&format!("bad-{name}"));
+    let scene = dir.join("scene.toml");
+    std::fs::write(&scene, text).unwrap();
+    let out = dir.join("out.png");
+    std::fs::write(&out, b"precious").unwrap();
+    let o = tessera(&["render", "scene.toml", "-o", "out.png"], &dir);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{name}: {err}");
+    assert!(!err.contains("panicked"), "{name}: {err}");
+    for e in expected {
+        assert!(err.contains(e), "{name}: expected `{e}` in: {err}");
+    }
+    assert_eq!(
+        std::fs::read(&out).unwrap(),
+        b"precious",
+        "{name} damaged the old output"
+    );
+    let leftovers: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    assert_eq!(
+        leftovers.len(),
+        2,
+        "{name} left files behind: {leftovers:?}"
+    );
+}
+
+#[test]
+fn the_good_scene_renders() {
+    let dir = temp_dir("good");
+    std::fs::write(dir.join("scene.toml"), GOOD).unwrap();
+    let o = tessera(&["render", "scene.toml", "-o", "out.png", "-q"], &dir);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+#[test]
+fn unknown_key_is_named_with_its_line_and_column() {
+    let text = GOOD.replace("max_depth = 5", "max_depth = 5\nwidht = 3");
+    assert_rejected(
+        "unknown-key",
+        &text,
+        &["scene.toml:6:1", "unknown field `widht`"],
+    );
+}
+
+#[test]
+fn unknown_material_name_lists_the_defined_ones() {
+    let text = GOOD.replace("material = \"red\"", "material = \"blue\"");
+    assert_rejected(
+        "unknown-material",
+        &text,
+        &[
+            "scene.toml:14:12",
+            "spheres[0].material",
+            "unknown material `blue`",
+            "red",
+        ],
+    );
+}
+
+#[test]
+fn unknown_material_type_is_rejected() {
+    let text = GOOD.replace("type = \"lambertian\"", "type = \"plastic\"");
+    assert_rejected(
+        "material-type",
+        &text,
+        &["scene.toml:8:8", "materials.red.type", "plastic"],
+    );
+}
+
+#[test]
+fn missing_field_is_named() {
+    assert_rejected(
+        "missing-height",
+        &GOOD.replace("height = 9\n", ""),
+        &["scene.toml:1:1", "missing field `height`"],
+    );
+    let no_albedo = GOOD.replace("albedo = [0.9, 0.1, 0.1]\n", "");
+    assert_rejected(
+        "missing-albedo",
+        &no_albedo,
+        &["scene.toml:7:1", "materials.red.albedo", "missing"],
+    );
+}
+
+#[test]
+fn negative_and_zero_sizes_are_rejected() {
+    assert_rejected(
+        "negative-width",
+        &GOOD.replace("width = 16", "width = -16"),
+        &["scene.toml:2:9", "image.width", "must be positive, got -16"],
+    );
+    assert_rejected(
+        "zero-spp",
+        &GOOD.replace("samples_per_pixel = 1", "samples_per_pixel = 0"),
+        &[
+            "scene.toml:4:21",
+            "image.samples_per_pixel",
+            "must be positive",
+        ],
+    );
+    assert_rejected(
+        "zero-radius",
+        &GOOD.replace("radius = 0.5", "radius = 0.0"),
+        &["scene.toml:13:10", "spheres[0].radius", "non-zero"],
+    );
+}
+
+#[test]
+fn nan_and_infinity_are_rejected() {
+    assert_rejected(
+        "nan-radius",
+        &GOOD.replace("radius = 0.5", "radius = nan"),
+        &["scene.toml:13:10", "spheres[0].radius", "finite", "NaN"],
+    );
+    assert_rejected(
+        "inf-center",
+        &GOOD.replace("[0.0, 0.0, -1.0]", "[0.0, inf, -1.0]"),
+        &["scene.toml:12:10", "spheres[0].center", "finite"],
+    );
+}
+
+#[test]
+fn malformed_toml_is_located() {
+    assert_rejected(
+        "syntax",
+        &GOOD.replace("width = 16", "width = = 16"),
+        &["scene.toml:2:"],
+    );
+    assert_rejected(
+        "wrong-type",
+        &GOOD.replace("width = 16", "width = \"wide\""),
+        &["scene.toml:2:9", "integer"],
+    );
+}
+
+#[test]
+fn fields_of_another_material_type_are_rejected() {
+    let text = GOOD.replace(
+        "albedo = [0.9, 0.1, 0.1]",
+        "albedo = [0.9, 0.1, 0.1]\nir = 1.5",
+    );
+    assert_rejected(
+        "foreign-field",
+        &text,
+        &["scene.toml:10:6", "materials.red.ir", "does not apply"],
+    );
+}
+
+#[test]
+fn bad_command_lines_exit_2_without_touching_output() {
+    let dir = temp_dir("bad-args");
+    std::fs::write(dir.join("scene.toml"), GOOD).unwrap();
+    std::fs::write(dir.join("out.png"), b"precious").unwrap();
+    for (args, expect) in [
+        (
+            vec!["render", "missing.toml", "-o", "out.png"],
+            "missing.toml",
+        ),
+        (
+            vec!["render", "scene.toml", "-o", "out.jpg"],
+            "unsupported output extension",
+        ),
+        (
+            vec!["render", "scene.toml", "-o", "out.png", "--threads", "0"],
+            "--threads",
+        ),
+        (
+            vec!["render", "scene.toml", "-o", "out.png", "--width", "0"],
+            "width",
+        ),
+        (
+            vec!["render", "scene.toml", "-o", "out.png", "--spp", "-3"],
+            "-3",
+        ),
+        (
+            vec!["render", "scene.toml", "-o", "no/such/dir/out.png"],
+            "out.png",
+        ),
+        (vec!["compare", "out.png", "scene.toml"], "out.png"),
+    ] {
+        let o = tessera(&args, &dir);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains(expect) && !err.contains("panicked"),
+            "{args:?}: {err}"
+        );
+        assert_eq!(
+            std::fs::read(dir.join("out.png")).unwrap(),
+            b"precious",
+            "{args:?}"
+        );
+    }
+}

@@ -1,0 +1,49 @@
+//! Helpers shared by the end-to-end tests: paths, loading scenes, rendering quietly.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use tessera::film::Film;
+use tessera::render::{self, RenderOptions, RenderStats};
+use tessera::scene::{Overrides, Scene};
+
+pub fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+pub fn scene_path(name: &str) -> PathBuf {
+    root().join("scenes").join(name)
+}
+
+/// The book's figures, beside the project in `../shared/book-figures`.
+pub fn figures_dir() -> PathBuf {
+    root().join("..").join("shared").join("book-figures")
+}
+
+pub fn load(path: &Path, overrides: Overrides) -> Scene {
+    Scene::load(path, &overrides).unwrap_or_else(|e| panic!("{e}"))
+}
+
+pub fn load_text(text: &str) -> Scene {
+    Scene::parse(text, Path::new("test.toml"), &Overrides::default())
+        .unwrap_or_else(|e| panic!("{e}"))
+}
+
+pub fn render_with(scene: &Scene, threads: usize, tile: u32) -> (Film, RenderStats) {
+    let opts = RenderOptions {
+        threads: Some(threads),
+        tile,
+    };
+    render::render(scene, &opts, &|_| {}).expect("thread pool")
+}
+
+pub fn render(scene: &Scene) -> Film {
+    render_with(scene, 2, 16).0
+}
+
+/// A fresh, empty temporary directory for one test.
+pub fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("tessera-test-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
