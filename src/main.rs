@@ -127,8 +127,17 @@ fn cmd_render(args: RenderArgs) -> Result<()> {
     film.save(&output, scene.settings.gamma)?;
     if !args.quiet {
         let s = &scene.settings;
+        let w = s.window;
+        let crop = if (w.width, w.height) == (s.width, s.height) {
+            String::new()
+        } else {
+            format!(
+                " cropped to {}x{} at ({}, {})",
+                w.width, w.height, w.x0, w.y0
+            )
+        };
         eprintln!(
-            "{}: {}x{}, {} spp, depth {}, seed {} | {}",
+            "{}: {}x{}{crop}, {} spp, depth {}, seed {} | {}",
             output.display(),
             s.width,
             s.height,
@@ -155,7 +164,7 @@ fn progress_bar(total: u64, quiet: bool) -> ProgressBar {
     let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr());
     bar.set_style(
         ProgressStyle::with_template(
-            "{elapsed_precise} [{wide_bar}] {percent:>3}% {per_sec} ETA {eta_precise}",
+            "{elapsed_precise} [{wide_bar}] {percent:>3}% of {human_len} samples, ETA {eta_precise}",
         )
         .expect("progress template is valid")
         .progress_chars("=> "),
