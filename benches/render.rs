@@ -64,9 +64,14 @@ fn bvh(c: &mut Criterion) {
     let mut g = c.benchmark_group("intersect");
     g.throughput(Throughput::Elements(rays.len() as u64));
     g.bench_function("cover_closest_hit", |b| {
+        let mut stack = scene.new_stack();
         b.iter(|| {
             rays.iter()
-                .filter(|r| scene.hit(r, Interval::new(0.0, f32::INFINITY)).is_some())
+                .filter(|r| {
+                    scene
+                        .hit(r, Interval::new(0.0, f32::INFINITY), &mut stack)
+                        .is_some()
+                })
                 .count()
         })
     });

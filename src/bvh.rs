@@ -1,35 +1,118 @@
-//! A bounding volume hierarchy over spheres: a flat node array built with the binned surface
-//! area heuristic, traversed front to back with a fixed-size stack.
+//! A bounding volume hierarchy over spheres: built as a binary tree with the binned surface
+//! area heuristic, then collapsed into a flat array of four-wide nodes whose child boxes, and
+//! whose leaf spheres, are stored as structure-of-arrays and tested four at a time with SIMD.
 
 use crate::geometry::{Aabb, PrimitiveId, Sphere};
 use crate::math::{Interval, Vec3};
 use crate::ray::Ray;
+use glam::{BVec4A, Vec4};
 
-/// Leaves hold at most this many primitives.
+/// Leaves hold at most this many primitives: one SIMD pack.
 const MAX_LEAF: usize = 4;
 /// Number of SAH bins per axis.
 const BINS: usize = 12;
-/// Traversal stack depth; a build over `u32` primitives cannot exceed it.
-const STACK: usize = 64;
+/// Child reference flags: a leaf (pack index in the low bits), or no child at all.
+const LEAF: u32 = 1 << 31;
+const EMPTY: u32 = u32::MAX;
 
-/// One node: its bounds, and either two children (`count == 0`, children at `first` and
-/// `first + 1`) or a leaf of `count` primitives starting at `first` in `Bvh::order`.
+/// A node of the binary build tree: either two children (`count == 0`, at `first` and
+/// `first + 1`) or a leaf of `count` primitives starting at `first` of the build order.
 #[derive(Clone, Copy, Debug)]
 struct Node {
     bounds: Aabb,
     first: u32,
     count: u32,
-    axis: u8,
 }
 
-/// The hierarchy. Primitives are referenced through `order`, a permutation of the scene's
-/// primitive ids, so the scene keeps its own indexing.
+/// A four-wide node: the boxes of up to four children, one SIMD lane each.
+#[derive(Clone, Copy, Debug)]
+struct WideNode {
+    min: [Vec4; 3],
+    max: [Vec4; 3],
+    child: [u32; 4],
+}
+
+/// Up to four spheres in structure-of-arrays form; unused lanes have `r2 = -1`, which no
+/// ray can hit.
+#[derive(Clone, Copy, Debug)]
+struct SpherePack {
+    center: [Vec4; 3],
+    r2: Vec4,
+    id: [u32; 4],
+}
+
+impl SpherePack {
+    fn new(spheres: &[Sphere], ids: &[u32]) -> Self {
+        let mut p = SpherePack {
+            center: [Vec4::ZERO; 3],
+            r2: Vec4::splat(-1.0),
+            id: [u32::MAX; 4],
+        };
+        for (lane, &id) in ids.iter().enumerate() {
+            let s = &spheres[id as usize];
+            for axis in 0..3 {
+                p.center[axis][lane] = s.center[axis];
+            }
+            p.r2[lane] = s.radius * s.radius;
+            p.id[lane] = id;
+        }
+        p
+    }
+
+    /// The nearest hit among the four spheres within `(t_min, closest)`: the same arithmetic,
+    /// lane by lane, as `Sphere::intersect`.
+    #[inline]
+    fn intersect(
+        &self,
+        o: &[Vec4; 3],
+        d: &[Vec4; 3],
+        t_min: f32,
+        closest: f32,
+    ) -> Option<(f32, u32)> {
+        let fx = o[0] - self.center[0];
+        let fy = o[1] - self.center[1];
+        let fz = o[2] - self.center[2];
+        let b = -(fx * d[0] + fy * d[1] + fz * d[2]);
+        let (gx, gy, gz) = (fx + b * d[0], fy + b * d[1], fz + b * d[2]);
+        let disc = self.r2 - (gx * gx + gy * gy + gz * gz);
+        let valid = disc.cmpge(Vec4::ZERO);
+        if !valid.any() {
+            return None;
+        }
+        let sq = disc.max(Vec4::ZERO).sqrt();
+        let q = Vec4::select(b.cmpge(Vec4::ZERO), b + sq, b - sq);
+        let c = (fx * fx + fy * fy + fz * fz) - self.r2;
+        let q_zero = q.cmpeq(Vec4::ZERO);
+        let t0 = Vec4::select(q_zero, Vec4::ZERO, c / q);
+        let t1 = Vec4::select(q_zero, Vec4::ZERO, q);
+        let (near, far) = (t0.min(t1), t0.max(t1));
+        let (lo, hi) = (Vec4::splat(t_min), Vec4::splat(closest));
+        let inside = |t: Vec4| -> BVec4A { lo.cmplt(t) & t.cmplt(hi) };
+        let inf = Vec4::splat(f32::INFINITY);
+        let t = Vec4::select(inside(near), near, Vec4::select(inside(far), far, inf));
+        let t = Vec4::select(valid, t, inf);
+        let best = t.min_element();
+        if best == f32::INFINITY {
+            return None;
+        }
+        let lane = t.cmpeq(Vec4::splat(best)).bitmask().trailing_zeros();
+        Some((best, self.id[lane as usize]))
+    }
+}
+
+/// The hierarchy, ready to trace.
 #[derive(Clone, Debug, Default)]
 pub struct Bvh {
-    nodes: Vec<Node>,
-    order: Vec<u32>,
-    spheres: Vec<Sphere>,
+    nodes: Vec<WideNode>,
+    packs: Vec<SpherePack>,
+    /// Deepest level of inner nodes below the root (the root is level 0).
+    max_level: usize,
 }
+
+/// Scratch space for traversal, reused from ray to ray so no ray pays to clear or allocate
+/// it. One per thread of work (e.g. per tile).
+#[derive(Clone, Debug, Default)]
+pub struct TraversalStack(Vec<(u32, f32)>);
 
 struct BuildItem {
     bounds: Aabb,
@@ -38,7 +121,7 @@ struct BuildItem {
 }
 
 impl Bvh {
-    /// Builds the hierarchy over `spheres`, keeping a copy in traversal order.
+    /// Builds the hierarchy over `spheres`.
     pub fn build(spheres: &[Sphere]) -> Self {
         let mut items: Vec<BuildItem> = spheres
             .iter()
@@ -52,79 +135,205 @@ impl Bvh {
                 }
             })
             .collect();
-        let mut nodes = Vec::with_capacity(2 * spheres.len().max(1));
-        if !items.is_empty() {
-            nodes.push(Node {
-                bounds: Aabb::EMPTY,
-                first: 0,
-                count: 0,
-                axis: 0,
-            });
-            let len = items.len();
-            build_node(&mut nodes, 0, &mut items, 0, len);
+        let mut bvh = Bvh::default();
+        if items.is_empty() {
+            return bvh;
         }
+        let mut binary = vec![Node {
+            bounds: Aabb::EMPTY,
+            first: 0,
+            count: 0,
+        }];
+        let len = items.len();
+        build_node(&mut binary, 0, &mut items, 0, len);
         let order: Vec<u32> = items.iter().map(|it| it.id).collect();
-        let spheres = order.iter().map(|&i| spheres[i as usize]).collect();
-        Self {
-            nodes,
-            order,
-            spheres,
-        }
+        let root_kids = if binary[0].count > 0 { vec![0] } else { vec![] };
+        bvh.collapse(&binary, &order, spheres, 0, root_kids, 0);
+        bvh
     }
 
+    /// A stack deep enough for this hierarchy: each inner level pushes at most three
+    /// siblings beyond the node it descends into.
+    pub fn new_stack(&self) -> TraversalStack {
+        TraversalStack(vec![(0, 0.0); self.stack_need()])
+    }
+
+    fn stack_need(&self) -> usize {
+        3 * (self.max_level + 1) + 1
+    }
+
+    /// Number of four-wide nodes.
     pub fn node_count(&self) -> usize {
         self.nodes.len()
     }
 
+    /// Appends the wide node for binary node `at` (or, for a leaf root, for `kids`), and
+    /// returns its index.
+    fn collapse(
+        &mut self,
+        binary: &[Node],
+        order: &[u32],
+        spheres: &[Sphere],
+        at: usize,
+        mut kids: Vec<usize>,
+        level: usize,
+    ) -> u32 {
+        self.max_level = self.max_level.max(level);
+        if kids.is_empty() {
+            let first = binary[at].first as usize;
+            kids = vec![first, first + 1];
+        }
+        // Open the largest inner child until there are four.
+        while kids.len() < 4 {
+            let widest = kids
+                .iter()
+                .enumerate()
+                .filter(|(_, k)| binary[**k].count == 0)
+                .max_by(|a, b| {
+                    binary[*a.1]
+                        .bounds
+                        .area()
+                        .total_cmp(&binary[*b.1].bounds.area())
+                });
+            let Some((slot, &k)) = widest else { break };
+            let first = binary[k].first as usize;
+            kids[slot] = first;
+            kids.push(first + 1);
+        }
+        let index = self.nodes.len();
+        self.nodes.push(WideNode {
+            min: [Vec4::splat(f32::INFINITY); 3],
+            max: [Vec4::splat(f32::NEG_INFINITY); 3],
+            child: [EMPTY; 4],
+        });
+        for (lane, &k) in kids.iter().enumerate() {
+            let node = binary[k];
+            let child = if node.count > 0 {
+                let first = node.first as usize;
+                let ids = &order[first..first + node.count as usize];
+                self.packs.push(SpherePack::new(spheres, ids));
+                LEAF | (self.packs.len() - 1) as u32
+            } else {
+                self.collapse(binary, order, spheres, k, Vec::new(), level + 1)
+            };
+            let w = &mut self.nodes[index];
+            for axis in 0..3 {
+                w.min[axis][lane] = node.bounds.min[axis];
+                w.max[axis][lane] = node.bounds.max[axis];
+            }
+            w.child[lane] = child;
+        }
+        index as u32
+    }
+
     /// The closest hit in `interval`: its parameter and primitive id.
     #[inline]
-    pub fn intersect(&self, ray: &Ray, interval: Interval) -> Option<(f32, PrimitiveId)> {
+    pub fn intersect(
+        &self,
+        ray: &Ray,
+        interval: Interval,
+        stack: &mut TraversalStack,
+    ) -> Option<(f32, PrimitiveId)> {
         if self.nodes.is_empty() {
             return None;
         }
-        let inv_dir = ray.dir.recip();
-        let negative = [ray.dir.x < 0.0, ray.dir.y < 0.0, ray.dir.z < 0.0];
+        if stack.0.len() < self.stack_need() {
+            *stack = self.new_stack();
+        }
+        let stack = &mut stack.0;
+        // A zero direction component would make 0 · ∞ = NaN in the slab test.
+        let safe = |x: f32| {
+            if x.abs() < 1e-30 {
+                1e-30f32.copysign(x)
+            } else {
+                x
+            }
+        };
+        let inv = Vec3::new(
+            1.0 / safe(ray.dir.x),
+            1.0 / safe(ray.dir.y),
+            1.0 / safe(ray.dir.z),
+        );
+        let o = [
+            Vec4::splat(ray.origin.x),
+            Vec4::splat(ray.origin.y),
+            Vec4::splat(ray.origin.z),
+        ];
+        let d = [
+            Vec4::splat(ray.dir.x),
+            Vec4::splat(ray.dir.y),
+            Vec4::splat(ray.dir.z),
+        ];
+        let inv4 = [Vec4::splat(inv.x), Vec4::splat(inv.y), Vec4::splat(inv.z)];
+        let negative = [inv.x < 0.0, inv.y < 0.0, inv.z < 0.0];
+        let t_min = Vec4::splat(interval.min);
+
         let mut closest = interval.max;
-        let mut found: Option<u32> = None;
-        let mut stack = [0u32; STACK];
+        let mut found = None;
+        // Only inner nodes go on the stack; leaves are tested as soon as their parent is,
+        // nearest first, which shortens `closest` early.
         let mut top = 0usize;
-        let mut index = 0u32;
+        let mut current = 0u32;
         loop {
-            let node = &self.nodes[index as usize];
-            if node
-                .bounds
-                .hit(ray.origin, inv_dir, interval.min, closest)
-                .is_some()
-            {
-                if node.count > 0 {
-                    let start = node.first as usize;
-                    for slot in start..start + node.count as usize {
-                        let range = Interval::new(interval.min, closest);
-                        if let Some(t) = self.spheres[slot].intersect(ray, range) {
-                            closest = t;
-                            found = Some(slot as u32);
-                        }
-                    }
+            let node = &self.nodes[current as usize];
+            let mut t_near = t_min;
+            let mut t_far = Vec4::splat(closest);
+            for axis in 0..3 {
+                let (near, far) = if negative[axis] {
+                    (node.max[axis], node.min[axis])
                 } else {
-                    // Visit the child on the ray's near side first; push the other.
-                    let (near, far) = if negative[node.axis as usize] {
-                        (node.first + 1, node.first)
-                    } else {
-                        (node.first, node.first + 1)
-                    };
-                    stack[top] = far;
-                    top += 1;
-                    index = near;
-                    continue;
+                    (node.min[axis], node.max[axis])
+                };
+                t_near = t_near.max((near - o[axis]) * inv4[axis]);
+                t_far = t_far.min((far - o[axis]) * inv4[axis]);
+            }
+            let mut hits = t_near.cmple(t_far).bitmask();
+            // Indexing a SIMD vector by a variable lane compiles to a jump table.
+            let t_near = t_near.to_array();
+            // Sort the hit children nearest first.
+            let mut order = [(0u32, 0f32); 4];
+            let mut n = 0;
+            while hits != 0 {
+                let lane = hits.trailing_zeros() as usize;
+                hits &= hits - 1;
+                let entry = (node.child[lane], t_near[lane]);
+                let mut i = n;
+                while i > 0 && order[i - 1].1 > entry.1 {
+                    order[i] = order[i - 1];
+                    i -= 1;
+                }
+                order[i] = entry;
+                n += 1;
+            }
+            // Leaves now, nearest first; inner nodes onto the stack, farthest first.
+            for &(child, t_enter) in &order[..n] {
+                if child & LEAF != 0 && t_enter <= closest {
+                    let pack = &self.packs[(child & !LEAF) as usize];
+                    if let Some((t, id)) = pack.intersect(&o, &d, interval.min, closest) {
+                        closest = t;
+                        found = Some(id);
+                    }
                 }
             }
-            if top == 0 {
-                break;
+            for &(child, t_enter) in order[..n].iter().rev() {
+                if child & LEAF == 0 {
+                    stack[top] = (child, t_enter);
+                    top += 1;
+                }
             }
-            top -= 1;
-            index = stack[top];
+            // Next: the nearest stacked node the closest hit has not ruled out.
+            loop {
+                if top == 0 {
+                    return found.map(|id| (closest, PrimitiveId(id)));
+                }
+                top -= 1;
+                let (child, t_enter) = stack[top];
+                if t_enter <= closest {
+                    current = child;
+                    break;
+                }
+            }
         }
-        found.map(|slot| (closest, PrimitiveId(self.order[slot as usize])))
     }
 }
 
@@ -137,9 +346,9 @@ fn build_node(nodes: &mut Vec<Node>, at: usize, items: &mut [BuildItem], start: 
         bounds,
         first: start as u32,
         count: count as u32,
-        axis: 0,
     };
-    if count <= 1 {
+    // A pack tests four spheres for the price of one, so never split what fits in one.
+    if count <= MAX_LEAF {
         nodes[at] = leaf;
         return;
     }
@@ -152,16 +361,7 @@ fn build_node(nodes: &mut Vec<Node>, at: usize, items: &mut [BuildItem], start: 
         // widest axis so the leaf size bound still holds.
         let axis = widest_axis(&centroids);
         slice.sort_by(|a, b| a.centroid[axis].total_cmp(&b.centroid[axis]));
-        push_children(
-            nodes,
-            at,
-            items,
-            start,
-            start + count / 2,
-            end,
-            bounds,
-            axis,
-        );
+        push_children(nodes, at, items, start, start + count / 2, end, bounds);
         return;
     };
     let mut mid = partition(slice, |it| {
@@ -170,10 +370,9 @@ fn build_node(nodes: &mut Vec<Node>, at: usize, items: &mut [BuildItem], start: 
     if mid == 0 || mid == count {
         mid = count / 2;
     }
-    push_children(nodes, at, items, start, start + mid, end, bounds, axis);
+    push_children(nodes, at, items, start, start + mid, end, bounds);
 }
 
-#[allow(clippy::too_many_arguments)]
 fn push_children(
     nodes: &mut Vec<Node>,
     at: usize,
@@ -182,14 +381,12 @@ fn push_children(
     mid: usize,
     end: usize,
     bounds: Aabb,
-    axis: usize,
 ) {
     let left = nodes.len();
     let placeholder = Node {
         bounds: Aabb::EMPTY,
         first: 0,
         count: 0,
-        axis: 0,
     };
     nodes.push(placeholder);
     nodes.push(placeholder);
@@ -197,7 +394,6 @@ fn push_children(
         bounds,
         first: left as u32,
         count: 0,
-        axis: axis as u8,
     };
     build_node(nodes, left, items, start, mid);
     build_node(nodes, left + 1, items, mid, end);
@@ -330,6 +526,7 @@ mod tests {
         for n in [0, 1, 2, 7, 64, 500] {
             let spheres = random_spheres(n, &mut rng);
             let bvh = Bvh::build(&spheres);
+            let mut stack = TraversalStack::default();
             for _ in 0..4000 {
                 let o = Vec3::new(
                     rng.range(-15.0, 15.0),
@@ -338,7 +535,7 @@ mod tests {
                 );
                 let ray = Ray::new(o, rng.unit_vector());
                 let iv = Interval::new(1e-4, f32::INFINITY);
-                let a = bvh.intersect(&ray, iv);
+                let a = bvh.intersect(&ray, iv, &mut stack);
                 let b = intersect_brute_force(&spheres, &ray, iv);
                 match (a, b) {
                     (None, None) => {}
@@ -356,10 +553,22 @@ mod tests {
     fn leaves_stay_small_even_for_coincident_spheres() {
         let spheres = vec![Sphere::new(Vec3::ZERO, 1.0, MaterialId(0)); 40];
         let bvh = Bvh::build(&spheres);
-        assert!(bvh.nodes.iter().all(|n| n.count as usize <= MAX_LEAF));
+        assert!(bvh.packs.len() >= 10);
+        let ids = bvh
+            .packs
+            .iter()
+            .flat_map(|p| p.id)
+            .filter(|&i| i != u32::MAX);
+        assert_eq!(ids.count(), 40);
         let ray = Ray::new(Vec3::new(0.0, 0.0, -5.0), Vec3::Z);
         assert_eq!(
-            bvh.intersect(&ray, Interval::new(0.0, 100.0)).unwrap().0,
+            bvh.intersect(
+                &ray,
+                Interval::new(0.0, 100.0),
+                &mut TraversalStack::default()
+            )
+            .unwrap()
+            .0,
             4.0
         );
     }

@@ -1,6 +1,7 @@
 //! What one camera ray brings back: the book's `ray_color`, as a bounce loop carrying
 //! throughput, plus the simpler shading modes of the book's first chapters. No threads, no I/O.
 
+use crate::bvh::TraversalStack;
 use crate::material::Material;
 use crate::math::{Color, Interval};
 use crate::ray::Ray;
@@ -19,14 +20,19 @@ const ANY_DISTANCE: Interval = Interval::new(0.0, f32::INFINITY);
 /// Radiance arriving along `ray` under the scene's shading mode. `Shading::Uv` has no rays;
 /// the renderer handles it before calling here.
 #[inline]
-pub fn radiance(scene: &Scene, ray: Ray, rng: &mut Sampler) -> Radiance {
+pub fn radiance(
+    scene: &Scene,
+    ray: Ray,
+    rng: &mut Sampler,
+    stack: &mut TraversalStack,
+) -> Radiance {
     match scene.settings.shading {
         Shading::Uv | Shading::Gradient => Radiance {
             color: scene.background.radiance(ray.dir),
             rays: u32::from(scene.settings.shading == Shading::Gradient),
         },
         Shading::Flat => Radiance {
-            color: match scene.hit(&ray, ANY_DISTANCE) {
+            color: match scene.hit(&ray, ANY_DISTANCE, stack) {
                 Some(hit) => match *scene.material(&hit) {
                     Material::Lambertian { albedo } | Material::Metal { albedo, .. } => albedo,
                     Material::Dielectric { .. } => Color::ONE,
@@ -36,13 +42,13 @@ pub fn radiance(scene: &Scene, ray: Ray, rng: &mut Sampler) -> Radiance {
             rays: 1,
         },
         Shading::Normals => Radiance {
-            color: match scene.hit(&ray, ANY_DISTANCE) {
+            color: match scene.hit(&ray, ANY_DISTANCE, stack) {
                 Some(hit) => 0.5 * (hit.normal + Color::ONE),
                 None => scene.background.radiance(ray.dir),
             },
             rays: 1,
         },
-        Shading::Path => path_trace(scene, ray, rng),
+        Shading::Path => path_trace(scene, ray, rng, stack),
     }
 }
 
@@ -50,13 +56,18 @@ pub fn radiance(scene: &Scene, ray: Ray, rng: &mut Sampler) -> Radiance {
 /// multiplying the throughput by the material's attenuation, escape rays picking up the
 /// background.
 #[inline]
-pub fn path_trace(scene: &Scene, mut ray: Ray, rng: &mut Sampler) -> Radiance {
+pub fn path_trace(
+    scene: &Scene,
+    mut ray: Ray,
+    rng: &mut Sampler,
+    stack: &mut TraversalStack,
+) -> Radiance {
     let settings = &scene.settings;
     let mut throughput = Color::ONE;
     let mut rays = 0;
     for _ in 0..settings.max_depth {
         rays += 1;
-        let Some(hit) = scene.hit(&ray, ANY_DISTANCE) else {
+        let Some(hit) = scene.hit(&ray, ANY_DISTANCE, stack) else {
             return Radiance {
                 color: throughput * scene.background.radiance(ray.dir),
                 rays,

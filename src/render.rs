@@ -1,6 +1,7 @@
 //! Rendering an image: cutting it into tiles, spreading them over a rayon pool, and taking
 //! every sample's random numbers from its own seed. The only module that knows threads.
 
+use crate::bvh::TraversalStack;
 use crate::film::{Film, to_fixed};
 use crate::integrator;
 use crate::math::{Color, PixelRect};
@@ -105,11 +106,12 @@ fn render_tiles(scene: &Scene, edge: u32, progress: &(dyn Fn(u64) + Sync)) -> (F
 pub fn render_tile(scene: &Scene, tile: &PixelRect) -> (Vec<[u64; 3]>, u64) {
     let mut sums = Vec::with_capacity((tile.width * tile.height) as usize);
     let mut rays = 0u64;
+    let mut stack = scene.new_stack();
     for y in tile.y0..tile.y0 + tile.height {
         for x in tile.x0..tile.x0 + tile.width {
             let mut acc = [0u64; 3];
             for sample in 0..scene.settings.samples_per_pixel {
-                let (c, r) = sample_pixel(scene, x, y, sample);
+                let (c, r) = sample_pixel(scene, x, y, sample, &mut stack);
                 acc[0] += to_fixed(c.x);
                 acc[1] += to_fixed(c.y);
                 acc[2] += to_fixed(c.z);
@@ -124,7 +126,13 @@ pub fn render_tile(scene: &Scene, tile: &PixelRect) -> (Vec<[u64; 3]>, u64) {
 /// One camera sample of pixel `(x, y)` (top row is `y = 0`): its radiance and ray count.
 /// Everything random in it is drawn from the sample's own generator.
 #[inline]
-pub fn sample_pixel(scene: &Scene, x: u32, y: u32, sample: u32) -> (Color, u32) {
+pub fn sample_pixel(
+    scene: &Scene,
+    x: u32,
+    y: u32,
+    sample: u32,
+    stack: &mut TraversalStack,
+) -> (Color, u32) {
     let s = &scene.settings;
     let mut rng = Sampler::for_sample(s.seed, x, y, sample);
     let (du, dv) = if s.jitter {
@@ -140,6 +148,6 @@ pub fn sample_pixel(scene: &Scene, x: u32, y: u32, sample: u32) -> (Color, u32) 
         return (Color::new(u, v, 0.25), 0);
     }
     let ray = scene.camera.ray(u, v, &mut rng);
-    let r = integrator::radiance(scene, ray, &mut rng);
+    let r = integrator::radiance(scene, ray, &mut rng, stack);
     (r.color, r.rays)
 }

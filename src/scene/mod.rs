@@ -6,7 +6,7 @@ pub mod desc;
 
 pub use build::Overrides;
 
-use crate::bvh::Bvh;
+use crate::bvh::{Bvh, TraversalStack};
 use crate::camera::{Camera, CameraSettings};
 use crate::error::{Error, Location, Result};
 use crate::geometry::{Hit, PrimitiveId, Sphere};
@@ -127,12 +127,17 @@ impl Scene {
         build::build(&desc, text, path, overrides)
     }
 
-    /// The closest hit along `ray` within `interval`.
+    /// The closest hit along `ray` within `interval`, using `stack` as scratch space.
     #[inline]
-    pub fn hit(&self, ray: &Ray, interval: Interval) -> Option<Hit> {
+    pub fn hit(&self, ray: &Ray, interval: Interval, stack: &mut TraversalStack) -> Option<Hit> {
         self.bvh
-            .intersect(ray, interval)
+            .intersect(ray, interval, stack)
             .map(|(t, id)| self.surface(ray, t, id))
+    }
+
+    /// Scratch space for `hit`, sized for this scene.
+    pub fn new_stack(&self) -> TraversalStack {
+        self.bvh.new_stack()
     }
 
     /// The closest hit, found by testing every sphere (reference for tests).
