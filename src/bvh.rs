@@ -24,11 +24,11 @@ struct Node {
     count: u32,
 }
 
-/// A four-wide node: the boxes of up to four children, one SIMD lane each.
+/// A four-wide node: the boxes of up to four children, one SIMD lane each. `planes` holds
+/// min x, y, z then max x, y, z, so a ray picks its near and far planes by index.
 #[derive(Clone, Copy, Debug)]
 struct WideNode {
-    min: [Vec4; 3],
-    max: [Vec4; 3],
+    planes: [Vec4; 6],
     child: [u32; 4],
 }
 
@@ -201,9 +201,9 @@ impl Bvh {
             kids.push(first + 1);
         }
         let index = self.nodes.len();
+        let (inf, neg_inf) = (Vec4::splat(f32::INFINITY), Vec4::splat(f32::NEG_INFINITY));
         self.nodes.push(WideNode {
-            min: [Vec4::splat(f32::INFINITY); 3],
-            max: [Vec4::splat(f32::NEG_INFINITY); 3],
+            planes: [inf, inf, inf, neg_inf, neg_inf, neg_inf],
             child: [EMPTY; 4],
         });
         for (lane, &k) in kids.iter().enumerate() {
@@ -218,8 +218,8 @@ impl Bvh {
             };
             let w = &mut self.nodes[index];
             for axis in 0..3 {
-                w.min[axis][lane] = node.bounds.min[axis];
-                w.max[axis][lane] = node.bounds.max[axis];
+                w.planes[axis][lane] = node.bounds.min[axis];
+                w.planes[axis + 3][lane] = node.bounds.max[axis];
             }
             w.child[lane] = child;
         }
@@ -265,7 +265,14 @@ impl Bvh {
             Vec4::splat(ray.dir.z),
         ];
         let inv4 = [Vec4::splat(inv.x), Vec4::splat(inv.y), Vec4::splat(inv.z)];
-        let negative = [inv.x < 0.0, inv.y < 0.0, inv.z < 0.0];
+        // Near and far planes per axis: the min plane is near when the ray goes up that axis.
+        let near_plane = |axis: usize, d: f32| if d < 0.0 { axis + 3 } else { axis };
+        let near = [
+            near_plane(0, inv.x),
+            near_plane(1, inv.y),
+            near_plane(2, inv.z),
+        ];
+        let far = near.map(|plane| (plane + 3) % 6);
         let t_min = Vec4::splat(interval.min);
 
         let mut closest = interval.max;
@@ -276,17 +283,15 @@ impl Bvh {
         let mut current = 0u32;
         loop {
             let node = &self.nodes[current as usize];
-            let mut t_near = t_min;
-            let mut t_far = Vec4::splat(closest);
-            for axis in 0..3 {
-                let (near, far) = if negative[axis] {
-                    (node.max[axis], node.min[axis])
-                } else {
-                    (node.min[axis], node.max[axis])
-                };
-                t_near = t_near.max((near - o[axis]) * inv4[axis]);
-                t_far = t_far.min((far - o[axis]) * inv4[axis]);
-            }
+            let p = &node.planes;
+            let t_near = ((p[near[0]] - o[0]) * inv4[0])
+                .max((p[near[1]] - o[1]) * inv4[1])
+                .max((p[near[2]] - o[2]) * inv4[2])
+                .max(t_min);
+            let t_far = ((p[far[0]] - o[0]) * inv4[0])
+                .min((p[far[1]] - o[1]) * inv4[1])
+                .min((p[far[2]] - o[2]) * inv4[2])
+                .min(Vec4::splat(closest));
             let mut hits = t_near.cmple(t_far).bitmask();
             // Indexing a SIMD vector by a variable lane compiles to a jump table.
             let t_near = t_near.to_array();

@@ -73,6 +73,12 @@ struct RenderArgs {
 struct BenchArgs {
     #[command(flatten)]
     scene: SceneArgs,
+    /// Renders per measurement; the median is reported.
+    #[arg(long, default_value_t = 3)]
+    repeat: u32,
+    /// Skip the thread-scaling table.
+    #[arg(long)]
+    no_scaling: bool,
     /// Print one JSON object instead of text.
     #[arg(long)]
     json: bool,
@@ -183,16 +189,52 @@ fn summary(stats: &RenderStats) -> String {
     )
 }
 
+/// Renders `repeat` times with `threads` workers; returns the run with the median speed.
+fn median_run(scene: &Scene, threads: usize, repeat: u32) -> Result<RenderStats> {
+    let opts = options(Some(threads), render::DEFAULT_TILE)?;
+    let mut runs = (0..repeat.max(1))
+        .map(|_| {
+            Ok(render::render(scene, &opts, &|_| {})
+                .context("could not start the thread pool")?
+                .1)
+        })
+        .collect::<Result<Vec<RenderStats>>>()?;
+    runs.sort_by(|a, b| a.samples_per_sec().total_cmp(&b.samples_per_sec()));
+    Ok(runs[runs.len() / 2])
+}
+
 fn cmd_bench(args: BenchArgs) -> Result<()> {
     let mut scene_args = args.scene;
     scene_args.width = scene_args.width.or(Some(300));
     scene_args.spp = scene_args.spp.or(Some(8));
-    let opts = options(scene_args.threads, render::DEFAULT_TILE)?;
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let threads = scene_args.threads.unwrap_or(cores);
+    options(Some(threads), render::DEFAULT_TILE)?;
     let scene = load(&scene_args, None, None)?;
-    let (_, stats) =
-        render::render(&scene, &opts, &|_| {}).context("could not start the thread pool")?;
+    let stats = median_run(&scene, threads, args.repeat)?;
+    // Thread scaling: 1 … available cores, each the median of `repeat` renders.
+    let scaling = if args.no_scaling {
+        Vec::new()
+    } else {
+        (1..=cores)
+            .map(|t| median_run(&scene, t, args.repeat))
+            .collect::<Result<Vec<_>>>()?
+    };
+    let base = scaling.first().map_or(1.0, RenderStats::samples_per_sec);
     let s = &scene.settings;
     if args.json {
+        let table: Vec<_> = scaling
+            .iter()
+            .map(|r| {
+                let speedup = r.samples_per_sec() / base;
+                serde_json::json!({
+                    "threads": r.threads,
+                    "samples_per_sec": r.samples_per_sec(),
+                    "speedup": speedup,
+                    "efficiency": speedup / r.threads as f64,
+                })
+            })
+            .collect();
         let report = serde_json::json!({
             "samples_per_sec": stats.samples_per_sec(),
             "mrays_per_sec": stats.mrays_per_sec(),
@@ -202,18 +244,33 @@ fn cmd_bench(args: BenchArgs) -> Result<()> {
             "width": s.width,
             "height": s.height,
             "spp": s.samples_per_pixel,
+            "scaling": table,
         });
         println!("{report}");
     } else {
         println!(
-            "{}: {}x{}, {} spp, depth {}",
+            "{}: {}x{}, {} spp, depth {}, median of {}",
             scene_args.scene.display(),
             s.width,
             s.height,
             s.samples_per_pixel,
-            s.max_depth
+            s.max_depth,
+            args.repeat.max(1)
         );
         println!("{}", summary(&stats));
+        if !scaling.is_empty() {
+            println!("threads  M samples/s  speedup  efficiency");
+            for r in &scaling {
+                let speedup = r.samples_per_sec() / base;
+                println!(
+                    "{:>7}  {:>11.3}  {:>7.2}  {:>9.0}%",
+                    r.threads,
+                    r.samples_per_sec() / 1e6,
+                    speedup,
+                    100.0 * speedup / r.threads as f64
+                );
+            }
+        }
     }
     Ok(())
 }
