@@ -30,6 +30,8 @@ struct Node {
 struct WideNode {
     planes: [Vec4; 6],
     child: [u32; 4],
+    /// Bit `i` is set when child `i` is a leaf.
+    leaf_mask: u32,
 }
 
 /// Up to four spheres in structure-of-arrays form; unused lanes have `r2 = -1`, which no
@@ -205,6 +207,7 @@ impl Bvh {
         self.nodes.push(WideNode {
             planes: [inf, inf, inf, neg_inf, neg_inf, neg_inf],
             child: [EMPTY; 4],
+            leaf_mask: 0,
         });
         for (lane, &k) in kids.iter().enumerate() {
             let node = binary[k];
@@ -222,6 +225,9 @@ impl Bvh {
                 w.planes[axis + 3][lane] = node.bounds.max[axis];
             }
             w.child[lane] = child;
+            if child & LEAF != 0 {
+                w.leaf_mask |= 1 << lane;
+            }
         }
         index as u32
     }
@@ -295,36 +301,34 @@ impl Bvh {
             let mut hits = t_near.cmple(t_far).bitmask();
             // Indexing a SIMD vector by a variable lane compiles to a jump table.
             let t_near = t_near.to_array();
-            // Sort the hit children nearest first.
-            let mut order = [(0u32, 0f32); 4];
-            let mut n = 0;
-            while hits != 0 {
-                let lane = hits.trailing_zeros() as usize;
-                hits &= hits - 1;
-                let entry = (node.child[lane], t_near[lane]);
-                let mut i = n;
-                while i > 0 && order[i - 1].1 > entry.1 {
-                    order[i] = order[i - 1];
-                    i -= 1;
-                }
-                order[i] = entry;
-                n += 1;
-            }
-            // Leaves now, nearest first; inner nodes onto the stack, farthest first.
-            for &(child, t_enter) in &order[..n] {
-                if child & LEAF != 0 && t_enter <= closest {
-                    let pack = &self.packs[(child & !LEAF) as usize];
+            // Leaves first: a pack test costs the same whatever `closest` is, so their order
+            // does not matter, only that their boxes are not already behind the closest hit.
+            let mut leaves = hits & node.leaf_mask;
+            while leaves != 0 {
+                let lane = leaves.trailing_zeros() as usize;
+                leaves &= leaves - 1;
+                if t_near[lane] <= closest {
+                    let pack = &self.packs[(node.child[lane] & !LEAF) as usize];
                     if let Some((t, id)) = pack.intersect(&o, &d, interval.min, closest) {
                         closest = t;
                         found = Some(id);
                     }
                 }
             }
-            for &(child, t_enter) in order[..n].iter().rev() {
-                if child & LEAF == 0 {
-                    stack[top] = (child, t_enter);
-                    top += 1;
+            // Inner children onto the stack, sorted so the nearest is on top.
+            hits &= !node.leaf_mask;
+            let base = top;
+            while hits != 0 {
+                let lane = hits.trailing_zeros() as usize;
+                hits &= hits - 1;
+                let entry = (node.child[lane], t_near[lane]);
+                let mut i = top;
+                while i > base && stack[i - 1].1 < entry.1 {
+                    stack[i] = stack[i - 1];
+                    i -= 1;
                 }
+                stack[i] = entry;
+                top += 1;
             }
             // Next: the nearest stacked node the closest hit has not ruled out.
             loop {
