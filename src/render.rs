@@ -8,6 +8,7 @@ use crate::math::{Color, PixelRect};
 use crate::sampling::Sampler;
 use crate::scene::{Scene, Shading};
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 /// Default tile edge in pixels.
@@ -52,65 +53,258 @@ impl RenderStats {
     }
 }
 
-/// Renders the scene's window (the whole image unless it sets a crop). `progress` is called with the number of samples of each tile
-/// as it finishes, from worker threads.
+/// A range of sample indices `start..end`, rendered for every pixel of a region.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct SampleRange {
+    pub start: u32,
+    pub end: u32,
+}
+
+impl SampleRange {
+    pub fn len(&self) -> u32 {
+        self.end.saturating_sub(self.start)
+    }
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// A unit of rendering: the pixels of `region` (inside the scene's window) over the sample
+/// indices `samples`. A whole render is the window over `0..samples_per_pixel`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Job {
+    pub region: PixelRect,
+    pub samples: SampleRange,
+}
+
+impl Job {
+    /// The whole image the scene describes.
+    pub fn whole(scene: &Scene) -> Self {
+        Job {
+            region: scene.settings.window,
+            samples: SampleRange {
+                start: 0,
+                end: scene.settings.samples_per_pixel,
+            },
+        }
+    }
+}
+
+/// A job's accumulated state: the sums so far and how many samples of the job's range each
+/// tile has finished. Tiles finish whole, so the state is exact at every point, and adding the
+/// rest of the samples later gives the same integers as rendering them in one go.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Progress {
+    pub job: Job,
+    /// Tile edge in pixels; `done` follows `job.region.tiles(tile)`.
+    pub tile: u32,
+    /// Samples finished per tile, counted from `job.samples.start`.
+    pub done: Vec<u32>,
+    /// Fixed-point sums over the region, row-major.
+    pub sums: Vec<[u64; 3]>,
+}
+
+impl Progress {
+    pub fn new(job: Job, tile: u32) -> Self {
+        let tile = tile.max(1);
+        Progress {
+            done: vec![0; job.region.tiles(tile).len()],
+            sums: vec![[0; 3]; job.region.area() as usize],
+            job,
+            tile,
+        }
+    }
+
+    pub fn is_complete(&self) -> bool {
+        self.done.iter().all(|&d| d >= self.job.samples.len())
+    }
+
+    /// Samples still to render.
+    pub fn remaining_samples(&self) -> u64 {
+        self.job
+            .region
+            .tiles(self.tile)
+            .iter()
+            .zip(&self.done)
+            .map(|(t, &d)| t.area() * u64::from(self.job.samples.len().saturating_sub(d)))
+            .sum()
+    }
+
+    /// Samples finished, over all pixels.
+    pub fn finished_samples(&self) -> u64 {
+        self.job
+            .region
+            .tiles(self.tile)
+            .iter()
+            .zip(&self.done)
+            .map(|(t, &d)| t.area() * u64::from(d.min(self.job.samples.len())))
+            .sum()
+    }
+
+    /// Extends the job to more samples (progressive rendering): finished tiles keep their sums.
+    pub fn extend_to(&mut self, end: u32) {
+        self.job.samples.end = self.job.samples.end.max(end);
+    }
+
+    fn add_tile(&mut self, index: usize, tile: &PixelRect, sums: &[[u64; 3]]) {
+        let region = self.job.region;
+        for (row, chunk) in sums.chunks_exact(tile.width as usize).enumerate() {
+            let y = (tile.y0 - region.y0) as usize + row;
+            let start = y * region.width as usize + (tile.x0 - region.x0) as usize;
+            for (acc, add) in self.sums[start..start + chunk.len()].iter_mut().zip(chunk) {
+                for c in 0..3 {
+                    acc[c] += add[c];
+                }
+            }
+        }
+        self.done[index] = self.job.samples.len();
+    }
+
+    /// The finished image of the region. Panics if the job is not complete.
+    pub fn film(&self) -> Film {
+        assert!(self.is_complete(), "film of an unfinished job");
+        Film {
+            width: self.job.region.width,
+            height: self.job.region.height,
+            samples_per_pixel: self.job.samples.len(),
+            sums: self.sums.clone(),
+        }
+    }
+}
+
+/// A callback that sees the job's state, e.g. to save a checkpoint.
+pub type Snapshot<'a> = &'a mut dyn FnMut(&Progress);
+
+/// What a running job reports to and hears from its caller.
+pub struct Control<'a> {
+    /// Set (e.g. by a signal handler) to stop taking new tiles; the job returns early.
+    pub stop: &'a AtomicBool,
+    /// Called with the number of samples of each finished tile.
+    pub on_samples: &'a (dyn Fn(u64) + Sync),
+    /// Called with the state at most every `interval` while the job runs, e.g. to save a
+    /// checkpoint; a zero interval calls it after every tile.
+    pub on_snapshot: Option<(Snapshot<'a>, Duration)>,
+}
+
+/// Renders the whole image (the scene's window, all its samples).
 pub fn render(
     scene: &Scene,
     options: &RenderOptions,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<(Film, RenderStats), rayon::ThreadPoolBuildError> {
-    let start = Instant::now();
-    let run = || render_tiles(scene, options.tile, progress);
-    let (film, rays, threads) = match options.threads {
-        Some(n) => {
-            let pool = rayon::ThreadPoolBuilder::new().num_threads(n).build()?;
-            let (film, rays) = pool.install(run);
-            (film, rays, n)
-        }
-        None => {
-            let (film, rays) = run();
-            (film, rays, rayon::current_num_threads())
-        }
+    let mut state = Progress::new(Job::whole(scene), options.tile);
+    let stop = AtomicBool::new(false);
+    let control = Control {
+        stop: &stop,
+        on_samples: progress,
+        on_snapshot: None,
     };
-    let stats = RenderStats {
-        samples: scene.total_samples(),
+    let stats = render_job(scene, options, &mut state, control)?;
+    Ok((state.film(), stats))
+}
+
+/// Renders what `state` still lacks, tile by tile over a rayon pool, until it is complete or
+/// `control.stop` is set. Finished tiles are folded into `state` on the calling thread, so a
+/// snapshot is always consistent.
+pub fn render_job(
+    scene: &Scene,
+    options: &RenderOptions,
+    state: &mut Progress,
+    mut control: Control,
+) -> Result<RenderStats, rayon::ThreadPoolBuildError> {
+    let start = Instant::now();
+    let pool = match options.threads {
+        Some(n) => Some(rayon::ThreadPoolBuilder::new().num_threads(n).build()?),
+        None => None,
+    };
+    let threads = pool
+        .as_ref()
+        .map_or_else(rayon::current_num_threads, |p| p.current_num_threads());
+    let tiles = state.job.region.tiles(state.tile);
+    let todo: Vec<(usize, PixelRect, SampleRange)> = tiles
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| state.done[*i] < state.job.samples.len())
+        .map(|(i, t)| {
+            let from = state.job.samples.start + state.done[i];
+            (
+                i,
+                *t,
+                SampleRange {
+                    start: from,
+                    end: state.job.samples.end,
+                },
+            )
+        })
+        .collect();
+    let (sender, receiver) = std::sync::mpsc::channel::<(usize, TileResult)>();
+    let (stop, on_samples) = (control.stop, control.on_samples);
+    let mut samples = 0u64;
+    let mut rays = 0u64;
+    std::thread::scope(|scope| {
+        let work = move || {
+            todo.par_iter()
+                .for_each_with(sender, |sender, (i, tile, range)| {
+                    if stop.load(Ordering::Relaxed) {
+                        return;
+                    }
+                    let result = render_tile_samples(scene, tile, *range);
+                    on_samples(tile.area() * u64::from(range.len()));
+                    // The receiver outlives the workers; a failed send cannot happen.
+                    let _ = sender.send((*i, result));
+                });
+        };
+        scope.spawn(move || match &pool {
+            Some(p) => p.install(work),
+            None => work(),
+        });
+        let mut last_snapshot = Instant::now();
+        for (index, result) in receiver {
+            let tile = tiles[index];
+            samples += tile.area() * u64::from(state.job.samples.len() - state.done[index]);
+            rays += result.rays;
+            state.add_tile(index, &tile, &result.sums);
+            if let Some((snapshot, interval)) = control.on_snapshot.as_mut()
+                && last_snapshot.elapsed() >= *interval
+            {
+                snapshot(state);
+                last_snapshot = Instant::now();
+            }
+        }
+    });
+    Ok(RenderStats {
+        samples,
         rays,
         wall: start.elapsed(),
         threads,
+    })
+}
+
+/// One finished tile: fixed-point sums per pixel (row-major) and the rays traced.
+#[derive(Clone, Debug)]
+pub struct TileResult {
+    pub sums: Vec<[u64; 3]>,
+    pub rays: u64,
+}
+
+/// Renders all the scene's samples of one tile.
+pub fn render_tile(scene: &Scene, tile: &PixelRect) -> TileResult {
+    let all = SampleRange {
+        start: 0,
+        end: scene.settings.samples_per_pixel,
     };
-    Ok((film, stats))
+    render_tile_samples(scene, tile, all)
 }
 
-fn render_tiles(scene: &Scene, edge: u32, progress: &(dyn Fn(u64) + Sync)) -> (Film, u64) {
-    let s = &scene.settings;
-    let window = s.window;
-    let list = window.tiles(edge);
-    let done: Vec<(Vec<[u64; 3]>, u64)> = list
-        .par_iter()
-        .map(|tile| {
-            let out = render_tile(scene, tile);
-            progress(tile.area() * u64::from(s.samples_per_pixel));
-            out
-        })
-        .collect();
-    let mut film = Film::new(window.width, window.height, s.samples_per_pixel);
-    let mut rays = 0;
-    for (tile, (sums, tile_rays)) in list.iter().zip(done) {
-        film.put_tile(tile.x0 - window.x0, tile.y0 - window.y0, tile.width, &sums);
-        rays += tile_rays;
-    }
-    (film, rays)
-}
-
-/// Renders one tile: fixed-point sums per pixel (row-major) and the rays traced.
-pub fn render_tile(scene: &Scene, tile: &PixelRect) -> (Vec<[u64; 3]>, u64) {
-    let mut sums = Vec::with_capacity((tile.width * tile.height) as usize);
+/// Renders the samples `range` of every pixel of one tile.
+pub fn render_tile_samples(scene: &Scene, tile: &PixelRect, range: SampleRange) -> TileResult {
+    let mut sums = Vec::with_capacity(tile.area() as usize);
     let mut rays = 0u64;
     let mut stack = scene.new_stack();
     for y in tile.y0..tile.y0 + tile.height {
         for x in tile.x0..tile.x0 + tile.width {
             let mut acc = [0u64; 3];
-            for sample in 0..scene.settings.samples_per_pixel {
+            for sample in range.start..range.end {
                 let (c, r) = sample_pixel(scene, x, y, sample, &mut stack);
                 acc[0] += to_fixed(c.x);
                 acc[1] += to_fixed(c.y);
@@ -120,7 +314,7 @@ pub fn render_tile(scene: &Scene, tile: &PixelRect) -> (Vec<[u64; 3]>, u64) {
             sums.push(acc);
         }
     }
-    (sums, rays)
+    TileResult { sums, rays }
 }
 
 /// One camera sample of pixel `(x, y)` (top row is `y = 0`): its radiance and ray count.
