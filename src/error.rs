@@ -48,6 +48,9 @@ pub enum Error {
     },
     #[error("{path}: {message}", path = path.display())]
     Image { path: PathBuf, message: String },
+    /// A partial render or checkpoint that cannot be used.
+    #[error("{path}: {message}", path = path.display())]
+    Partial { path: PathBuf, message: String },
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;

@@ -18,6 +18,7 @@ pub mod geometry;
 pub mod integrator;
 pub mod material;
 pub mod math;
+pub mod partial;
 pub mod ray;
 pub mod render;
 pub mod sampling;

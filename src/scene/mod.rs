@@ -162,6 +162,64 @@ impl Scene {
         }
     }
 
+    /// A 64-bit hash of everything that decides a sample's value: image size, depth, seed,
+    /// shading, camera, background, materials and spheres. The sample count and the crop
+    /// window are left out: they choose which samples and pixels to render, not their values.
+    /// Partial renders and checkpoints carry it so parts of different scenes never mix.
+    pub fn fingerprint(&self) -> u64 {
+        let s = &self.settings;
+        let f = |x: f32| u64::from(x.to_bits());
+        let v = |v: Vec3| [f(v.x), f(v.y), f(v.z)];
+        let mut words = vec![
+            u64::from(s.width),
+            u64::from(s.height),
+            u64::from(s.max_depth),
+            s.seed,
+            s.shading as u64,
+            s.diffuse as u64,
+            f(s.gamma),
+            f(s.t_min),
+            u64::from(s.jitter),
+        ];
+        let c = &self.camera_settings;
+        for x in [c.lookfrom, c.lookat, c.vup] {
+            words.extend(v(x));
+        }
+        words.extend([c.vfov_deg, c.aspect_ratio, c.aperture, c.focus_dist].map(f));
+        match self.background {
+            Background::Gradient { bottom, top } => {
+                words.push(1);
+                words.extend(v(bottom));
+                words.extend(v(top));
+            }
+            Background::Uniform(color) => {
+                words.push(2);
+                words.extend(v(color));
+            }
+        }
+        for m in &self.materials {
+            match *m {
+                Material::Lambertian { albedo } => {
+                    words.push(10);
+                    words.extend(v(albedo));
+                }
+                Material::Metal { albedo, fuzz } => {
+                    words.push(11);
+                    words.extend(v(albedo));
+                    words.push(f(fuzz));
+                }
+                Material::Dielectric { ir, refraction } => {
+                    words.extend([12, f(ir), refraction as u64]);
+                }
+            }
+        }
+        for sphere in &self.spheres {
+            words.extend(v(sphere.center));
+            words.extend([f(sphere.radius), u64::from(sphere.material.0)]);
+        }
+        crate::sampling::hash_words(0x7e55_e4a0, &words)
+    }
+
     pub fn material(&self, hit: &Hit) -> &Material {
         &self.materials[hit.material.0 as usize]
     }
