@@ -48,6 +48,9 @@ pub enum Error {
     },
     #[error("{path}: {message}", path = path.display())]
     Image { path: PathBuf, message: String },
+    /// Parts that do not add up to an image.
+    #[error("cannot merge: {0}")]
+    Merge(String),
     /// A partial render or checkpoint that cannot be used.
     #[error("{path}: {message}", path = path.display())]
     Partial { path: PathBuf, message: String },

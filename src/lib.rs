@@ -23,5 +23,6 @@ pub mod ray;
 pub mod render;
 pub mod sampling;
 pub mod scene;
+pub mod shard;
 
 pub use error::{Error, Result};

@@ -5,9 +5,14 @@ use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+use std::time::Duration;
 use tessera::film::Format;
-use tessera::render::{self, RenderOptions, RenderStats};
+use tessera::partial::Part;
+use tessera::render::{self, Control, Job, Progress, RenderOptions, RenderStats, Snapshot};
 use tessera::scene::{Overrides, Scene};
+use tessera::shard::{self, Shard, Split, parse_samples};
 
 const DEFAULT_SCENE: &str = "scenes/cover.toml";
 
@@ -28,6 +33,16 @@ enum Command {
     Render(RenderArgs),
     /// Measure rendering speed: samples/s, Mrays/s and rays per sample.
     Bench(BenchArgs),
+    /// Combine partial renders (shards, sample ranges) into one image, byte-identical to a
+    /// single render of the same scene and settings.
+    Merge {
+        /// Partial render files written by `render --shard` or `--samples`.
+        #[arg(required = true)]
+        parts: Vec<PathBuf>,
+        /// Output image (.png, .ppm or .exr).
+        #[arg(short, long)]
+        output: PathBuf,
+    },
     /// Print the RMSE and PSNR between two images of equal size.
     Compare { a: PathBuf, b: PathBuf },
 }
@@ -64,9 +79,34 @@ struct RenderArgs {
     /// Tile edge in pixels (scheduling only; the image does not change).
     #[arg(long, default_value_t = render::DEFAULT_TILE)]
     tile: u32,
+    /// Render only shard I of N (`I/N`, 0-based), or take I from a job system: `env`
+    /// (Slurm array: SLURM_ARRAY_TASK_ID, SLURM_ARRAY_TASK_COUNT) or `env/N` (Kubernetes
+    /// Indexed Job: JOB_COMPLETION_INDEX). Writes a partial file for `tessera merge`.
+    #[arg(long, value_name = "I/N")]
+    shard: Option<String>,
+    /// How shards divide the render: `samples` (each renders every pixel over a slice of
+    /// the samples; even work) or `rows` (each renders a band of rows).
+    #[arg(long, value_enum, default_value = "samples")]
+    split: SplitArg,
+    /// Render only sample indices A..B of every pixel; writes a partial file.
+    #[arg(long, value_name = "A..B")]
+    samples: Option<String>,
+    /// Save progress to this file now and then and on Ctrl-C / SIGTERM; running the same
+    /// command again resumes from it, and a larger --spp continues a finished render.
+    #[arg(long, value_name = "FILE")]
+    checkpoint: Option<PathBuf>,
+    /// Seconds between checkpoint saves (0: after every tile).
+    #[arg(long, default_value_t = 10.0, value_name = "SECS")]
+    checkpoint_every: f64,
     /// No progress bar and no summary line.
     #[arg(long, short)]
     quiet: bool,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum SplitArg {
+    Samples,
+    Rows,
 }
 
 #[derive(Args)]
@@ -89,6 +129,7 @@ fn main() {
     let result = match cli.command {
         Command::Render(args) => cmd_render(args),
         Command::Bench(args) => cmd_bench(args),
+        Command::Merge { parts, output } => cmd_merge(&parts, &output),
         Command::Compare { a, b } => cmd_compare(&a, &b),
     };
     if let Err(e) = result {
@@ -122,37 +163,171 @@ fn cmd_render(args: RenderArgs) -> Result<()> {
         Some(o) => o.clone(),
         None => default_output(&args.scene.scene),
     };
-    // Refuse a bad output name before spending minutes on the render.
-    Format::from_path(&output)?;
     let opts = options(args.scene.threads, args.tile)?;
+    if !(args.checkpoint_every >= 0.0 && args.checkpoint_every.is_finite()) {
+        bail!("--checkpoint-every must be a number of seconds, 0 or more");
+    }
     let scene = load(&args.scene, args.depth, args.seed)?;
-    let bar = progress_bar(scene.total_samples(), args.quiet);
-    let (film, stats) = render::render(&scene, &opts, &|n| bar.inc(n))
+    let shard = match &args.shard {
+        Some(spec) => Some(Shard::parse(spec, |k| std::env::var(k).ok())?),
+        None => None,
+    };
+    let samples = args.samples.as_deref().map(parse_samples).transpose()?;
+    let split = match args.split {
+        SplitArg::Samples => Split::Samples,
+        SplitArg::Rows => Split::Rows,
+    };
+    let job = shard::job(&scene, shard, split, samples)?;
+    // Every part is a piece of the image of the scene's samples per pixel.
+    let target = scene.settings.samples_per_pixel;
+    if let Some(r) = samples
+        && r.end > target
+    {
+        bail!(
+            "--samples {}..{} goes past the {target} samples per pixel of the image; raise --spp",
+            r.start,
+            r.end
+        );
+    }
+    let partial = job != Job::whole(&scene);
+    if !partial {
+        // Refuse a bad output name before spending minutes on the render.
+        Format::from_path(&output)?;
+    }
+    let mut state = match &args.checkpoint {
+        Some(path) if path.exists() => resume(&scene, path, job, args.quiet)?,
+        _ => Progress::new(job, args.tile),
+    };
+    let stop = Arc::new(AtomicBool::new(false));
+    if args.checkpoint.is_some() {
+        for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+            signal_hook::flag::register(signal, Arc::clone(&stop))
+                .context("could not install the signal handler")?;
+        }
+    }
+    let bar = progress_bar(state.remaining_samples(), args.quiet);
+    let mut save = |p: &Progress| {
+        if let Some(path) = &args.checkpoint
+            && let Err(e) = Part::from_progress(&scene, p, target).save(path)
+        {
+            bar.suspend(|| eprintln!("tessera: warning: could not save the checkpoint: {e}"));
+        }
+    };
+    let every = Duration::from_secs_f64(args.checkpoint_every);
+    let control = Control {
+        stop: &stop,
+        on_samples: &|n| bar.inc(n),
+        on_snapshot: args
+            .checkpoint
+            .as_ref()
+            .map(|_| (&mut save as Snapshot, every)),
+    };
+    let stats = render::render_job(&scene, &opts, &mut state, control)
         .context("could not start the thread pool")?;
     bar.finish_and_clear();
-    film.save(&output, scene.settings.gamma)?;
+    if let Some(path) = &args.checkpoint {
+        Part::from_progress(&scene, &state, target).save(path)?;
+        if !state.is_complete() {
+            let all = state.job.region.area() as f64 * f64::from(state.job.samples.len());
+            eprintln!(
+                "tessera: interrupted at {:.1}%; progress is saved in {}. Run the same command again to resume.",
+                100.0 * state.finished_samples() as f64 / all.max(1.0),
+                path.display()
+            );
+            std::process::exit(130);
+        }
+    }
+    if partial {
+        Part::from_progress(&scene, &state, target).save(&output)?;
+    } else {
+        state.film().save(&output, scene.settings.gamma)?;
+    }
     if !args.quiet {
         let s = &scene.settings;
-        let w = s.window;
-        let crop = if (w.width, w.height) == (s.width, s.height) {
-            String::new()
-        } else {
+        let r = state.job.region;
+        let what = if partial {
             format!(
-                " cropped to {}x{} at ({}, {})",
-                w.width, w.height, w.x0, w.y0
+                "partial render of pixels {}x{} at ({}, {}), samples {}..{} (combine parts with `tessera merge`)",
+                r.width, r.height, r.x0, r.y0, state.job.samples.start, state.job.samples.end
             )
+        } else if (r.width, r.height) != (s.width, s.height) {
+            format!(
+                "{}x{} cropped to {}x{} at ({}, {}), {} spp",
+                s.width, s.height, r.width, r.height, r.x0, r.y0, s.samples_per_pixel
+            )
+        } else {
+            format!("{}x{}, {} spp", s.width, s.height, s.samples_per_pixel)
         };
         eprintln!(
-            "{}: {}x{}{crop}, {} spp, depth {}, seed {} | {}",
+            "{}: {what}, depth {}, seed {} | {}",
             output.display(),
-            s.width,
-            s.height,
-            s.samples_per_pixel,
             s.max_depth,
             s.seed,
             summary(&stats)
         );
     }
+    Ok(())
+}
+
+/// The state saved in checkpoint `path`, checked against this render and extended to its
+/// sample range.
+fn resume(scene: &Scene, path: &Path, job: Job, quiet: bool) -> Result<Progress> {
+    let part = Part::load(path)?;
+    part.check_scene(scene, path)?;
+    let mut progress = part.progress();
+    let (had, want) = (progress.job, job);
+    if had.region != want.region || had.samples.start != want.samples.start {
+        bail!(
+            "{}: the checkpoint holds pixels {}x{} at ({}, {}) from sample {}, but this render is pixels {}x{} at ({}, {}) from sample {}; use another checkpoint file",
+            path.display(),
+            had.region.width,
+            had.region.height,
+            had.region.x0,
+            had.region.y0,
+            had.samples.start,
+            want.region.width,
+            want.region.height,
+            want.region.x0,
+            want.region.y0,
+            want.samples.start
+        );
+    }
+    if had.samples.end > want.samples.end {
+        bail!(
+            "{}: the checkpoint already goes to sample {}, past the {} this render asks for",
+            path.display(),
+            had.samples.end,
+            want.samples.end
+        );
+    }
+    progress.extend_to(want.samples.end);
+    if !quiet {
+        let all = want.region.area() as f64 * f64::from(want.samples.len());
+        eprintln!(
+            "tessera: resuming from {} ({:.1}% done)",
+            path.display(),
+            100.0 * progress.finished_samples() as f64 / all.max(1.0)
+        );
+    }
+    Ok(progress)
+}
+
+fn cmd_merge(paths: &[PathBuf], output: &Path) -> Result<()> {
+    Format::from_path(output)?;
+    let parts = paths
+        .iter()
+        .map(|p| Ok((p.clone(), Part::load(p)?)))
+        .collect::<Result<Vec<_>>>()?;
+    let (film, gamma) = tessera::partial::merge(&parts)?;
+    film.save(output, gamma)?;
+    eprintln!(
+        "{}: merged {} parts, {}x{}, {} spp",
+        output.display(),
+        parts.len(),
+        film.width,
+        film.height,
+        film.samples_per_pixel
+    );
     Ok(())
 }
 

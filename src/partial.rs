@@ -36,6 +36,9 @@ pub struct Header {
     pub region: [u32; 4],
     /// The sample indices this part is for, `[start, end)`.
     pub samples: [u32; 2],
+    /// Samples per pixel of the finished image: a merge must cover sample indices
+    /// `0..target` of every pixel of `window`.
+    pub target: u32,
     /// Tile edge; `done` has one entry per tile of `region`.
     pub tile: u32,
     /// Samples finished per tile, from `samples[0]`; all equal to the range length once the
@@ -75,8 +78,9 @@ fn checksum(bytes: &[u8]) -> u64 {
 }
 
 impl Part {
-    /// The part holding `progress` of `scene`.
-    pub fn from_progress(scene: &Scene, progress: &Progress) -> Part {
+    /// The part holding `progress` of `scene`, one piece of an image of `target` samples
+    /// per pixel.
+    pub fn from_progress(scene: &Scene, progress: &Progress, target: u32) -> Part {
         let s = &scene.settings;
         Part {
             header: Header {
@@ -90,6 +94,7 @@ impl Part {
                 window: rect(s.window),
                 region: rect(progress.job.region),
                 samples: [progress.job.samples.start, progress.job.samples.end],
+                target,
                 tile: progress.tile,
                 done: progress.done.clone(),
             },
@@ -128,7 +133,7 @@ impl Part {
 
     /// Refuses a part made from another scene or other settings than `scene`'s.
     pub fn check_scene(&self, scene: &Scene, path: &Path) -> Result<()> {
-        let expected = Part::from_progress(scene, &Progress::new(Job::whole(scene), 1)).header;
+        let expected = Part::from_progress(scene, &Progress::new(Job::whole(scene), 1), 0).header;
         let h = &self.header;
         let mismatch = |what: &str, theirs: String, ours: String| {
             Err(part_error(
@@ -278,10 +283,7 @@ fn part_error(path: &Path, message: String) -> Error {
 /// `N` samples per pixel) and its gamma.
 pub fn merge(parts: &[(PathBuf, Part)]) -> Result<(Film, f32)> {
     let Some((first_path, first)) = parts.first() else {
-        return Err(Error::Setting {
-            field: "PART".to_owned(),
-            message: "merge needs at least one partial render".to_owned(),
-        });
+        return Err(Error::Merge("no partial renders given".to_owned()));
     };
     let base = &first.header;
     for (path, part) in parts {
@@ -290,10 +292,16 @@ pub fn merge(parts: &[(PathBuf, Part)]) -> Result<(Film, f32)> {
             && h.seed == base.seed
             && (h.width, h.height, h.max_depth) == (base.width, base.height, base.max_depth)
             && h.gamma.to_bits() == base.gamma.to_bits()
-            && h.window == base.window;
+            && h.window == base.window
+            && h.target == base.target;
         if !same {
             let what = if h.seed != base.seed {
                 format!("seed {} (vs {})", h.seed, base.seed)
+            } else if h.target != base.target {
+                format!(
+                    "sample count: an image of {} spp (vs {})",
+                    h.target, base.target
+                )
             } else if (h.width, h.height) != (base.width, base.height) {
                 format!(
                     "size {}x{} (vs {}x{})",
@@ -348,11 +356,16 @@ pub fn merge(parts: &[(PathBuf, Part)]) -> Result<(Film, f32)> {
         }
     }
     let window = unrect(base.window);
-    let total: u32 = parts
-        .iter()
-        .map(|(_, p)| p.samples().end)
-        .max()
-        .unwrap_or(0);
+    let total = base.target;
+    if let Some((path, p)) = parts.iter().find(|(_, p)| p.samples().end > total) {
+        return Err(part_error(
+            path,
+            format!(
+                "holds samples up to {}, past the {total} of the image",
+                p.samples().end
+            ),
+        ));
+    }
     let covered: u128 = parts
         .iter()
         .map(|(_, p)| u128::from(p.region().area()) * u128::from(p.samples().len()))
@@ -375,16 +388,13 @@ pub fn merge(parts: &[(PathBuf, Part)]) -> Result<(Film, f32)> {
                 )
             })
             .collect();
-        return Err(Error::Setting {
-            field: "PART".to_owned(),
-            message: format!(
-                "the parts leave gaps: they hold {covered} pixel-samples of the {needed} that \
+        return Err(Error::Merge(format!(
+            "the parts leave gaps: they hold {covered} pixel-samples of the {needed} that \
                  {}x{} pixels × samples 0..{total} need; a shard is missing. Parts:\n  {}",
-                window.width,
-                window.height,
-                listing.join("\n  ")
-            ),
-        });
+            window.width,
+            window.height,
+            listing.join("\n  ")
+        )));
     }
     let mut film = Film::new(window.width, window.height, total);
     for (_, part) in parts {
@@ -436,6 +446,7 @@ mod tests {
                 window: [0, 0, 8, 6],
                 region: rect(region),
                 samples,
+                target: 9,
                 tile: 4,
                 done: progress.done.clone(),
             },
@@ -502,10 +513,12 @@ mod tests {
             height: 3,
         };
         let named = |p: Part| (PathBuf::from("p"), p);
-        let ok = merge(&[named(part(top, [0, 4])), named(part(bottom, [0, 4]))]).unwrap();
-        assert_eq!(ok.0.samples_per_pixel, 4);
+        let ok = merge(&[named(part(top, [0, 9])), named(part(bottom, [0, 9]))]).unwrap();
+        assert_eq!(ok.0.samples_per_pixel, 9);
+        let short = merge(&[named(part(full, [0, 4]))]).unwrap_err().to_string();
+        assert!(short.contains("gaps"), "{short}");
         assert!(merge(&[named(part(full, [0, 4])), named(part(full, [4, 9]))]).is_ok());
-        let gap = merge(&[named(part(top, [0, 4]))]).unwrap_err().to_string();
+        let gap = merge(&[named(part(top, [0, 9]))]).unwrap_err().to_string();
         assert!(gap.contains("gaps"), "{gap}");
         let overlap = merge(&[named(part(full, [0, 4])), named(part(top, [3, 5]))]);
         assert!(overlap.unwrap_err().to_string().contains("overlaps"));
