@@ -1,0 +1,573 @@
+//! One render spread over processes: shards and sample ranges merged must equal a single
+//! render byte for byte; a render killed at any moment and resumed must too; bad parts are
+//! refused with their reason and nothing on disk is damaged. Every case runs real processes.
+
+mod common;
+
+use common::*;
+use std::path::Path;
+use std::process::{Child, Command, Output, Stdio};
+use std::time::Duration;
+
+fn tessera() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_tessera"))
+}
+
+fn run(args: &[&str], dir: &Path) -> Output {
+    tessera()
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("run tessera")
+}
+
+fn ok(args: &[&str], dir: &Path) {
+    let o = run(args, dir);
+    assert!(
+        o.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
+
+fn spawn(args: &[&str], dir: &Path) -> Child {
+    tessera()
+        .args(args)
+        .current_dir(dir)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn tessera")
+}
+
+fn cover() -> String {
+    scene_path("cover.toml").to_string_lossy().into_owned()
+}
+
+/// A small cover render's settings, as arguments.
+const SMALL: [&str; 4] = ["--width", "120", "--spp", "12"];
+
+fn with<'a>(base: &[&'a str], more: &[&'a str]) -> Vec<&'a str> {
+    base.iter().chain(more).copied().collect()
+}
+
+fn bytes(dir: &Path, name: &str) -> Vec<u8> {
+    std::fs::read(dir.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"))
+}
+
+#[test]
+fn parallel_sample_shards_merge_to_the_single_render() {
+    let dir = temp_dir("shards-samples");
+    let scene = cover();
+    ok(
+        &with(&["render", &scene, "-q", "-o", "single.png"], &SMALL),
+        &dir,
+    );
+    ok(
+        &with(&["render", &scene, "-q", "-o", "single.exr"], &SMALL),
+        &dir,
+    );
+    let names: Vec<String> = (0..4).map(|i| format!("part{i}.bin")).collect();
+    let specs: Vec<String> = (0..4).map(|i| format!("{i}/4")).collect();
+    let children: Vec<Child> = (0..4)
+        .map(|i| {
+            spawn(
+                &with(
+                    &[
+                        "render", &scene, "-q", "--shard", &specs[i], "-o", &names[i],
+                    ],
+                    &SMALL,
+                ),
+                &dir,
+            )
+        })
+        .collect();
+    for c in children {
+        let o = c.wait_with_output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let parts: Vec<&str> = names.iter().map(String::as_str).collect();
+    ok(&with(&["merge", "-o", "merged.png"], &parts), &dir);
+    assert_eq!(bytes(&dir, "merged.png"), bytes(&dir, "single.png"));
+    // Any order, any output format.
+    let reversed: Vec<&str> = parts.iter().rev().copied().collect();
+    ok(&with(&["merge", "-o", "merged.exr"], &reversed), &dir);
+    assert_eq!(bytes(&dir, "merged.exr"), bytes(&dir, "single.exr"));
+}
+
+#[test]
+fn row_shards_and_sample_ranges_merge_to_the_single_render() {
+    let dir = temp_dir("shards-rows");
+    let scene = cover();
+    ok(
+        &with(&["render", &scene, "-q", "-o", "single.ppm"], &SMALL),
+        &dir,
+    );
+    for i in 0..3 {
+        let spec = format!("{i}/3");
+        let out = format!("rows{i}.part");
+        ok(
+            &with(
+                &[
+                    "render", &scene, "-q", "--shard", &spec, "--split", "rows", "-o", &out,
+                ],
+                &SMALL,
+            ),
+            &dir,
+        );
+    }
+    ok(
+        &[
+            "merge",
+            "rows0.part",
+            "rows1.part",
+            "rows2.part",
+            "-o",
+            "rows.ppm",
+        ],
+        &dir,
+    );
+    assert_eq!(bytes(&dir, "rows.ppm"), bytes(&dir, "single.ppm"));
+
+    // Sample ranges, one of them split again into row shards.
+    ok(
+        &with(
+            &["render", &scene, "-q", "--samples", "0..5", "-o", "a.part"],
+            &SMALL,
+        ),
+        &dir,
+    );
+    ok(
+        &with(
+            &[
+                "render",
+                &scene,
+                "-q",
+                "--samples",
+                "5..12",
+                "--shard",
+                "0/2",
+                "--split",
+                "rows",
+                "-o",
+                "b.part",
+            ],
+            &SMALL,
+        ),
+        &dir,
+    );
+    ok(
+        &with(
+            &[
+                "render",
+                &scene,
+                "-q",
+                "--samples",
+                "5..12",
+                "--shard",
+                "1/2",
+                "--split",
+                "rows",
+                "-o",
+                "c.part",
+            ],
+            &SMALL,
+        ),
+        &dir,
+    );
+    ok(
+        &["merge", "a.part", "b.part", "c.part", "-o", "ranges.ppm"],
+        &dir,
+    );
+    assert_eq!(bytes(&dir, "ranges.ppm"), bytes(&dir, "single.ppm"));
+}
+
+#[test]
+fn shard_index_from_slurm_and_kubernetes_environments() {
+    let dir = temp_dir("shards-env");
+    let scene = cover();
+    ok(
+        &with(
+            &[
+                "render",
+                &scene,
+                "-q",
+                "--shard",
+                "1/3",
+                "-o",
+                "explicit.part",
+            ],
+            &SMALL,
+        ),
+        &dir,
+    );
+    let slurm = tessera()
+        .args(with(
+            &["render", &scene, "-q", "--shard", "env", "-o", "slurm.part"],
+            &SMALL,
+        ))
+        .env("SLURM_ARRAY_TASK_ID", "2")
+        .env("SLURM_ARRAY_TASK_MIN", "1")
+        .env("SLURM_ARRAY_TASK_COUNT", "3")
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        slurm.status.success(),
+        "{}",
+        String::from_utf8_lossy(&slurm.stderr)
+    );
+    let k8s = tessera()
+        .args(with(
+            &["render", &scene, "-q", "--shard", "env/3", "-o", "k8s.part"],
+            &SMALL,
+        ))
+        .env("JOB_COMPLETION_INDEX", "1")
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        k8s.status.success(),
+        "{}",
+        String::from_utf8_lossy(&k8s.stderr)
+    );
+    assert_eq!(bytes(&dir, "slurm.part"), bytes(&dir, "explicit.part"));
+    assert_eq!(bytes(&dir, "k8s.part"), bytes(&dir, "explicit.part"));
+}
+
+/// The arguments of a render long enough to be killed in the middle of.
+fn long_render<'a>(out: &'a str, checkpoint: &'a str) -> Vec<&'a str> {
+    vec![
+        "render",
+        "SCENE",
+        "-q",
+        "--width",
+        "200",
+        "--spp",
+        "40",
+        "-o",
+        out,
+        "--checkpoint",
+        checkpoint,
+        "--checkpoint-every",
+        "0",
+        "--threads",
+        "2",
+    ]
+}
+
+fn with_scene<'a>(args: Vec<&'a str>, scene: &'a str) -> Vec<&'a str> {
+    args.into_iter()
+        .map(|a| if a == "SCENE" { scene } else { a })
+        .collect()
+}
+
+#[test]
+fn killed_renders_resume_to_the_same_bytes() {
+    let dir = temp_dir("sigkill");
+    let scene = cover();
+    ok(
+        &with_scene(
+            vec![
+                "render",
+                "SCENE",
+                "-q",
+                "--width",
+                "200",
+                "--spp",
+                "40",
+                "-o",
+                "straight.png",
+            ],
+            &scene,
+        ),
+        &dir,
+    );
+    let straight = bytes(&dir, "straight.png");
+    let mut caught_mid_render = 0;
+    // Kill at several moments, and kill the resumed render again, then finish.
+    for (n, delays) in [[20u64, 0, 0], [90, 0, 0], [200, 0, 0], [60, 80, 100]]
+        .iter()
+        .enumerate()
+    {
+        let (out, ck) = (format!("killed{n}.png"), format!("killed{n}.ckpt"));
+        for &ms in delays.iter().filter(|&&ms| ms > 0) {
+            let mut child = spawn(&with_scene(long_render(&out, &ck), &scene), &dir);
+            std::thread::sleep(Duration::from_millis(ms));
+            child.kill().unwrap(); // SIGKILL
+            child.wait().unwrap();
+            // Killed before its first checkpoint, or between two: either way it resumes.
+            if let Ok(part) = tessera::partial::Part::load(&dir.join(&ck))
+                && !part.is_complete()
+            {
+                caught_mid_render += 1;
+            }
+        }
+        ok(&with_scene(long_render(&out, &ck), &scene), &dir);
+        assert_eq!(bytes(&dir, &out), straight, "killed after {delays:?} ms");
+    }
+    assert!(
+        caught_mid_render >= 2,
+        "only {caught_mid_render} kills hit a render in progress"
+    );
+}
+
+#[test]
+fn interrupted_render_saves_says_how_to_resume_and_resumes() {
+    let dir = temp_dir("sigint");
+    let scene = cover();
+    ok(
+        &with_scene(
+            vec![
+                "render",
+                "SCENE",
+                "-q",
+                "--width",
+                "200",
+                "--spp",
+                "40",
+                "-o",
+                "straight.png",
+            ],
+            &scene,
+        ),
+        &dir,
+    );
+    let mut args = with_scene(long_render("int.png", "int.ckpt"), &scene);
+    args.retain(|a| *a != "-q");
+    let child = spawn(&args, &dir);
+    std::thread::sleep(Duration::from_millis(150));
+    let status = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let o = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    if o.status.code() == Some(130) {
+        assert!(
+            err.contains("Run the same command again to resume"),
+            "{err}"
+        );
+        assert!(
+            !dir.join("int.png").exists(),
+            "an interrupted render wrote its image"
+        );
+    } else {
+        // The machine finished before the signal arrived.
+        assert!(o.status.success(), "{err}");
+    }
+    assert!(dir.join("int.ckpt").exists());
+    ok(&args, &dir);
+    assert_eq!(bytes(&dir, "int.png"), bytes(&dir, "straight.png"));
+}
+
+#[test]
+fn progressive_render_continues_to_more_samples() {
+    let dir = temp_dir("progressive");
+    let scene = cover();
+    let base = [
+        "render",
+        &scene,
+        "-q",
+        "--width",
+        "100",
+        "--checkpoint",
+        "prog.ckpt",
+    ];
+    ok(&with(&base, &["--spp", "8", "-o", "p8.png"]), &dir);
+    ok(&with(&base, &["--spp", "24", "-o", "p24.png"]), &dir);
+    ok(
+        &[
+            "render", &scene, "-q", "--width", "100", "--spp", "24", "-o", "d24.png",
+        ],
+        &dir,
+    );
+    assert_eq!(bytes(&dir, "p24.png"), bytes(&dir, "d24.png"));
+    // Asking for fewer samples than the checkpoint holds, or another seed, is refused.
+    let fewer = run(&with(&base, &["--spp", "4", "-o", "p4.png"]), &dir);
+    assert_eq!(fewer.status.code(), Some(2));
+    let other = run(
+        &with(&base, &["--spp", "24", "--seed", "9", "-o", "p9.png"]),
+        &dir,
+    );
+    assert_eq!(other.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&other.stderr).contains("different seed"));
+}
+
+#[test]
+fn checkpoint_of_another_scene_is_refused() {
+    let dir = temp_dir("ckpt-scene");
+    let scene = cover();
+    let other = scene_path("img-1.18-view-distant.toml")
+        .to_string_lossy()
+        .into_owned();
+    ok(
+        &[
+            "render",
+            &other,
+            "-q",
+            "--width",
+            "60",
+            "--spp",
+            "2",
+            "--checkpoint",
+            "c.ckpt",
+            "-o",
+            "o.png",
+        ],
+        &dir,
+    );
+    let before = bytes(&dir, "c.ckpt");
+    let o = run(
+        &[
+            "render",
+            &scene,
+            "-q",
+            "--width",
+            "60",
+            "--spp",
+            "2",
+            "--checkpoint",
+            "c.ckpt",
+            "-o",
+            "x.png",
+        ],
+        &dir,
+    );
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("c.ckpt"));
+    assert_eq!(
+        bytes(&dir, "c.ckpt"),
+        before,
+        "a refused checkpoint was changed"
+    );
+}
+
+#[test]
+fn bad_parts_are_refused_and_nothing_is_damaged() {
+    let dir = temp_dir("bad-parts");
+    let scene = cover();
+    for i in 0..3 {
+        let (spec, out) = (format!("{i}/3"), format!("p{i}.part"));
+        ok(
+            &with(
+                &["render", &scene, "-q", "--shard", &spec, "-o", &out],
+                &SMALL,
+            ),
+            &dir,
+        );
+    }
+    ok(
+        &with(
+            &[
+                "render",
+                &scene,
+                "-q",
+                "--seed",
+                "7",
+                "--shard",
+                "1/3",
+                "-o",
+                "seed7.part",
+            ],
+            &SMALL,
+        ),
+        &dir,
+    );
+    let other = scene_path("img-1.18-view-distant.toml")
+        .to_string_lossy()
+        .into_owned();
+    ok(
+        &[
+            "render",
+            &other,
+            "-q",
+            "--width",
+            "120",
+            "--spp",
+            "12",
+            "--shard",
+            "1/3",
+            "-o",
+            "other.part",
+        ],
+        &dir,
+    );
+    ok(
+        &with(
+            &[
+                "render",
+                &scene,
+                "-q",
+                "--samples",
+                "3..6",
+                "-o",
+                "overlap.part",
+            ],
+            &SMALL,
+        ),
+        &dir,
+    );
+    let good = bytes(&dir, "p1.part");
+    std::fs::write(dir.join("truncated.part"), &good[..good.len() / 2]).unwrap();
+    let mut flipped = good.clone();
+    let middle = flipped.len() / 2;
+    flipped[middle] ^= 0x01;
+    std::fs::write(dir.join("flipped.part"), &flipped).unwrap();
+    std::fs::write(dir.join("out.png"), b"precious").unwrap();
+
+    for (middle, expected) in [
+        ("truncated.part", "truncated"),
+        ("flipped.part", "corrupt"),
+        ("seed7.part", "different seed"),
+        ("other.part", "another render"),
+        ("../missing.part", "missing.part"),
+        ("scene.toml", "not a tessera partial render"),
+    ] {
+        if middle == "scene.toml" {
+            std::fs::copy(scene_path("cover.toml"), dir.join("scene.toml")).unwrap();
+        }
+        let o = run(
+            &["merge", "p0.part", middle, "p2.part", "-o", "out.png"],
+            &dir,
+        );
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{middle}: {err}");
+        assert!(
+            err.contains(expected),
+            "{middle}: expected `{expected}` in {err}"
+        );
+        assert!(!err.contains("panicked"), "{err}");
+        assert_eq!(
+            bytes(&dir, "out.png"),
+            b"precious",
+            "{middle} damaged the output"
+        );
+    }
+    let missing = run(&["merge", "p0.part", "p2.part", "-o", "out.png"], &dir);
+    let err = String::from_utf8_lossy(&missing.stderr);
+    assert_eq!(missing.status.code(), Some(2));
+    assert!(err.contains("gaps") && err.contains("missing"), "{err}");
+    let overlap = run(
+        &[
+            "merge",
+            "p0.part",
+            "p1.part",
+            "p2.part",
+            "overlap.part",
+            "-o",
+            "out.png",
+        ],
+        &dir,
+    );
+    assert!(String::from_utf8_lossy(&overlap.stderr).contains("overlaps"));
+    assert_eq!(bytes(&dir, "out.png"), b"precious");
+    // The parts themselves are untouched by all this.
+    assert_eq!(bytes(&dir, "p1.part"), good);
+    ok(
+        &["merge", "p0.part", "p1.part", "p2.part", "-o", "out.png"],
+        &dir,
+    );
+    assert_ne!(bytes(&dir, "out.png"), b"precious");
+}
