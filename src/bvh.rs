@@ -107,6 +107,9 @@ impl SpherePack {
 pub struct Bvh {
     nodes: Vec<WideNode>,
     packs: Vec<SpherePack>,
+    /// Spheres so large (the book's ground) that any box holding them holds everything:
+    /// tested on their own before the tree, which then stays tight around the rest.
+    giants: Vec<(Sphere, u32)>,
     /// Deepest level of inner nodes below the root (the root is level 0).
     max_level: usize,
 }
@@ -125,9 +128,19 @@ struct BuildItem {
 impl Bvh {
     /// Builds the hierarchy over `spheres`.
     pub fn build(spheres: &[Sphere]) -> Self {
+        let all = spheres.iter().fold(Aabb::EMPTY, |b, s| b.union(s.bounds()));
+        let mut areas: Vec<f32> = spheres.iter().map(|s| s.bounds().area()).collect();
+        areas.sort_by(f32::total_cmp);
+        let median = areas.get(areas.len() / 2).copied().unwrap_or(0.0);
+        // A giant's box is a large share of the whole scene's and far above a typical one.
+        let giant = |s: &Sphere| {
+            let area = s.bounds().area();
+            spheres.len() > 8 && area > 0.25 * all.area() && area > 100.0 * median
+        };
         let mut items: Vec<BuildItem> = spheres
             .iter()
             .enumerate()
+            .filter(|(_, s)| !giant(s))
             .map(|(i, s)| {
                 let bounds = s.bounds();
                 BuildItem {
@@ -137,7 +150,13 @@ impl Bvh {
                 }
             })
             .collect();
-        let mut bvh = Bvh::default();
+        let mut bvh = Bvh {
+            giants: (spheres.iter().enumerate())
+                .filter(|(_, s)| giant(s))
+                .map(|(i, s)| (*s, i as u32))
+                .collect(),
+            ..Bvh::default()
+        };
         if items.is_empty() {
             return bvh;
         }
@@ -240,8 +259,16 @@ impl Bvh {
         interval: Interval,
         stack: &mut TraversalStack,
     ) -> Option<(f32, PrimitiveId)> {
+        let mut closest = interval.max;
+        let mut found = None;
+        for (sphere, id) in &self.giants {
+            if let Some(t) = sphere.intersect(ray, Interval::new(interval.min, closest)) {
+                closest = t;
+                found = Some(*id);
+            }
+        }
         if self.nodes.is_empty() {
-            return None;
+            return found.map(|id| (closest, PrimitiveId(id)));
         }
         if stack.0.len() < self.stack_need() {
             *stack = self.new_stack();
@@ -281,8 +308,6 @@ impl Bvh {
         let far = near.map(|plane| (plane + 3) % 6);
         let t_min = Vec4::splat(interval.min);
 
-        let mut closest = interval.max;
-        let mut found = None;
         // Only inner nodes go on the stack; leaves are tested as soon as their parent is,
         // nearest first, which shortens `closest` early.
         let mut top = 0usize;
