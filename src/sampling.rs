@@ -88,16 +88,16 @@ impl Sampler {
         }
     }
 
-    /// A uniform direction on the unit sphere (the book's `random_unit_vector`). Drawn
-    /// directly from `z` and `phi`, which has the same distribution as normalising a point
-    /// of the ball and no rejection loop.
+    /// A uniform direction on the unit sphere (the book's `random_unit_vector`), by
+    /// Marsaglia's method: a point `(u, v)` of the unit disk (by rejection, 1.27 tries on
+    /// average) lifts to `(2u√(1-s), 2v√(1-s), 1-2s)` with `s = u² + v²`. Same distribution
+    /// as normalising a point of the ball, with fewer random numbers and no trigonometry.
     #[inline]
     pub fn unit_vector(&mut self) -> Vec3 {
-        let z = self.range(-1.0, 1.0);
-        let phi = std::f32::consts::TAU * self.uniform();
-        let r = (1.0 - z * z).max(0.0).sqrt();
-        let (s, c) = phi.sin_cos();
-        Vec3::new(r * c, r * s, z)
+        let (u, v) = self.in_unit_disk();
+        let s = u * u + v * v;
+        let r = 2.0 * (1.0 - s).max(0.0).sqrt();
+        Vec3::new(u * r, v * r, 1.0 - 2.0 * s)
     }
 
     /// A point of the unit ball flipped into the hemisphere around `normal`
