@@ -27,6 +27,23 @@ fn first_camera_dir(x: u32, y: u32, w: u32, h: u32) -> DVec3 {
     DVec3::new(-vw / 2.0 + u * vw, -vh / 2.0 + v * vh, -1.0).normalize()
 }
 
+const CENTRE: DVec3 = DVec3::new(0.0, 0.0, -1.0);
+
+/// Where the unit direction `d` from the origin meets the radius-0.5 sphere at `CENTRE`, in
+/// f64: `Some(Some(point))` on a hit, `Some(None)` on a miss, `None` within `margin` of the
+/// silhouette, where f32 and f64 may disagree on hit or miss.
+fn centre_sphere(d: DVec3, margin: f64) -> Option<Option<DVec3>> {
+    let b = d.dot(CENTRE);
+    let disc = b * b - (CENTRE.length_squared() - 0.25);
+    if disc.abs() < margin {
+        None
+    } else if disc > 0.0 {
+        Some(Some((b - disc.sqrt()) * d))
+    } else {
+        Some(None)
+    }
+}
+
 /// Mean linear radiance of pixel `(x, y)` of `lin`, a film's `linear()` values `width` wide.
 fn pixel_of(lin: &[f32], width: u32, x: u32, y: u32) -> DVec3 {
     let i = 3 * (y * width + x) as usize;
@@ -106,24 +123,18 @@ fn normals_figure_is_its_formula() {
     );
     let film = render(&scene);
     let (w, h) = (film.width, film.height);
-    let center = DVec3::new(0.0, 0.0, -1.0);
     let (mut hits, mut checked) = (0, 0);
     let lin = film.linear();
     for y in 0..h {
         for x in 0..w {
             let d = first_camera_dir(x, y, w, h);
-            let b = d.dot(center);
-            let disc = b * b - (center.length_squared() - 0.25);
-            // Leave out the silhouette, where f32 and f64 may disagree on hit or miss.
-            if disc.abs() < 1e-4 {
-                continue;
-            }
-            let want = if disc > 0.0 {
-                hits += 1;
-                let p = (b - disc.sqrt()) * d;
-                0.5 * ((p - center) / 0.5 + DVec3::ONE)
-            } else {
-                sky(d)
+            let want = match centre_sphere(d, 1e-4) {
+                None => continue,
+                Some(Some(p)) => {
+                    hits += 1;
+                    0.5 * ((p - CENTRE) / 0.5 + DVec3::ONE)
+                }
+                Some(None) => sky(d),
             };
             let got = pixel_of(&lin, w, x, y);
             assert!(
@@ -248,24 +259,19 @@ fn smooth_metal_reflects_the_sky_exactly() {
     ));
     let film = render(&scene);
     let (w, h) = (film.width, film.height);
-    let center = DVec3::new(0.0, 0.0, -1.0);
     let mut mirrored = 0;
     let lin = film.linear();
     for y in 0..h {
         for x in 0..w {
             let d = first_camera_dir(x, y, w, h);
-            let b = d.dot(center);
-            let disc = b * b - (center.length_squared() - 0.25);
-            if disc.abs() < 1e-3 {
-                continue;
-            }
-            let want = if disc > 0.0 {
-                mirrored += 1;
-                let p = (b - disc.sqrt()) * d;
-                let n = (p - center) / 0.5;
-                sky(d - 2.0 * d.dot(n) * n)
-            } else {
-                sky(d)
+            let want = match centre_sphere(d, 1e-3) {
+                None => continue,
+                Some(Some(p)) => {
+                    mirrored += 1;
+                    let n = (p - CENTRE) / 0.5;
+                    sky(d - 2.0 * d.dot(n) * n)
+                }
+                Some(None) => sky(d),
             };
             let got = pixel_of(&lin, w, x, y);
             assert!(

@@ -235,16 +235,12 @@ fn shard_index_from_slurm_and_kubernetes_environments() {
     assert_eq!(bytes(&dir, "k8s.part"), bytes(&dir, "explicit.part"));
 }
 
-/// The arguments of a render long enough to be killed in the middle of.
-fn long_render<'a>(out: &'a str, checkpoint: &'a str) -> Vec<&'a str> {
-    vec![
-        "render",
-        "SCENE",
-        "-q",
-        "--width",
-        "200",
-        "--spp",
-        "40",
+/// Size and samples of a render long enough to be killed in the middle of.
+const LONG: [&str; 4] = ["--width", "200", "--spp", "60"];
+
+/// The arguments of that render, checkpointing after every tile into `checkpoint`.
+fn long_render<'a>(scene: &'a str, out: &'a str, checkpoint: &'a str) -> Vec<&'a str> {
+    let more = [
         "-o",
         out,
         "--checkpoint",
@@ -253,37 +249,24 @@ fn long_render<'a>(out: &'a str, checkpoint: &'a str) -> Vec<&'a str> {
         "0",
         "--threads",
         "2",
-    ]
+    ];
+    with(&with(&["render", scene, "-q"], &LONG), &more)
 }
 
-fn with_scene<'a>(args: Vec<&'a str>, scene: &'a str) -> Vec<&'a str> {
-    args.into_iter()
-        .map(|a| if a == "SCENE" { scene } else { a })
-        .collect()
+/// The same render straight through; returns its bytes.
+fn straight_render(dir: &Path, scene: &str) -> Vec<u8> {
+    ok(
+        &with(&["render", scene, "-q", "-o", "straight.png"], &LONG),
+        dir,
+    );
+    bytes(dir, "straight.png")
 }
 
 #[test]
 fn killed_renders_resume_to_the_same_bytes() {
     let dir = temp_dir("sigkill");
     let scene = cover();
-    ok(
-        &with_scene(
-            vec![
-                "render",
-                "SCENE",
-                "-q",
-                "--width",
-                "200",
-                "--spp",
-                "40",
-                "-o",
-                "straight.png",
-            ],
-            &scene,
-        ),
-        &dir,
-    );
-    let straight = bytes(&dir, "straight.png");
+    let straight = straight_render(&dir, &scene);
     let mut caught_mid_render = 0;
     // Kill at several moments, and kill the resumed render again, then finish.
     for (n, delays) in [[20u64, 0, 0], [90, 0, 0], [200, 0, 0], [60, 80, 100]]
@@ -292,7 +275,7 @@ fn killed_renders_resume_to_the_same_bytes() {
     {
         let (out, ck) = (format!("killed{n}.png"), format!("killed{n}.ckpt"));
         for &ms in delays.iter().filter(|&&ms| ms > 0) {
-            let mut child = spawn(&with_scene(long_render(&out, &ck), &scene), &dir);
+            let mut child = spawn(&long_render(&scene, &out, &ck), &dir);
             std::thread::sleep(Duration::from_millis(ms));
             child.kill().unwrap(); // SIGKILL
             child.wait().unwrap();
@@ -303,7 +286,7 @@ fn killed_renders_resume_to_the_same_bytes() {
                 caught_mid_render += 1;
             }
         }
-        ok(&with_scene(long_render(&out, &ck), &scene), &dir);
+        ok(&long_render(&scene, &out, &ck), &dir);
         assert_eq!(bytes(&dir, &out), straight, "killed after {delays:?} ms");
     }
     assert!(
@@ -316,24 +299,8 @@ fn killed_renders_resume_to_the_same_bytes() {
 fn interrupted_render_saves_says_how_to_resume_and_resumes() {
     let dir = temp_dir("sigint");
     let scene = cover();
-    ok(
-        &with_scene(
-            vec![
-                "render",
-                "SCENE",
-                "-q",
-                "--width",
-                "200",
-                "--spp",
-                "40",
-                "-o",
-                "straight.png",
-            ],
-            &scene,
-        ),
-        &dir,
-    );
-    let mut args = with_scene(long_render("int.png", "int.ckpt"), &scene);
+    let straight = straight_render(&dir, &scene);
+    let mut args = long_render(&scene, "int.png", "int.ckpt");
     args.retain(|a| *a != "-q");
     let child = spawn(&args, &dir);
     std::thread::sleep(Duration::from_millis(150));
@@ -359,7 +326,7 @@ fn interrupted_render_saves_says_how_to_resume_and_resumes() {
     }
     assert!(dir.join("int.ckpt").exists());
     ok(&args, &dir);
-    assert_eq!(bytes(&dir, "int.png"), bytes(&dir, "straight.png"));
+    assert_eq!(bytes(&dir, "int.png"), straight);
 }
 
 #[test]
