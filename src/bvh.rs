@@ -7,8 +7,10 @@ use crate::math::{Interval, Vec3};
 use crate::ray::Ray;
 use glam::{BVec4A, Vec4};
 
-/// Leaves hold at most this many primitives: one SIMD pack.
-const MAX_LEAF: usize = 4;
+/// Leaves hold at most this many primitives, in consecutive SIMD packs of four.
+const MAX_LEAF: usize = 8;
+/// A leaf child reference: `LEAF | first_pack << PACK_SHIFT | pack_count`.
+const PACK_SHIFT: u32 = 4;
 /// Number of SAH bins per axis.
 const BINS: usize = 12;
 /// Child reference flags: a leaf (pack index in the low bits), or no child at all.
@@ -233,8 +235,11 @@ impl Bvh {
             let child = if node.count > 0 {
                 let first = node.first as usize;
                 let ids = &order[first..first + node.count as usize];
-                self.packs.push(SpherePack::new(spheres, ids));
-                LEAF | (self.packs.len() - 1) as u32
+                let first_pack = self.packs.len() as u32;
+                for chunk in ids.chunks(4) {
+                    self.packs.push(SpherePack::new(spheres, chunk));
+                }
+                LEAF | first_pack << PACK_SHIFT | ids.len().div_ceil(4) as u32
             } else {
                 self.collapse(binary, order, spheres, k, Vec::new(), level + 1)
             };
@@ -333,10 +338,14 @@ impl Bvh {
                 let lane = leaves.trailing_zeros() as usize;
                 leaves &= leaves - 1;
                 if t_near[lane] <= closest {
-                    let pack = &self.packs[(node.child[lane] & !LEAF) as usize];
-                    if let Some((t, id)) = pack.intersect(&o, &d, interval.min, closest) {
-                        closest = t;
-                        found = Some(id);
+                    let child = node.child[lane] & !LEAF;
+                    let first = (child >> PACK_SHIFT) as usize;
+                    let count = (child & ((1 << PACK_SHIFT) - 1)) as usize;
+                    for pack in &self.packs[first..first + count] {
+                        if let Some((t, id)) = pack.intersect(&o, &d, interval.min, closest) {
+                            closest = t;
+                            found = Some(id);
+                        }
                     }
                 }
             }
