@@ -218,7 +218,11 @@ impl Part {
         let region = unrect(header.region);
         let window = unrect(header.window);
         let image = PixelRect::full(header.width, header.height);
-        if !image.contains(&window) || !window.contains(&region) || region.area() == 0 {
+        if image.area() > crate::scene::MAX_PIXELS
+            || !image.contains(&window)
+            || !window.contains(&region)
+            || region.area() == 0
+        {
             return fail(format!(
                 "has an impossible region {:?} for window {:?} of a {}x{} image",
                 header.region, header.window, header.width, header.height
@@ -232,7 +236,7 @@ impl Part {
         {
             return fail("has an inconsistent header (samples, tiles or progress)".to_owned());
         }
-        let expected = header_end as u64 + region.area() * 24 + 8;
+        let expected = (header_end as u64).saturating_add(region.area().saturating_mul(24)) + 8;
         if bytes.len() as u64 != expected {
             return fail(format!(
                 "is truncated or padded ({} bytes, expected {expected})",

@@ -367,6 +367,17 @@ fn bad_command_lines_exit_2_without_touching_output() {
             "width",
         ),
         (
+            vec![
+                "render",
+                "scene.toml",
+                "-o",
+                "out.png",
+                "--width",
+                "9000000",
+            ],
+            "pixels an image may have",
+        ),
+        (
             vec!["render", "scene.toml", "-o", "out.png", "--spp", "-3"],
             "-3",
         ),

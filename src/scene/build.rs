@@ -13,6 +13,9 @@ use std::ops::Range;
 use std::path::Path;
 use toml::Spanned;
 
+/// The most pixels an image may have (2²⁸: 6 GiB of sums), so a typo cannot exhaust memory.
+pub const MAX_PIXELS: u64 = 1 << 28;
+
 /// Settings given on the command line that replace the file's.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Overrides {
@@ -192,6 +195,17 @@ fn render_settings(desc: &SceneDesc, ck: &Checker, ov: &Overrides) -> Result<Ren
             (w, h)
         }
     };
+    if u64::from(width) * u64::from(height) > MAX_PIXELS {
+        let message =
+            format!("{width}x{height} is more than the {MAX_PIXELS} pixels an image may have");
+        return Err(match ov.width {
+            Some(_) => Error::Setting {
+                field: "width".to_owned(),
+                message,
+            },
+            None => ck.error(img.width.span(), "image.width", message),
+        });
+    }
     let samples_per_pixel = match positive(ov.samples_per_pixel, "spp")? {
         Some(n) => n,
         None => ck.positive_int(&img.samples_per_pixel, "image.samples_per_pixel")?,

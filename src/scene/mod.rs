@@ -4,7 +4,7 @@ mod build;
 mod cover;
 pub mod desc;
 
-pub use build::Overrides;
+pub use build::{MAX_PIXELS, Overrides};
 
 use crate::bvh::{Bvh, TraversalStack};
 use crate::camera::{Camera, CameraSettings};
