@@ -11,6 +11,8 @@ use glam::{BVec4A, Vec4};
 const MAX_LEAF: usize = 8;
 /// A leaf child reference: `LEAF | first_pack << PACK_SHIFT | pack_count`.
 const PACK_SHIFT: u32 = 4;
+/// Cost of visiting a node relative to testing one pack, for the SAH.
+const TRAVERSAL_COST: f32 = 1.0;
 /// Number of SAH bins per axis.
 const BINS: usize = 12;
 /// Child reference flags: a leaf (pack index in the low bits), or no child at all.
@@ -462,7 +464,7 @@ fn bin_of(c: f32, centroids: &Aabb, axis: usize) -> usize {
 
 /// The SAH's best (axis, first bin of the right side), if splitting beats a leaf.
 fn best_split(items: &[BuildItem], centroids: &Aabb, bounds: Aabb) -> Option<(usize, usize)> {
-    let leaf_cost = items.len() as f32;
+    let leaf_cost = items.len().div_ceil(4) as f32;
     let parent_area = bounds.area();
     let mut best: Option<(f32, usize, usize)> = None;
     for axis in 0..3 {
@@ -493,8 +495,10 @@ fn best_split(items: &[BuildItem], centroids: &Aabb, bounds: Aabb) -> Option<(us
                 continue;
             }
             // Traversal cost 1 relative to one primitive test per unit probability.
-            let cost = 1.0
-                + (acc.area() * n as f32 + right_area[split] * right_count[split] as f32)
+            // Spheres are tested a pack of four at a time, so a side costs its packs.
+            let packs = |n: usize| n.div_ceil(4) as f32;
+            let cost = TRAVERSAL_COST
+                + (acc.area() * packs(n) + right_area[split] * packs(right_count[split]))
                     / parent_area.max(f32::MIN_POSITIVE);
             if best.is_none_or(|(c, _, _)| cost < c) {
                 best = Some((cost, axis, split));

@@ -18,7 +18,8 @@ const MAX_SAMPLE: f32 = (1u32 << 20) as f32;
 pub fn to_fixed(c: f32) -> u64 {
     if c > 0.0 {
         // Round half up; `f64::round` is a library call, this is two instructions.
-        (f64::from(c.min(MAX_SAMPLE)) * ONE + 0.5) as u64
+        // Through i64: x86 converts to signed integers in one instruction, unsigned in many.
+        (f64::from(c.min(MAX_SAMPLE)) * ONE + 0.5) as i64 as u64
     } else {
         0
     }
