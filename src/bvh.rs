@@ -351,8 +351,17 @@ impl Bvh {
                     }
                 }
             }
-            // Inner children onto the stack, sorted so the nearest is on top.
             hits &= !node.leaf_mask;
+            // One inner child (the common case): descend without touching the stack.
+            if hits != 0 && hits & (hits - 1) == 0 {
+                let lane = hits.trailing_zeros() as usize;
+                if t_near[lane] <= closest {
+                    current = node.child[lane];
+                    continue;
+                }
+                hits = 0;
+            }
+            // Several: onto the stack, sorted so the nearest is on top.
             let base = top;
             while hits != 0 {
                 let lane = hits.trailing_zeros() as usize;
