@@ -281,19 +281,9 @@ impl Bvh {
             *stack = self.new_stack();
         }
         let stack = &mut stack.0;
-        // A zero direction component would make 0 · ∞ = NaN in the slab test.
-        let safe = |x: f32| {
-            if x.abs() < 1e-30 {
-                1e-30f32.copysign(x)
-            } else {
-                x
-            }
-        };
-        let inv = Vec3::new(
-            1.0 / safe(ray.dir.x),
-            1.0 / safe(ray.dir.y),
-            1.0 / safe(ray.dir.z),
-        );
+        // Clamped so a zero direction component gives a huge finite slope, never the
+        // 0 · ∞ = NaN of a box face through the origin.
+        let inv = (Vec3::ONE / ray.dir).clamp(Vec3::splat(-1e30), Vec3::splat(1e30));
         let o = [
             Vec4::splat(ray.origin.x),
             Vec4::splat(ray.origin.y),
@@ -305,14 +295,11 @@ impl Bvh {
             Vec4::splat(ray.dir.z),
         ];
         let inv4 = [Vec4::splat(inv.x), Vec4::splat(inv.y), Vec4::splat(inv.z)];
-        // Near and far planes per axis: the min plane is near when the ray goes up that axis.
-        let near_plane = |axis: usize, d: f32| if d < 0.0 { axis + 3 } else { axis };
-        let near = [
-            near_plane(0, inv.x),
-            near_plane(1, inv.y),
-            near_plane(2, inv.z),
-        ];
-        let far = near.map(|plane| (plane + 3) % 6);
+        // Near and far planes per axis: the min plane (index `axis`) is near when the ray
+        // goes up that axis, the max plane (`axis + 3`) when it goes down.
+        let down = inv.cmplt(Vec3::ZERO).bitmask() as usize;
+        let near = [0, 1, 2].map(|axis| axis + 3 * ((down >> axis) & 1));
+        let far = [0, 1, 2].map(|axis| axis + 3 - 3 * ((down >> axis) & 1));
         let t_min = Vec4::splat(interval.min);
 
         // Only inner nodes go on the stack; leaves are tested as soon as their parent is,
