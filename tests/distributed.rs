@@ -137,44 +137,21 @@ fn row_shards_and_sample_ranges_merge_to_the_single_render() {
         ),
         &dir,
     );
-    ok(
-        &with(
-            &[
-                "render",
-                &scene,
-                "-q",
-                "--samples",
-                "5..12",
-                "--shard",
-                "0/2",
-                "--split",
-                "rows",
-                "-o",
-                "b.part",
-            ],
-            &SMALL,
-        ),
-        &dir,
-    );
-    ok(
-        &with(
-            &[
-                "render",
-                &scene,
-                "-q",
-                "--samples",
-                "5..12",
-                "--shard",
-                "1/2",
-                "--split",
-                "rows",
-                "-o",
-                "c.part",
-            ],
-            &SMALL,
-        ),
-        &dir,
-    );
+    for (spec, out) in [("0/2", "b.part"), ("1/2", "c.part")] {
+        let args = [
+            "render",
+            &scene,
+            "-q",
+            "--samples",
+            "5..12",
+            "--shard",
+            spec,
+        ];
+        ok(
+            &with(&with(&args, &["--split", "rows", "-o", out]), &SMALL),
+            &dir,
+        );
+    }
     ok(
         &["merge", "a.part", "b.part", "c.part", "-o", "ranges.ppm"],
         &dir,
