@@ -2,6 +2,7 @@
 //! map to 8-bit, and the only code that writes image files (always whole or not at all).
 
 use crate::error::{Error, Result};
+use crate::math::PixelRect;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -77,14 +78,6 @@ impl Film {
         }
     }
 
-    /// Copies a tile's sums (row-major, `w` wide) into place at `(x0, y0)`.
-    pub fn put_tile(&mut self, x0: u32, y0: u32, w: u32, tile: &[[u64; 3]]) {
-        for (row, chunk) in tile.chunks_exact(w as usize).enumerate() {
-            let start = (y0 as usize + row) * self.width as usize + x0 as usize;
-            self.sums[start..start + w as usize].copy_from_slice(chunk);
-        }
-    }
-
     /// Mean linear radiance of every pixel, row-major RGB.
     pub fn linear(&self) -> Vec<f32> {
         let scale = 1.0 / (ONE * f64::from(self.samples_per_pixel.max(1)));
@@ -153,6 +146,21 @@ impl Film {
             message,
         })?;
         write_atomically(path, &bytes)
+    }
+}
+
+/// Adds `sums`, the row-major sums of the pixels `rect`, into `into`, the row-major sums of
+/// the pixels `frame`, which contains `rect`. Integer addition: the order never matters.
+pub fn add_sums(into: &mut [[u64; 3]], frame: PixelRect, sums: &[[u64; 3]], rect: PixelRect) {
+    debug_assert!(frame.contains(&rect));
+    for (row, chunk) in sums.chunks_exact(rect.width as usize).enumerate() {
+        let y = (rect.y0 - frame.y0) as usize + row;
+        let start = y * frame.width as usize + (rect.x0 - frame.x0) as usize;
+        for (acc, add) in into[start..start + chunk.len()].iter_mut().zip(chunk) {
+            for c in 0..3 {
+                acc[c] += add[c];
+            }
+        }
     }
 }
 

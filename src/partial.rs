@@ -7,7 +7,7 @@
 //! gives exactly the sums of one uninterrupted render.
 
 use crate::error::{Error, Result};
-use crate::film::Film;
+use crate::film::{Film, add_sums};
 use crate::math::PixelRect;
 use crate::render::{Job, Progress, SampleRange};
 use crate::sampling::mix64;
@@ -402,16 +402,7 @@ pub fn merge(parts: &[(PathBuf, Part)]) -> Result<(Film, f32)> {
     }
     let mut film = Film::new(window.width, window.height, total);
     for (_, part) in parts {
-        let r = part.region();
-        for (row, chunk) in part.sums.chunks_exact(r.width as usize).enumerate() {
-            let y = (r.y0 - window.y0) as usize + row;
-            let start = y * window.width as usize + (r.x0 - window.x0) as usize;
-            for (acc, add) in film.sums[start..start + chunk.len()].iter_mut().zip(chunk) {
-                for c in 0..3 {
-                    acc[c] += add[c];
-                }
-            }
-        }
+        add_sums(&mut film.sums, window, &part.sums, part.region());
     }
     Ok((film, base.gamma))
 }

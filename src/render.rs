@@ -2,7 +2,7 @@
 //! every sample's random numbers from its own seed. The only module that knows threads.
 
 use crate::bvh::TraversalStack;
-use crate::film::{Film, to_fixed};
+use crate::film::{Film, add_sums, to_fixed};
 use crate::integrator;
 use crate::math::{Color, PixelRect};
 use crate::sampling::Sampler;
@@ -147,16 +147,7 @@ impl Progress {
     }
 
     fn add_tile(&mut self, index: usize, tile: &PixelRect, sums: &[[u64; 3]]) {
-        let region = self.job.region;
-        for (row, chunk) in sums.chunks_exact(tile.width as usize).enumerate() {
-            let y = (tile.y0 - region.y0) as usize + row;
-            let start = y * region.width as usize + (tile.x0 - region.x0) as usize;
-            for (acc, add) in self.sums[start..start + chunk.len()].iter_mut().zip(chunk) {
-                for c in 0..3 {
-                    acc[c] += add[c];
-                }
-            }
-        }
+        add_sums(&mut self.sums, self.job.region, sums, *tile);
         self.done[index] = self.job.samples.len();
     }
 

@@ -44,6 +44,13 @@ fn cover() -> String {
     scene_path("cover.toml").to_string_lossy().into_owned()
 }
 
+/// A scene other than the cover, for parts and checkpoints that must not mix with it.
+fn other_scene() -> String {
+    scene_path("img-1.18-view-distant.toml")
+        .to_string_lossy()
+        .into_owned()
+}
+
 /// A small cover render's settings, as arguments.
 const SMALL: [&str; 4] = ["--width", "120", "--spp", "12"];
 
@@ -343,9 +350,7 @@ fn progressive_render_continues_to_more_samples() {
 fn checkpoint_of_another_scene_is_refused() {
     let dir = temp_dir("ckpt-scene");
     let scene = cover();
-    let other = scene_path("img-1.18-view-distant.toml")
-        .to_string_lossy()
-        .into_owned();
+    let other = other_scene();
     ok(
         &[
             "render",
@@ -419,9 +424,7 @@ fn bad_parts_are_refused_and_nothing_is_damaged() {
         ),
         &dir,
     );
-    let other = scene_path("img-1.18-view-distant.toml")
-        .to_string_lossy()
-        .into_owned();
+    let other = other_scene();
     ok(
         &[
             "render",
