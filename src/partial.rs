@@ -133,7 +133,8 @@ impl Part {
 
     /// Refuses a part made from another scene or other settings than `scene`'s.
     pub fn check_scene(&self, scene: &Scene, path: &Path) -> Result<()> {
-        let expected = Part::from_progress(scene, &Progress::new(Job::whole(scene), 1), 0).header;
+        let expected = &scene.settings;
+        let fingerprint = format!("{:016x}", scene.fingerprint());
         let h = &self.header;
         let mismatch = |what: &str, theirs: String, ours: String| {
             Err(part_error(
@@ -141,7 +142,7 @@ impl Part {
                 format!("was rendered with a different {what} ({theirs}, this render has {ours})"),
             ))
         };
-        if h.fingerprint != expected.fingerprint {
+        if h.fingerprint != fingerprint {
             if (h.width, h.height) != (expected.width, expected.height) {
                 return mismatch(
                     "image size",
@@ -159,13 +160,13 @@ impl Part {
                     expected.max_depth.to_string(),
                 );
             }
-            return mismatch("scene", h.fingerprint.clone(), expected.fingerprint);
+            return mismatch("scene", h.fingerprint.clone(), fingerprint);
         }
-        if h.window != expected.window {
+        if h.window != rect(expected.window) {
             return mismatch(
                 "crop window",
                 format!("{:?}", h.window),
-                format!("{:?}", expected.window),
+                format!("{:?}", rect(expected.window)),
             );
         }
         Ok(())
