@@ -187,11 +187,6 @@ impl Bvh {
         3 * (self.max_level + 1) + 1
     }
 
-    /// Number of four-wide nodes.
-    pub fn node_count(&self) -> usize {
-        self.nodes.len()
-    }
-
     /// Appends the wide node for binary node `at` (or, for a leaf root, for `kids`), and
     /// returns its index.
     fn collapse(

@@ -1,4 +1,4 @@
-//! Axis-aligned bounding boxes and the slab test.
+//! Axis-aligned bounding boxes: union, centroid and surface area for the BVH build.
 
 use crate::math::Vec3;
 
@@ -43,33 +43,11 @@ impl Aabb {
         let e = self.max - self.min;
         2.0 * (e.x * e.y + e.y * e.z + e.z * e.x)
     }
-
-    /// Entry distance of a ray into the box if it meets the box within `(t_min, t_max)`.
-    /// `inv_dir` is `1 / dir` per component (infinities are fine).
-    #[inline]
-    pub fn hit(&self, origin: Vec3, inv_dir: Vec3, t_min: f32, t_max: f32) -> Option<f32> {
-        let t0 = (self.min - origin) * inv_dir;
-        let t1 = (self.max - origin) * inv_dir;
-        let near = t0.min(t1).max_element().max(t_min);
-        let far = t0.max(t1).min_element().min(t_max);
-        (near <= far).then_some(near)
-    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn slab_test_hits_and_misses() {
-        let b = Aabb::new(Vec3::splat(-1.0), Vec3::splat(1.0));
-        let o = Vec3::new(0.0, 0.0, -5.0);
-        let d = Vec3::Z;
-        assert_eq!(b.hit(o, d.recip(), 0.0, f32::INFINITY), Some(4.0));
-        assert_eq!(b.hit(o, d.recip(), 0.0, 3.0), None);
-        let o2 = Vec3::new(2.0, 0.0, -5.0);
-        assert_eq!(b.hit(o2, d.recip(), 0.0, f32::INFINITY), None);
-    }
 
     #[test]
     fn area_and_union() {

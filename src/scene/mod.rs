@@ -140,12 +140,6 @@ impl Scene {
         self.bvh.new_stack()
     }
 
-    /// The closest hit, found by testing every sphere (reference for tests).
-    pub fn hit_brute_force(&self, ray: &Ray, interval: Interval) -> Option<Hit> {
-        crate::bvh::intersect_brute_force(&self.spheres, ray, interval)
-            .map(|(t, id)| self.surface(ray, t, id))
-    }
-
     #[inline]
     fn surface(&self, ray: &Ray, t: f32, id: PrimitiveId) -> Hit {
         let sphere = &self.spheres[id.0 as usize];
@@ -222,11 +216,6 @@ impl Scene {
 
     pub fn material(&self, hit: &Hit) -> &Material {
         &self.materials[hit.material.0 as usize]
-    }
-
-    /// Number of camera samples in the rendered window.
-    pub fn total_samples(&self) -> u64 {
-        self.settings.window.area() * u64::from(self.settings.samples_per_pixel)
     }
 }
 
