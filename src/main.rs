@@ -228,10 +228,9 @@ fn cmd_render(args: RenderArgs) -> Result<()> {
     if let Some(path) = &args.checkpoint {
         Part::from_progress(&scene, &state, target).save(path)?;
         if !state.is_complete() {
-            let all = state.job.region.area() as f64 * f64::from(state.job.samples.len());
             eprintln!(
                 "tessera: interrupted at {:.1}%; progress is saved in {}. Run the same command again to resume.",
-                100.0 * state.finished_samples() as f64 / all.max(1.0),
+                state.percent_done(),
                 path.display()
             );
             std::process::exit(130);
@@ -302,11 +301,10 @@ fn resume(scene: &Scene, path: &Path, job: Job, quiet: bool) -> Result<Progress>
     }
     progress.extend_to(want.samples.end);
     if !quiet {
-        let all = want.region.area() as f64 * f64::from(want.samples.len());
         eprintln!(
             "tessera: resuming from {} ({:.1}% done)",
             path.display(),
-            100.0 * progress.finished_samples() as f64 / all.max(1.0)
+            progress.percent_done()
         );
     }
     Ok(progress)
@@ -386,7 +384,6 @@ fn cmd_bench(args: BenchArgs) -> Result<()> {
     let threads = scene_args.threads.unwrap_or(cores);
     options(Some(threads), render::DEFAULT_TILE)?;
     let scene = load(&scene_args, None, None)?;
-    let stats = median_run(&scene, threads, args.repeat)?;
     // Thread scaling: 1 … available cores, each the median of `repeat` renders.
     let scaling = if args.no_scaling {
         Vec::new()
@@ -394,6 +391,11 @@ fn cmd_bench(args: BenchArgs) -> Result<()> {
         (1..=cores)
             .map(|t| median_run(&scene, t, args.repeat))
             .collect::<Result<Vec<_>>>()?
+    };
+    // The headline run at `threads`, unless the table already measured it.
+    let stats = match scaling.iter().find(|r| r.threads == threads) {
+        Some(r) => *r,
+        None => median_run(&scene, threads, args.repeat)?,
     };
     let base = scaling.first().map_or(1.0, RenderStats::samples_per_sec);
     let s = &scene.settings;

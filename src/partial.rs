@@ -9,7 +9,7 @@
 use crate::error::{Error, Result};
 use crate::film::{Film, add_sums};
 use crate::math::PixelRect;
-use crate::render::{Job, Progress, SampleRange};
+use crate::render::{Job, Progress, SampleRange, samples_done};
 use crate::sampling::mix64;
 use crate::scene::Scene;
 use serde::{Deserialize, Serialize};
@@ -327,13 +327,14 @@ pub fn merge(parts: &[(PathBuf, Part)]) -> Result<(Film, f32)> {
             ));
         }
         if !part.is_complete() {
-            let done = part.progress().finished_samples() as f64;
-            let all = part.region().area() as f64 * f64::from(part.samples().len());
+            let (region, len) = (part.region(), part.samples().len());
+            let done = samples_done(region, part.header.tile, &part.header.done, len);
+            let total = region.area() * u64::from(len);
             return Err(part_error(
                 path,
                 format!(
                     "is an unfinished render ({:.1}% done); finish it by running its render command again",
-                    100.0 * done / all.max(1.0)
+                    100.0 * done as f64 / total.max(1) as f64
                 ),
             ));
         }

@@ -119,26 +119,29 @@ impl Progress {
         self.done.iter().all(|&d| d >= self.job.samples.len())
     }
 
-    /// Samples still to render.
-    pub fn remaining_samples(&self) -> u64 {
-        self.job
-            .region
-            .tiles(self.tile)
-            .iter()
-            .zip(&self.done)
-            .map(|(t, &d)| t.area() * u64::from(self.job.samples.len().saturating_sub(d)))
-            .sum()
+    /// Samples of the whole job, over all pixels.
+    pub fn total_samples(&self) -> u64 {
+        self.job.region.area() * u64::from(self.job.samples.len())
     }
 
     /// Samples finished, over all pixels.
     pub fn finished_samples(&self) -> u64 {
-        self.job
-            .region
-            .tiles(self.tile)
-            .iter()
-            .zip(&self.done)
-            .map(|(t, &d)| t.area() * u64::from(d.min(self.job.samples.len())))
-            .sum()
+        samples_done(
+            self.job.region,
+            self.tile,
+            &self.done,
+            self.job.samples.len(),
+        )
+    }
+
+    /// Samples still to render.
+    pub fn remaining_samples(&self) -> u64 {
+        self.total_samples() - self.finished_samples()
+    }
+
+    /// How much of the job is done, in percent.
+    pub fn percent_done(&self) -> f64 {
+        100.0 * self.finished_samples() as f64 / self.total_samples().max(1) as f64
     }
 
     /// Extends the job to more samples (progressive rendering): finished tiles keep their sums.
@@ -161,6 +164,17 @@ impl Progress {
             sums: self.sums.clone(),
         }
     }
+}
+
+/// Samples finished over `region` when its tiles of edge `tile` have each done `done[i]` of
+/// `len` samples.
+pub fn samples_done(region: PixelRect, tile: u32, done: &[u32], len: u32) -> u64 {
+    region
+        .tiles(tile)
+        .iter()
+        .zip(done)
+        .map(|(t, &d)| t.area() * u64::from(d.min(len)))
+        .sum()
 }
 
 /// A callback that sees the job's state, e.g. to save a checkpoint.
