@@ -425,22 +425,8 @@ fn bad_parts_are_refused_and_nothing_is_damaged() {
         &dir,
     );
     let other = other_scene();
-    ok(
-        &[
-            "render",
-            &other,
-            "-q",
-            "--width",
-            "120",
-            "--spp",
-            "12",
-            "--shard",
-            "1/3",
-            "-o",
-            "other.part",
-        ],
-        &dir,
-    );
+    let args = ["render", &other, "-q", "--shard", "1/3", "-o", "other.part"];
+    ok(&with(&args, &SMALL), &dir);
     ok(
         &with(
             &[
