@@ -18,6 +18,8 @@ const BINS: usize = 12;
 /// Child reference flags: a leaf (pack index in the low bits), or no child at all.
 const LEAF: u32 = 1 << 31;
 const EMPTY: u32 = u32::MAX;
+/// The primitive id of no hit, during traversal.
+const NO_HIT: u32 = u32::MAX;
 
 /// A node of the binary build tree: either two children (`count == 0`, at `first` and
 /// `first + 1`) or a leaf of `count` primitives starting at `first` of the build order.
@@ -72,7 +74,7 @@ impl SpherePack {
         &self,
         o: &[Vec4; 3],
         d: &[Vec4; 3],
-        t_min: f32,
+        t_min: Vec4,
         closest: f32,
     ) -> Option<(f32, u32)> {
         let fx = o[0] - self.center[0];
@@ -92,7 +94,7 @@ impl SpherePack {
         let t0 = Vec4::select(q_zero, Vec4::ZERO, c / q);
         let t1 = Vec4::select(q_zero, Vec4::ZERO, q);
         let (near, far) = (t0.min(t1), t0.max(t1));
-        let (lo, hi) = (Vec4::splat(t_min), Vec4::splat(closest));
+        let (lo, hi) = (t_min, Vec4::splat(closest));
         let inside = |t: Vec4| -> BVec4A { lo.cmplt(t) & t.cmplt(hi) };
         let inf = Vec4::splat(f32::INFINITY);
         let t = Vec4::select(inside(near), near, Vec4::select(inside(far), far, inf));
@@ -261,115 +263,185 @@ impl Bvh {
         interval: Interval,
         stack: &mut TraversalStack,
     ) -> Option<(f32, PrimitiveId)> {
-        let mut closest = interval.max;
-        let mut found = None;
-        for (sphere, id) in &self.giants {
-            if let Some(t) = sphere.intersect(ray, Interval::new(interval.min, closest)) {
-                closest = t;
-                found = Some(*id);
-            }
-        }
-        if self.nodes.is_empty() {
-            return found.map(|id| (closest, PrimitiveId(id)));
-        }
-        if stack.0.len() < self.stack_need() {
+        let need = self.stack_need();
+        if stack.0.len() < need {
             *stack = self.new_stack();
         }
-        let stack = &mut stack.0;
+        let mut walk = Traversal::new(self, ray, interval);
+        while !walk.step(self, &mut stack.0[..need]) {}
+        walk.result()
+    }
+
+    /// The closest hits of two independent rays, each as `intersect` gives it. The two
+    /// traversals advance node by node in turn, so while one waits on a load or a compare
+    /// the processor works on the other: a single ray's walk is one long chain of dependent
+    /// steps and leaves most of the core idle.
+    #[inline]
+    pub fn intersect_pair(
+        &self,
+        rays: [&Ray; 2],
+        interval: Interval,
+        stack: &mut TraversalStack,
+    ) -> [Option<(f32, PrimitiveId)>; 2] {
+        let need = self.stack_need();
+        if stack.0.len() < 2 * need {
+            stack.0 = vec![(0, 0.0); 2 * need];
+        }
+        let (stack_a, rest) = stack.0.split_at_mut(need);
+        let stack_b = &mut rest[..need];
+        let mut a = Traversal::new(self, rays[0], interval);
+        let mut b = Traversal::new(self, rays[1], interval);
+        loop {
+            let a_done = a.step(self, stack_a);
+            let b_done = b.step(self, stack_b);
+            match (a_done, b_done) {
+                (false, false) => continue,
+                (true, false) => while !b.step(self, stack_b) {},
+                (false, true) => while !a.step(self, stack_a) {},
+                (true, true) => {}
+            }
+            break;
+        }
+        [a.result(), b.result()]
+    }
+}
+
+/// One ray's walk through the hierarchy, advanced a node at a time by `step`.
+struct Traversal {
+    o: [Vec4; 3],
+    d: [Vec4; 3],
+    inv: [Vec4; 3],
+    /// Indices into `WideNode::planes` of the near and far plane per axis.
+    near: [usize; 3],
+    far: [usize; 3],
+    t_min: Vec4,
+    closest: f32,
+    found: u32,
+    /// The node to visit next, unless `done`.
+    current: u32,
+    /// Entries of the caller's stack in use.
+    top: usize,
+    done: bool,
+}
+
+impl Traversal {
+    /// Starts a walk: tests the giant spheres, and sets up the root as the first node.
+    #[inline(always)]
+    fn new(bvh: &Bvh, ray: &Ray, interval: Interval) -> Self {
+        let mut closest = interval.max;
+        let mut found = NO_HIT;
+        for (sphere, id) in &bvh.giants {
+            if let Some(t) = sphere.intersect(ray, Interval::new(interval.min, closest)) {
+                closest = t;
+                found = *id;
+            }
+        }
         // Clamped so a zero direction component gives a huge finite slope, never the
         // 0 · ∞ = NaN of a box face through the origin.
         let inv = (Vec3::ONE / ray.dir).clamp(Vec3::splat(-1e30), Vec3::splat(1e30));
-        let o = [
-            Vec4::splat(ray.origin.x),
-            Vec4::splat(ray.origin.y),
-            Vec4::splat(ray.origin.z),
-        ];
-        let d = [
-            Vec4::splat(ray.dir.x),
-            Vec4::splat(ray.dir.y),
-            Vec4::splat(ray.dir.z),
-        ];
-        let inv4 = [Vec4::splat(inv.x), Vec4::splat(inv.y), Vec4::splat(inv.z)];
         // Near and far planes per axis: the min plane (index `axis`) is near when the ray
         // goes up that axis, the max plane (`axis + 3`) when it goes down.
         let down = inv.cmplt(Vec3::ZERO).bitmask() as usize;
         let near = [0, 1, 2].map(|axis| axis + 3 * ((down >> axis) & 1));
         let far = [0, 1, 2].map(|axis| axis + 3 - 3 * ((down >> axis) & 1));
-        let t_min = Vec4::splat(interval.min);
+        let splat3 = |v: Vec3| [Vec4::splat(v.x), Vec4::splat(v.y), Vec4::splat(v.z)];
+        Traversal {
+            o: splat3(ray.origin),
+            d: splat3(ray.dir),
+            inv: splat3(inv),
+            near,
+            far,
+            t_min: Vec4::splat(interval.min),
+            closest,
+            found,
+            current: 0,
+            top: 0,
+            done: bvh.nodes.is_empty(),
+        }
+    }
 
-        // Only inner nodes go on the stack; leaves are tested as soon as their parent is,
-        // nearest first, which shortens `closest` early.
-        let mut top = 0usize;
-        let mut current = 0u32;
-        loop {
-            let node = &self.nodes[current as usize];
-            let p = &node.planes;
-            let t_near = ((p[near[0]] - o[0]) * inv4[0])
-                .max((p[near[1]] - o[1]) * inv4[1])
-                .max((p[near[2]] - o[2]) * inv4[2])
-                .max(t_min);
-            let t_far = ((p[far[0]] - o[0]) * inv4[0])
-                .min((p[far[1]] - o[1]) * inv4[1])
-                .min((p[far[2]] - o[2]) * inv4[2])
-                .min(Vec4::splat(closest));
-            let mut hits = t_near.cmple(t_far).bitmask();
-            // Indexing a SIMD vector by a variable lane compiles to a jump table.
-            let t_near = t_near.to_array();
-            // Leaves first: a pack test costs the same whatever `closest` is, so their order
-            // does not matter, only that their boxes are not already behind the closest hit.
-            let mut leaves = hits & node.leaf_mask;
-            while leaves != 0 {
-                let lane = leaves.trailing_zeros() as usize;
-                leaves &= leaves - 1;
-                if t_near[lane] <= closest {
-                    let child = node.child[lane] & !LEAF;
-                    let first = (child >> PACK_SHIFT) as usize;
-                    let count = (child & ((1 << PACK_SHIFT) - 1)) as usize;
-                    for pack in &self.packs[first..first + count] {
-                        if let Some((t, id)) = pack.intersect(&o, &d, interval.min, closest) {
-                            closest = t;
-                            found = Some(id);
-                        }
+    fn result(&self) -> Option<(f32, PrimitiveId)> {
+        (self.found != NO_HIT).then_some((self.closest, PrimitiveId(self.found)))
+    }
+
+    /// Visits the current node: tests its leaf children's spheres at once and picks the
+    /// next inner node. True when the walk is over (and stays so).
+    #[inline(always)]
+    fn step(&mut self, bvh: &Bvh, stack: &mut [(u32, f32)]) -> bool {
+        if self.done {
+            return true;
+        }
+        let (o, inv, near, far) = (&self.o, &self.inv, &self.near, &self.far);
+        let node = &bvh.nodes[self.current as usize];
+        let p = &node.planes;
+        let t_near = ((p[near[0]] - o[0]) * inv[0])
+            .max((p[near[1]] - o[1]) * inv[1])
+            .max((p[near[2]] - o[2]) * inv[2])
+            .max(self.t_min);
+        let t_far = ((p[far[0]] - o[0]) * inv[0])
+            .min((p[far[1]] - o[1]) * inv[1])
+            .min((p[far[2]] - o[2]) * inv[2])
+            .min(Vec4::splat(self.closest));
+        let mut hits = t_near.cmple(t_far).bitmask();
+        // Indexing a SIMD vector by a variable lane compiles to a jump table.
+        let t_near = t_near.to_array();
+        // Leaves first, as soon as their parent is tested: a pack test costs the same
+        // whatever `closest` is, so their order does not matter, only that their boxes are
+        // not already behind the closest hit.
+        let mut leaves = hits & node.leaf_mask;
+        while leaves != 0 {
+            let lane = leaves.trailing_zeros() as usize;
+            leaves &= leaves - 1;
+            if t_near[lane] <= self.closest {
+                let child = node.child[lane] & !LEAF;
+                let first = (child >> PACK_SHIFT) as usize;
+                let count = (child & ((1 << PACK_SHIFT) - 1)) as usize;
+                for pack in &bvh.packs[first..first + count] {
+                    if let Some((t, id)) =
+                        pack.intersect(&self.o, &self.d, self.t_min, self.closest)
+                    {
+                        self.closest = t;
+                        self.found = id;
                     }
                 }
             }
-            hits &= !node.leaf_mask;
-            // One inner child (the common case): descend without touching the stack.
-            if hits != 0 && hits & (hits - 1) == 0 {
-                let lane = hits.trailing_zeros() as usize;
-                if t_near[lane] <= closest {
-                    current = node.child[lane];
-                    continue;
-                }
-                hits = 0;
+        }
+        hits &= !node.leaf_mask;
+        // One inner child (the common case): descend without touching the stack.
+        if hits != 0 && hits & (hits - 1) == 0 {
+            let lane = hits.trailing_zeros() as usize;
+            if t_near[lane] <= self.closest {
+                self.current = node.child[lane];
+                return false;
             }
-            // Several: onto the stack, sorted so the nearest is on top.
-            let base = top;
-            while hits != 0 {
-                let lane = hits.trailing_zeros() as usize;
-                hits &= hits - 1;
-                let entry = (node.child[lane], t_near[lane]);
-                let mut i = top;
-                while i > base && stack[i - 1].1 < entry.1 {
-                    stack[i] = stack[i - 1];
-                    i -= 1;
-                }
-                stack[i] = entry;
-                top += 1;
+            hits = 0;
+        }
+        // Several: onto the stack, sorted so the nearest is on top. Only inner nodes go on
+        // the stack.
+        let base = self.top;
+        while hits != 0 {
+            let lane = hits.trailing_zeros() as usize;
+            hits &= hits - 1;
+            let entry = (node.child[lane], t_near[lane]);
+            let mut i = self.top;
+            while i > base && stack[i - 1].1 < entry.1 {
+                stack[i] = stack[i - 1];
+                i -= 1;
             }
-            // Next: the nearest stacked node the closest hit has not ruled out.
-            loop {
-                if top == 0 {
-                    return found.map(|id| (closest, PrimitiveId(id)));
-                }
-                top -= 1;
-                let (child, t_enter) = stack[top];
-                if t_enter <= closest {
-                    current = child;
-                    break;
-                }
+            stack[i] = entry;
+            self.top += 1;
+        }
+        // Next: the nearest stacked node the closest hit has not ruled out.
+        while self.top > 0 {
+            self.top -= 1;
+            let (child, t_enter) = stack[self.top];
+            if t_enter <= self.closest {
+                self.current = child;
+                return false;
             }
         }
+        self.done = true;
+        true
     }
 }
 

@@ -2,6 +2,7 @@
 //! throughput, plus the simpler shading modes of the book's first chapters. No threads, no I/O.
 
 use crate::bvh::TraversalStack;
+use crate::geometry::Hit;
 use crate::material::Material;
 use crate::math::{Color, Interval};
 use crate::ray::Ray;
@@ -58,31 +59,116 @@ pub fn radiance(
 #[inline]
 pub fn path_trace(
     scene: &Scene,
-    mut ray: Ray,
+    ray: Ray,
     rng: &mut Sampler,
     stack: &mut TraversalStack,
 ) -> Radiance {
-    let settings = &scene.settings;
-    let mut throughput = Color::ONE;
-    let mut rays = 0;
-    for _ in 0..settings.max_depth {
-        rays += 1;
-        let Some(hit) = scene.hit(&ray, ANY_DISTANCE, stack) else {
-            return Radiance {
-                color: throughput * scene.background.radiance(ray.dir),
-                rays,
-            };
+    let mut path = Path::new((), ray, rng.clone());
+    let color = loop {
+        if let Some(color) = path.finished(scene) {
+            break color;
+        }
+        let hit = scene.hit(&path.ray, ANY_DISTANCE, stack);
+        if let Some(color) = path.advance(scene, hit) {
+            break color;
+        }
+    };
+    *rng = path.rng;
+    Radiance {
+        color,
+        rays: path.rays,
+    }
+}
+
+/// Traces the path of every camera sample `samples` yields (a key, its camera ray and its
+/// generator), two at a time with their hierarchy walks interleaved (`Bvh::intersect_pair`),
+/// and hands each radiance to `done` with its key as the path ends. Each path's numbers are
+/// exactly those `path_trace` gives it; only the order in which paths end differs.
+pub fn trace_paths<K>(
+    scene: &Scene,
+    mut samples: impl Iterator<Item = (K, Ray, Sampler)>,
+    stack: &mut TraversalStack,
+    mut done: impl FnMut(K, Radiance),
+) {
+    // A path that ends before tracing anything (zero depth) is handed over at once.
+    let mut next = |done: &mut dyn FnMut(K, Radiance)| {
+        for (key, ray, rng) in samples.by_ref() {
+            let path = Path::new(key, ray, rng);
+            match path.finished(scene) {
+                Some(color) => done(path.key, Radiance { color, rays: 0 }),
+                None => return Some(path),
+            }
+        }
+        None
+    };
+    let mut slots = [next(&mut done), next(&mut done)];
+    loop {
+        let hits = match &slots {
+            [Some(a), Some(b)] => {
+                let [ha, hb] = scene.hit_pair([&a.ray, &b.ray], ANY_DISTANCE, stack);
+                [Some(ha), Some(hb)]
+            }
+            [Some(a), None] => [Some(scene.hit(&a.ray, ANY_DISTANCE, stack)), None],
+            [None, Some(b)] => [None, Some(scene.hit(&b.ray, ANY_DISTANCE, stack))],
+            [None, None] => return,
         };
-        let Some(scatter) = scene
-            .material(&hit)
-            .scatter(ray.dir, &hit, settings.diffuse, rng)
+        for (slot, hit) in slots.iter_mut().zip(hits) {
+            let (Some(path), Some(hit)) = (slot.as_mut(), hit) else {
+                continue;
+            };
+            if let Some(color) = path.advance(scene, hit) {
+                let rays = path.rays;
+                if let Some(path) = slot.take() {
+                    done(path.key, Radiance { color, rays });
+                }
+                *slot = next(&mut done);
+            }
+        }
+    }
+}
+
+/// A path under way: the segment to trace next and what the segments so far carry.
+struct Path<K> {
+    key: K,
+    ray: Ray,
+    rng: Sampler,
+    throughput: Color,
+    rays: u32,
+}
+
+impl<K> Path<K> {
+    fn new(key: K, ray: Ray, rng: Sampler) -> Self {
+        Path {
+            key,
+            ray,
+            rng,
+            throughput: Color::ONE,
+            rays: 0,
+        }
+    }
+
+    /// The radiance of a path that has used up its segments: none.
+    #[inline(always)]
+    fn finished(&self, scene: &Scene) -> Option<Color> {
+        (self.rays >= scene.settings.max_depth).then_some(Color::ZERO)
+    }
+
+    /// Takes the traced segment's closest hit: the path's radiance if that ends it
+    /// (escape, absorption, or the depth limit), else `None` with the next segment set up.
+    #[inline(always)]
+    fn advance(&mut self, scene: &Scene, hit: Option<Hit>) -> Option<Color> {
+        self.rays += 1;
+        let Some(hit) = hit else {
+            return Some(self.throughput * scene.background.radiance(self.ray.dir));
+        };
+        let Some(scatter) =
+            scene
+                .material(&hit)
+                .scatter(self.ray.dir, &hit, scene.settings.diffuse, &mut self.rng)
         else {
-            return Radiance {
-                color: Color::ZERO,
-                rays,
-            };
+            return Some(Color::ZERO);
         };
-        throughput *= scatter.attenuation;
+        self.throughput *= scatter.attenuation;
         let dir = scatter.dir.normalize();
         // Start the next segment off the surface on the side it leaves towards, which
         // avoids shadow acne (§8.4) without the book's t_min cut-off losing real hits.
@@ -91,10 +177,7 @@ pub fn path_trace(
         } else {
             -hit.normal
         };
-        ray = Ray::new(hit.p + settings.t_min * side, dir);
-    }
-    Radiance {
-        color: Color::ZERO,
-        rays,
+        self.ray = Ray::new(hit.p + scene.settings.t_min * side, dir);
+        self.finished(scene)
     }
 }

@@ -5,6 +5,7 @@ use crate::bvh::TraversalStack;
 use crate::film::{Film, add_sums, to_fixed};
 use crate::integrator;
 use crate::math::{Color, PixelRect};
+use crate::ray::Ray;
 use crate::sampling::Sampler;
 use crate::scene::{Scene, Shading};
 use rayon::prelude::*;
@@ -303,27 +304,44 @@ pub fn render_tile(scene: &Scene, tile: &PixelRect) -> TileResult {
 
 /// Renders the samples `range` of every pixel of one tile.
 pub fn render_tile_samples(scene: &Scene, tile: &PixelRect, range: SampleRange) -> TileResult {
-    let mut sums = Vec::with_capacity(tile.area() as usize);
+    let mut sums = vec![[0u64; 3]; tile.area() as usize];
     let mut rays = 0u64;
     let mut stack = scene.new_stack();
-    for y in tile.y0..tile.y0 + tile.height {
-        for x in tile.x0..tile.x0 + tile.width {
-            let mut acc = [0u64; 3];
+    let mut add = |pixel: usize, c: Color, r: u32| {
+        let acc = &mut sums[pixel];
+        acc[0] += to_fixed(c.x);
+        acc[1] += to_fixed(c.y);
+        acc[2] += to_fixed(c.z);
+        rays += u64::from(r);
+    };
+    let pixels = (tile.y0..tile.y0 + tile.height)
+        .flat_map(|y| (tile.x0..tile.x0 + tile.width).map(move |x| (x, y)))
+        .enumerate();
+    if scene.settings.shading == Shading::Path {
+        // Fixed-point sums do not depend on the order samples arrive in, so paths may end
+        // in any order: trace them two at a time.
+        let samples = pixels.flat_map(|(pixel, (x, y))| {
+            (range.start..range.end).map(move |sample| {
+                let (ray, rng) = camera_sample(scene, x, y, sample);
+                (pixel, ray, rng)
+            })
+        });
+        integrator::trace_paths(scene, samples, &mut stack, |pixel, r| {
+            add(pixel, r.color, r.rays)
+        });
+    } else {
+        for (pixel, (x, y)) in pixels {
             for sample in range.start..range.end {
                 let (c, r) = sample_pixel(scene, x, y, sample, &mut stack);
-                acc[0] += to_fixed(c.x);
-                acc[1] += to_fixed(c.y);
-                acc[2] += to_fixed(c.z);
-                rays += u64::from(r);
+                add(pixel, c, r);
             }
-            sums.push(acc);
         }
     }
     TileResult { sums, rays }
 }
 
-/// One camera sample of pixel `(x, y)` (top row is `y = 0`): its radiance and ray count.
-/// Everything random in it is drawn from the sample's own generator.
+/// One camera sample of pixel `(x, y)` (top row is `y = 0`): its radiance and ray count,
+/// traced on its own. Everything random in it is drawn from the sample's own generator.
 #[inline]
 pub fn sample_pixel(
     scene: &Scene,
@@ -332,6 +350,28 @@ pub fn sample_pixel(
     sample: u32,
     stack: &mut TraversalStack,
 ) -> (Color, u32) {
+    if scene.settings.shading == Shading::Uv {
+        let (u, v, _) = film_coordinates(scene, x, y, sample);
+        return (Color::new(u, v, 0.25), 0);
+    }
+    let (ray, mut rng) = camera_sample(scene, x, y, sample);
+    let r = integrator::radiance(scene, ray, &mut rng, stack);
+    (r.color, r.rays)
+}
+
+/// The camera ray of one sample of pixel `(x, y)`, and the sample's generator as the ray
+/// leaves it.
+#[inline]
+fn camera_sample(scene: &Scene, x: u32, y: u32, sample: u32) -> (Ray, Sampler) {
+    let (u, v, mut rng) = film_coordinates(scene, x, y, sample);
+    let ray = scene.camera.ray(u, v, &mut rng);
+    (ray, rng)
+}
+
+/// Where one sample of pixel `(x, y)` falls on the film, in the book's coordinates, and
+/// its generator after jittering.
+#[inline]
+fn film_coordinates(scene: &Scene, x: u32, y: u32, sample: u32) -> (f32, f32, Sampler) {
     let s = &scene.settings;
     let mut rng = Sampler::for_sample(s.seed, x, y, sample);
     let (du, dv) = if s.jitter {
@@ -343,10 +383,5 @@ pub fn sample_pixel(
     let j = s.height - 1 - y;
     let u = (x as f32 + du) / (s.width.max(2) - 1) as f32;
     let v = (j as f32 + dv) / (s.height.max(2) - 1) as f32;
-    if s.shading == Shading::Uv {
-        return (Color::new(u, v, 0.25), 0);
-    }
-    let ray = scene.camera.ray(u, v, &mut rng);
-    let r = integrator::radiance(scene, ray, &mut rng, stack);
-    (r.color, r.rays)
+    (u, v, rng)
 }

@@ -135,6 +135,22 @@ impl Scene {
             .map(|(t, id)| self.surface(ray, t, id))
     }
 
+    /// The closest hits along two independent rays, each as `hit` gives it, found together
+    /// (see `Bvh::intersect_pair`).
+    #[inline]
+    pub fn hit_pair(
+        &self,
+        rays: [&Ray; 2],
+        interval: Interval,
+        stack: &mut TraversalStack,
+    ) -> [Option<Hit>; 2] {
+        let [a, b] = self.bvh.intersect_pair(rays, interval, stack);
+        [
+            a.map(|(t, id)| self.surface(rays[0], t, id)),
+            b.map(|(t, id)| self.surface(rays[1], t, id)),
+        ]
+    }
+
     /// Scratch space for `hit`, sized for this scene.
     pub fn new_stack(&self) -> TraversalStack {
         self.bvh.new_stack()
