@@ -1,14 +1,19 @@
 //! A bounding volume hierarchy over spheres: built as a binary tree with the binned surface
-//! area heuristic, then collapsed into a flat array of four-wide nodes whose child boxes, and
-//! whose leaf spheres, are stored as structure-of-arrays and tested four at a time with SIMD.
+//! area heuristic, then collapsed into a flat array of eight-wide nodes whose child boxes, and
+//! whose leaf spheres, are stored as structure-of-arrays and tested eight at a time with SIMD.
 
 use crate::geometry::{Aabb, PrimitiveId, Sphere};
 use crate::math::{Interval, Vec3};
 use crate::ray::Ray;
-use glam::{BVec4A, Vec4};
+use wide::f32x8;
 
-/// Leaves hold at most this many primitives, in consecutive SIMD packs of four.
-const MAX_LEAF: usize = 8;
+/// Children per node and spheres per pack: one SIMD lane each (AVX where the build has it,
+/// two SSE halves otherwise).
+const WIDTH: usize = 8;
+type Lanes = f32x8;
+
+/// Leaves hold at most this many primitives, in consecutive SIMD packs of `WIDTH`.
+const MAX_LEAF: usize = WIDTH;
 /// A leaf child reference: `LEAF | first_pack << PACK_SHIFT | pack_count`.
 const PACK_SHIFT: u32 = 4;
 /// Cost of visiting a node relative to testing one pack, for the SAH.
@@ -30,81 +35,95 @@ struct Node {
     count: u32,
 }
 
-/// A four-wide node: the boxes of up to four children, one SIMD lane each. `planes` holds
+/// A wide node: the boxes of up to `WIDTH` children, one SIMD lane each. `planes` holds
 /// min x, y, z then max x, y, z, so a ray picks its near and far planes by index.
 #[derive(Clone, Copy, Debug)]
 struct WideNode {
-    planes: [Vec4; 6],
-    child: [u32; 4],
+    planes: [Lanes; 6],
+    child: [u32; WIDTH],
     /// Bit `i` is set when child `i` is a leaf.
     leaf_mask: u32,
 }
 
-/// Up to four spheres in structure-of-arrays form; unused lanes have `r2 = -1`, which no
+/// Up to `WIDTH` spheres in structure-of-arrays form; unused lanes have `r2 = -1`, which no
 /// ray can hit.
 #[derive(Clone, Copy, Debug)]
 struct SpherePack {
-    center: [Vec4; 3],
-    r2: Vec4,
-    id: [u32; 4],
+    center: [Lanes; 3],
+    r2: Lanes,
+    id: [u32; WIDTH],
 }
 
 impl SpherePack {
     fn new(spheres: &[Sphere], ids: &[u32]) -> Self {
-        let mut p = SpherePack {
-            center: [Vec4::ZERO; 3],
-            r2: Vec4::splat(-1.0),
-            id: [u32::MAX; 4],
-        };
-        for (lane, &id) in ids.iter().enumerate() {
-            let s = &spheres[id as usize];
-            for axis in 0..3 {
-                p.center[axis][lane] = s.center[axis];
+        let mut center = [[0.0; WIDTH]; 3];
+        let mut r2 = [-1.0; WIDTH];
+        let mut id = [u32::MAX; WIDTH];
+        for (lane, &i) in ids.iter().enumerate() {
+            let s = &spheres[i as usize];
+            for (axis, lanes) in center.iter_mut().enumerate() {
+                lanes[lane] = s.center[axis];
             }
-            p.r2[lane] = s.radius * s.radius;
-            p.id[lane] = id;
+            r2[lane] = s.radius * s.radius;
+            id[lane] = i;
         }
-        p
+        SpherePack {
+            center: center.map(Lanes::from),
+            r2: Lanes::from(r2),
+            id,
+        }
     }
 
-    /// The nearest hit among the four spheres within `(t_min, closest)`: the same arithmetic,
+    /// The nearest hit among the spheres within `(t_min, closest)`: the same arithmetic,
     /// lane by lane, as `Sphere::intersect`.
-    #[inline]
+    #[inline(always)]
     fn intersect(
         &self,
-        o: &[Vec4; 3],
-        d: &[Vec4; 3],
-        t_min: Vec4,
+        o: &[Lanes; 3],
+        d: &[Lanes; 3],
+        t_min: Lanes,
         closest: f32,
     ) -> Option<(f32, u32)> {
+        let zero = Lanes::ZERO;
         let fx = o[0] - self.center[0];
         let fy = o[1] - self.center[1];
         let fz = o[2] - self.center[2];
         let b = -(fx * d[0] + fy * d[1] + fz * d[2]);
         let (gx, gy, gz) = (fx + b * d[0], fy + b * d[1], fz + b * d[2]);
         let disc = self.r2 - (gx * gx + gy * gy + gz * gz);
-        let valid = disc.cmpge(Vec4::ZERO);
+        let valid = disc.simd_ge(zero);
+        // Most packs a ray reaches it misses outright: leave before the square root.
         if !valid.any() {
             return None;
         }
-        let sq = disc.max(Vec4::ZERO).sqrt();
-        let q = Vec4::select(b.cmpge(Vec4::ZERO), b + sq, b - sq);
+        let sq = disc.fast_max(zero).sqrt();
+        let q = b.simd_ge(zero).select(b + sq, b - sq);
         let c = (fx * fx + fy * fy + fz * fz) - self.r2;
-        let q_zero = q.cmpeq(Vec4::ZERO);
-        let t0 = Vec4::select(q_zero, Vec4::ZERO, c / q);
-        let t1 = Vec4::select(q_zero, Vec4::ZERO, q);
-        let (near, far) = (t0.min(t1), t0.max(t1));
-        let (lo, hi) = (t_min, Vec4::splat(closest));
-        let inside = |t: Vec4| -> BVec4A { lo.cmplt(t) & t.cmplt(hi) };
-        let inf = Vec4::splat(f32::INFINITY);
-        let t = Vec4::select(inside(near), near, Vec4::select(inside(far), far, inf));
-        let t = Vec4::select(valid, t, inf);
-        let best = t.min_element();
-        if best == f32::INFINITY {
+        let q_zero = q.simd_eq(zero);
+        let t0 = q_zero.select(zero, c / q);
+        let t1 = q_zero.select(zero, q);
+        let (near, far) = (t0.fast_min(t1), t0.fast_max(t1));
+        let hi = Lanes::splat(closest);
+        let inside = |t: Lanes| t_min.simd_lt(t) & t.simd_lt(hi);
+        let inf = Lanes::splat(f32::INFINITY);
+        let t = inside(near).select(near, inside(far).select(far, inf));
+        let t = valid.select(t, inf);
+        let hits = t.simd_lt(inf).to_bitmask();
+        if hits == 0 {
             return None;
         }
-        let lane = t.cmpeq(Vec4::splat(best)).bitmask().trailing_zeros();
-        Some((best, self.id[lane as usize]))
+        let t = t.to_array();
+        let mut lane = hits.trailing_zeros() as usize;
+        // Rarely does a ray meet two spheres of one pack: then the nearer.
+        let mut rest = hits & (hits - 1);
+        while rest != 0 {
+            let other = rest.trailing_zeros() as usize;
+            rest &= rest - 1;
+            if t[other] < t[lane] {
+                lane = other;
+            }
+        }
+        Some((t[lane], self.id[lane]))
     }
 }
 
@@ -186,7 +205,7 @@ impl Bvh {
     }
 
     fn stack_need(&self) -> usize {
-        3 * (self.max_level + 1) + 1
+        (WIDTH - 1) * (self.max_level + 1) + 1
     }
 
     /// Appends the wide node for binary node `at` (or, for a leaf root, for `kids`), and
@@ -205,8 +224,8 @@ impl Bvh {
             let first = binary[at].first as usize;
             kids = vec![first, first + 1];
         }
-        // Open the largest inner child until there are four.
-        while kids.len() < 4 {
+        // Open the largest inner child until the node is full.
+        while kids.len() < WIDTH {
             let widest = kids
                 .iter()
                 .enumerate()
@@ -223,35 +242,44 @@ impl Bvh {
             kids.push(first + 1);
         }
         let index = self.nodes.len();
-        let (inf, neg_inf) = (Vec4::splat(f32::INFINITY), Vec4::splat(f32::NEG_INFINITY));
-        self.nodes.push(WideNode {
-            planes: [inf, inf, inf, neg_inf, neg_inf, neg_inf],
-            child: [EMPTY; 4],
+        let (inf, neg_inf) = (f32::INFINITY, f32::NEG_INFINITY);
+        let mut planes = [[inf; WIDTH], [inf; WIDTH], [inf; WIDTH]]
+            .into_iter()
+            .chain([[neg_inf; WIDTH]; 3])
+            .collect::<Vec<_>>();
+        let mut node_out = WideNode {
+            planes: [Lanes::ZERO; 6],
+            child: [EMPTY; WIDTH],
             leaf_mask: 0,
-        });
+        };
+        // Reserve the slot so the node comes before its children.
+        self.nodes.push(node_out);
         for (lane, &k) in kids.iter().enumerate() {
             let node = binary[k];
             let child = if node.count > 0 {
                 let first = node.first as usize;
                 let ids = &order[first..first + node.count as usize];
                 let first_pack = self.packs.len() as u32;
-                for chunk in ids.chunks(4) {
+                for chunk in ids.chunks(WIDTH) {
                     self.packs.push(SpherePack::new(spheres, chunk));
                 }
-                LEAF | first_pack << PACK_SHIFT | ids.len().div_ceil(4) as u32
+                LEAF | first_pack << PACK_SHIFT | ids.len().div_ceil(WIDTH) as u32
             } else {
                 self.collapse(binary, order, spheres, k, Vec::new(), level + 1)
             };
-            let w = &mut self.nodes[index];
             for axis in 0..3 {
-                w.planes[axis][lane] = node.bounds.min[axis];
-                w.planes[axis + 3][lane] = node.bounds.max[axis];
+                planes[axis][lane] = node.bounds.min[axis];
+                planes[axis + 3][lane] = node.bounds.max[axis];
             }
-            w.child[lane] = child;
+            node_out.child[lane] = child;
             if child & LEAF != 0 {
-                w.leaf_mask |= 1 << lane;
+                node_out.leaf_mask |= 1 << lane;
             }
         }
+        for (out, plane) in node_out.planes.iter_mut().zip(planes) {
+            *out = Lanes::from(plane);
+        }
+        self.nodes[index] = node_out;
         index as u32
     }
 
@@ -308,13 +336,13 @@ impl Bvh {
 
 /// One ray's walk through the hierarchy, advanced a node at a time by `step`.
 struct Traversal {
-    o: [Vec4; 3],
-    d: [Vec4; 3],
-    inv: [Vec4; 3],
+    o: [Lanes; 3],
+    d: [Lanes; 3],
+    inv: [Lanes; 3],
     /// Indices into `WideNode::planes` of the near and far plane per axis.
     near: [usize; 3],
     far: [usize; 3],
-    t_min: Vec4,
+    t_min: Lanes,
     closest: f32,
     found: u32,
     /// The node to visit next, unless `done`.
@@ -344,14 +372,14 @@ impl Traversal {
         let down = inv.cmplt(Vec3::ZERO).bitmask() as usize;
         let near = [0, 1, 2].map(|axis| axis + 3 * ((down >> axis) & 1));
         let far = [0, 1, 2].map(|axis| axis + 3 - 3 * ((down >> axis) & 1));
-        let splat3 = |v: Vec3| [Vec4::splat(v.x), Vec4::splat(v.y), Vec4::splat(v.z)];
+        let splat3 = |v: Vec3| [Lanes::splat(v.x), Lanes::splat(v.y), Lanes::splat(v.z)];
         Traversal {
             o: splat3(ray.origin),
             d: splat3(ray.dir),
             inv: splat3(inv),
             near,
             far,
-            t_min: Vec4::splat(interval.min),
+            t_min: Lanes::splat(interval.min),
             closest,
             found,
             current: 0,
@@ -375,14 +403,14 @@ impl Traversal {
         let node = &bvh.nodes[self.current as usize];
         let p = &node.planes;
         let t_near = ((p[near[0]] - o[0]) * inv[0])
-            .max((p[near[1]] - o[1]) * inv[1])
-            .max((p[near[2]] - o[2]) * inv[2])
-            .max(self.t_min);
+            .fast_max((p[near[1]] - o[1]) * inv[1])
+            .fast_max((p[near[2]] - o[2]) * inv[2])
+            .fast_max(self.t_min);
         let t_far = ((p[far[0]] - o[0]) * inv[0])
-            .min((p[far[1]] - o[1]) * inv[1])
-            .min((p[far[2]] - o[2]) * inv[2])
-            .min(Vec4::splat(self.closest));
-        let mut hits = t_near.cmple(t_far).bitmask();
+            .fast_min((p[far[1]] - o[1]) * inv[1])
+            .fast_min((p[far[2]] - o[2]) * inv[2])
+            .fast_min(Lanes::splat(self.closest));
+        let mut hits = t_near.simd_le(t_far).to_bitmask();
         // Indexing a SIMD vector by a variable lane compiles to a jump table.
         let t_near = t_near.to_array();
         // Leaves first, as soon as their parent is tested: a pack test costs the same
@@ -455,7 +483,7 @@ fn build_node(nodes: &mut Vec<Node>, at: usize, items: &mut [BuildItem], start: 
         first: start as u32,
         count: count as u32,
     };
-    // A pack tests four spheres for the price of one, so never split what fits in one.
+    // A pack tests `WIDTH` spheres for the price of one, so never split what fits in one.
     if count <= MAX_LEAF {
         nodes[at] = leaf;
         return;
@@ -527,7 +555,7 @@ fn bin_of(c: f32, centroids: &Aabb, axis: usize) -> usize {
 
 /// The SAH's best (axis, first bin of the right side), if splitting beats a leaf.
 fn best_split(items: &[BuildItem], centroids: &Aabb, bounds: Aabb) -> Option<(usize, usize)> {
-    let leaf_cost = items.len().div_ceil(4) as f32;
+    let leaf_cost = items.len().div_ceil(WIDTH) as f32;
     let parent_area = bounds.area();
     let mut best: Option<(f32, usize, usize)> = None;
     for axis in 0..3 {
@@ -558,8 +586,8 @@ fn best_split(items: &[BuildItem], centroids: &Aabb, bounds: Aabb) -> Option<(us
                 continue;
             }
             // Traversal cost 1 relative to one primitive test per unit probability.
-            // Spheres are tested a pack of four at a time, so a side costs its packs.
-            let packs = |n: usize| n.div_ceil(4) as f32;
+            // Spheres are tested a pack at a time, so a side costs its packs.
+            let packs = |n: usize| n.div_ceil(WIDTH) as f32;
             let cost = TRAVERSAL_COST
                 + (acc.area() * packs(n) + right_area[split] * packs(right_count[split]))
                     / parent_area.max(f32::MIN_POSITIVE);
@@ -663,7 +691,7 @@ mod tests {
     fn leaves_stay_small_even_for_coincident_spheres() {
         let spheres = vec![Sphere::new(Vec3::ZERO, 1.0, MaterialId(0)); 40];
         let bvh = Bvh::build(&spheres);
-        assert!(bvh.packs.len() >= 10);
+        assert!(bvh.packs.len() >= 40 / MAX_LEAF);
         let ids = bvh
             .packs
             .iter()

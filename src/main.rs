@@ -125,6 +125,7 @@ struct BenchArgs {
 }
 
 fn main() {
+    require_build_features();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(args) => cmd_render(args),
@@ -134,6 +135,19 @@ fn main() {
     };
     if let Err(e) = result {
         eprintln!("tessera: error: {e:#}");
+        std::process::exit(2);
+    }
+}
+
+/// A build made for AVX2 (see `.cargo/config.toml`) would die of an illegal instruction on a
+/// CPU without it; say so instead, before anything runs.
+fn require_build_features() {
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+    if !std::is_x86_feature_detected!("avx2") {
+        eprintln!(
+            "tessera: error: this build needs a CPU with AVX2; build a portable one with \
+             RUSTFLAGS=\"-C target-cpu=x86-64\" cargo build --release"
+        );
         std::process::exit(2);
     }
 }
