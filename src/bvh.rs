@@ -334,6 +334,24 @@ impl Bvh {
     }
 }
 
+/// Indices into `WideNode::planes` of the near and far plane per axis, for each octant of
+/// ray directions (bit `axis` set when the ray goes down that axis).
+const PLANES_BY_OCTANT: [([usize; 3], [usize; 3]); 8] = {
+    let mut table = [([0; 3], [0; 3]); 8];
+    let mut down = 0;
+    while down < 8 {
+        let mut axis = 0;
+        while axis < 3 {
+            let flip = 3 * ((down >> axis) & 1);
+            table[down].0[axis] = axis + flip;
+            table[down].1[axis] = axis + 3 - flip;
+            axis += 1;
+        }
+        down += 1;
+    }
+    table
+};
+
 /// One ray's walk through the hierarchy, advanced a node at a time by `step`.
 struct Traversal {
     o: [Lanes; 3],
@@ -369,9 +387,8 @@ impl Traversal {
         let inv = (Vec3::ONE / ray.dir).clamp(Vec3::splat(-1e30), Vec3::splat(1e30));
         // Near and far planes per axis: the min plane (index `axis`) is near when the ray
         // goes up that axis, the max plane (`axis + 3`) when it goes down.
-        let down = inv.cmplt(Vec3::ZERO).bitmask() as usize;
-        let near = [0, 1, 2].map(|axis| axis + 3 * ((down >> axis) & 1));
-        let far = [0, 1, 2].map(|axis| axis + 3 - 3 * ((down >> axis) & 1));
+        let down = inv.cmplt(Vec3::ZERO).bitmask() as usize & 7;
+        let (near, far) = PLANES_BY_OCTANT[down];
         let splat3 = |v: Vec3| [Lanes::splat(v.x), Lanes::splat(v.y), Lanes::splat(v.z)];
         Traversal {
             o: splat3(ray.origin),
