@@ -36,13 +36,15 @@ struct Node {
 }
 
 /// A wide node: the boxes of up to `WIDTH` children, one SIMD lane each. `planes` holds
-/// min x, y, z then max x, y, z, so a ray picks its near and far planes by index.
+/// min x, y, z then max x, y, z.
 #[derive(Clone, Copy, Debug)]
 struct WideNode {
     planes: [Lanes; 6],
     child: [u32; WIDTH],
     /// Bit `i` is set when child `i` is a leaf.
     leaf_mask: u32,
+    /// Bit `i` is set when child `i` is an inner node.
+    inner_mask: u32,
 }
 
 /// Up to `WIDTH` spheres in structure-of-arrays form; unused lanes have `r2 = -1`, which no
@@ -251,6 +253,7 @@ impl Bvh {
             planes: [Lanes::ZERO; 6],
             child: [EMPTY; WIDTH],
             leaf_mask: 0,
+            inner_mask: 0,
         };
         // Reserve the slot so the node comes before its children.
         self.nodes.push(node_out);
@@ -274,6 +277,8 @@ impl Bvh {
             node_out.child[lane] = child;
             if child & LEAF != 0 {
                 node_out.leaf_mask |= 1 << lane;
+            } else {
+                node_out.inner_mask |= 1 << lane;
             }
         }
         for (out, plane) in node_out.planes.iter_mut().zip(planes) {
@@ -334,32 +339,11 @@ impl Bvh {
     }
 }
 
-/// Indices into `WideNode::planes` of the near and far plane per axis, for each octant of
-/// ray directions (bit `axis` set when the ray goes down that axis).
-const PLANES_BY_OCTANT: [([usize; 3], [usize; 3]); 8] = {
-    let mut table = [([0; 3], [0; 3]); 8];
-    let mut down = 0;
-    while down < 8 {
-        let mut axis = 0;
-        while axis < 3 {
-            let flip = 3 * ((down >> axis) & 1);
-            table[down].0[axis] = axis + flip;
-            table[down].1[axis] = axis + 3 - flip;
-            axis += 1;
-        }
-        down += 1;
-    }
-    table
-};
-
 /// One ray's walk through the hierarchy, advanced a node at a time by `step`.
 struct Traversal {
     o: [Lanes; 3],
     d: [Lanes; 3],
     inv: [Lanes; 3],
-    /// Indices into `WideNode::planes` of the near and far plane per axis.
-    near: [usize; 3],
-    far: [usize; 3],
     t_min: Lanes,
     closest: f32,
     found: u32,
@@ -385,17 +369,11 @@ impl Traversal {
         // Clamped so a zero direction component gives a huge finite slope, never the
         // 0 · ∞ = NaN of a box face through the origin.
         let inv = (Vec3::ONE / ray.dir).clamp(Vec3::splat(-1e30), Vec3::splat(1e30));
-        // Near and far planes per axis: the min plane (index `axis`) is near when the ray
-        // goes up that axis, the max plane (`axis + 3`) when it goes down.
-        let down = inv.cmplt(Vec3::ZERO).bitmask() as usize & 7;
-        let (near, far) = PLANES_BY_OCTANT[down];
         let splat3 = |v: Vec3| [Lanes::splat(v.x), Lanes::splat(v.y), Lanes::splat(v.z)];
         Traversal {
             o: splat3(ray.origin),
             d: splat3(ray.dir),
             inv: splat3(inv),
-            near,
-            far,
             t_min: Lanes::splat(interval.min),
             closest,
             found,
@@ -416,17 +394,21 @@ impl Traversal {
         if self.done {
             return true;
         }
-        let (o, inv, near, far) = (&self.o, &self.inv, &self.near, &self.far);
+        let (o, inv) = (&self.o, &self.inv);
         let node = &bvh.nodes[self.current as usize];
         let p = &node.planes;
-        let t_near = ((p[near[0]] - o[0]) * inv[0])
-            .fast_max((p[near[1]] - o[1]) * inv[1])
-            .fast_max((p[near[2]] - o[2]) * inv[2])
-            .fast_max(self.t_min);
-        let t_far = ((p[far[0]] - o[0]) * inv[0])
-            .fast_min((p[far[1]] - o[1]) * inv[1])
-            .fast_min((p[far[2]] - o[2]) * inv[2])
-            .fast_min(Lanes::splat(self.closest));
+        // The slab test: per axis, the ray's parameters at the min and max planes; the
+        // nearer of each pair enters the slab, the farther leaves it.
+        let t0 = [0, 1, 2].map(|axis| (p[axis] - o[axis]) * inv[axis]);
+        let t1 = [0, 1, 2].map(|axis| (p[axis + 3] - o[axis]) * inv[axis]);
+        let t_near = t0[0]
+            .fast_min(t1[0])
+            .fast_max(t0[1].fast_min(t1[1]))
+            .fast_max(t0[2].fast_min(t1[2]).fast_max(self.t_min));
+        let t_far = t0[0]
+            .fast_max(t1[0])
+            .fast_min(t0[1].fast_max(t1[1]))
+            .fast_min(t0[2].fast_max(t1[2]).fast_min(Lanes::splat(self.closest)));
         let mut hits = t_near.simd_le(t_far).to_bitmask();
         // Indexing a SIMD vector by a variable lane compiles to a jump table.
         let t_near = t_near.to_array();
@@ -451,7 +433,7 @@ impl Traversal {
                 }
             }
         }
-        hits &= !node.leaf_mask;
+        hits &= node.inner_mask;
         // One inner child (the common case): descend without touching the stack.
         if hits != 0 && hits & (hits - 1) == 0 {
             let lane = hits.trailing_zeros() as usize;
