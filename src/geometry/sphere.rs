@@ -36,12 +36,18 @@ impl Sphere {
     /// from `c / q`, so neither root is a difference of nearly equal numbers.
     #[inline]
     pub fn intersect(&self, ray: &Ray, interval: Interval) -> Option<f32> {
-        // Written out per component, in the same order as the four-wide test of
+        // Written out per component, in the same order as the SIMD pack test of
         // `bvh::SpherePack`, so both give bit-identical answers.
         let (o, d, c) = (ray.origin, ray.dir, self.center);
         let (fx, fy, fz) = (o.x - c.x, o.y - c.y, o.z - c.z);
         let b = -(fx * d.x + fy * d.y + fz * d.z);
         let r2 = self.radius * self.radius;
+        let c = (fx * fx + fy * fy + fz * fz) - r2;
+        // From outside and moving away both roots are negative: every ray leaving the
+        // ground skips the rest. (The full test below says no in this case too.)
+        if c > 0.0 && b < 0.0 && interval.min >= 0.0 {
+            return None;
+        }
         let (gx, gy, gz) = (fx + b * d.x, fy + b * d.y, fz + b * d.z);
         let disc = r2 - (gx * gx + gy * gy + gz * gz);
         if disc < 0.0 {
@@ -49,7 +55,6 @@ impl Sphere {
         }
         let sq = disc.sqrt();
         let q = if b >= 0.0 { b + sq } else { b - sq };
-        let c = (fx * fx + fy * fy + fz * fz) - r2;
         let (t0, t1) = if q == 0.0 { (0.0, 0.0) } else { (c / q, q) };
         let (near, far) = (t0.min(t1), t0.max(t1));
         if interval.surrounds(near) {
