@@ -76,16 +76,19 @@ impl SpherePack {
         }
     }
 
-    /// The nearest hit among the spheres within `(t_min, closest)`: the same arithmetic,
-    /// lane by lane, as `Sphere::intersect`.
+    /// Takes a hit among the spheres that beats `(closest, found)`, the best so far: the
+    /// nearest within `(t_min, closest]`, ties going to the lower primitive id wherever
+    /// they are met, so every traversal order finds the same hit. The same arithmetic, lane
+    /// by lane, as `Sphere::intersect`.
     #[inline(always)]
     fn intersect(
         &self,
         o: &[Lanes; 3],
         d: &[Lanes; 3],
         t_min: Lanes,
-        closest: f32,
-    ) -> Option<(f32, u32)> {
+        closest: &mut f32,
+        found: &mut u32,
+    ) {
         let zero = Lanes::ZERO;
         let fx = o[0] - self.center[0];
         let fy = o[1] - self.center[1];
@@ -96,7 +99,7 @@ impl SpherePack {
         let valid = disc.simd_ge(zero);
         // Most packs a ray reaches it misses outright: leave before the square root.
         if !valid.any() {
-            return None;
+            return;
         }
         let sq = disc.fast_max(zero).sqrt();
         let q = b.simd_ge(zero).select(b + sq, b - sq);
@@ -105,14 +108,14 @@ impl SpherePack {
         let t0 = q_zero.select(zero, c / q);
         let t1 = q_zero.select(zero, q);
         let (near, far) = (t0.fast_min(t1), t0.fast_max(t1));
-        let hi = Lanes::splat(closest);
-        let inside = |t: Lanes| t_min.simd_lt(t) & t.simd_lt(hi);
+        let hi = Lanes::splat(*closest);
+        let inside = |t: Lanes| t_min.simd_lt(t) & t.simd_le(hi);
         let inf = Lanes::splat(f32::INFINITY);
         let t = inside(near).select(near, inside(far).select(far, inf));
         let t = valid.select(t, inf);
         let hits = t.simd_lt(inf).to_bitmask();
         if hits == 0 {
-            return None;
+            return;
         }
         let t = t.to_array();
         let mut lane = hits.trailing_zeros() as usize;
@@ -121,11 +124,16 @@ impl SpherePack {
         while rest != 0 {
             let other = rest.trailing_zeros() as usize;
             rest &= rest - 1;
-            if t[other] < t[lane] {
+            if (t[other], self.id[other]) < (t[lane], self.id[lane]) {
                 lane = other;
             }
         }
-        Some((t[lane], self.id[lane]))
+        let (t, id) = (t[lane], self.id[lane]);
+        // A tie with the best so far counts only against a real hit, not the interval's end.
+        if t < *closest || (*found != NO_HIT && id < *found) {
+            *closest = t;
+            *found = id;
+        }
     }
 }
 
@@ -424,12 +432,13 @@ impl Traversal {
                 let first = (child >> PACK_SHIFT) as usize;
                 let count = (child & ((1 << PACK_SHIFT) - 1)) as usize;
                 for pack in &bvh.packs[first..first + count] {
-                    if let Some((t, id)) =
-                        pack.intersect(&self.o, &self.d, self.t_min, self.closest)
-                    {
-                        self.closest = t;
-                        self.found = id;
-                    }
+                    pack.intersect(
+                        &self.o,
+                        &self.d,
+                        self.t_min,
+                        &mut self.closest,
+                        &mut self.found,
+                    );
                 }
             }
         }
@@ -684,6 +693,31 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn ties_go_to_the_lower_id_whatever_the_traversal_order() {
+        // Every sphere twelve times over, more than a leaf holds: each hit is a tie between
+        // spheres of different leaves and packs.
+        let mut rng = Sampler::from_seed(9);
+        let base = random_spheres(20, &mut rng);
+        let spheres: Vec<Sphere> = (0..12).flat_map(|_| base.iter().copied()).collect();
+        let bvh = Bvh::build(&spheres);
+        let mut stack = TraversalStack::default();
+        let iv = Interval::new(1e-4, f32::INFINITY);
+        let mut hits = 0;
+        for _ in 0..2000 {
+            let o = Vec3::new(rng.range(-15.0, 15.0), rng.range(0.0, 6.0), 15.0);
+            let ray = Ray::new(o, rng.unit_vector());
+            let a = bvh.intersect(&ray, iv, &mut stack);
+            let b = intersect_brute_force(&spheres, &ray, iv);
+            assert_eq!(a, b, "for {ray:?}");
+            if let Some((_, id)) = a {
+                assert!((id.0 as usize) < base.len(), "tie lost to a later copy");
+                hits += 1;
+            }
+        }
+        assert!(hits > 200, "only {hits} hits");
     }
 
     #[test]
