@@ -347,6 +347,82 @@ impl Bvh {
     }
 }
 
+/// A few spheres of the hierarchy picked out for a bundle of rays (the camera rays of one
+/// tile), tested without walking the tree. The giants are tested as always.
+#[derive(Clone, Debug)]
+pub struct Candidates {
+    packs: Vec<SpherePack>,
+}
+
+impl Candidates {
+    /// At most this many spheres are worth a list: beyond it the tree is faster.
+    pub const MAX: usize = 2 * WIDTH;
+
+    pub fn len(&self) -> usize {
+        self.packs
+            .iter()
+            .map(|p| p.id.iter().filter(|&&id| id != u32::MAX).count())
+            .sum()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+impl Bvh {
+    /// The tree's spheres `keep` accepts, or `None` when there are more than
+    /// `Candidates::MAX`.
+    pub fn candidates(
+        &self,
+        spheres: &[Sphere],
+        keep: impl Fn(&Sphere) -> bool,
+    ) -> Option<Candidates> {
+        let mut ids = Vec::new();
+        let tree_ids = self
+            .packs
+            .iter()
+            .flat_map(|p| p.id)
+            .filter(|&id| id != u32::MAX);
+        for id in tree_ids {
+            if keep(&spheres[id as usize]) {
+                if ids.len() == Candidates::MAX {
+                    return None;
+                }
+                ids.push(id);
+            }
+        }
+        ids.sort_unstable();
+        let packs = ids
+            .chunks(WIDTH)
+            .map(|chunk| SpherePack::new(spheres, chunk))
+            .collect();
+        Some(Candidates { packs })
+    }
+
+    /// The closest hit among the giants and `candidates`: what `intersect` gives for any ray
+    /// the candidates were picked for.
+    #[inline]
+    pub fn intersect_candidates(
+        &self,
+        candidates: &Candidates,
+        ray: &Ray,
+        interval: Interval,
+    ) -> Option<(f32, PrimitiveId)> {
+        let mut walk = Traversal::new(self, ray, interval);
+        for pack in &candidates.packs {
+            pack.intersect(
+                &walk.o,
+                &walk.d,
+                walk.t_min,
+                &mut walk.closest,
+                &mut walk.found,
+            );
+        }
+        walk.result()
+    }
+}
+
 /// One ray's walk through the hierarchy, advanced a node at a time by `step`.
 struct Traversal {
     o: [Lanes; 3],

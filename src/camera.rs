@@ -28,7 +28,53 @@ pub struct Camera {
     vertical: Vec3,
     u: Vec3,
     v: Vec3,
+    /// Unit view direction, from `origin` towards the focus plane.
+    forward: Vec3,
+    focus_dist: f32,
     lens_radius: f32,
+}
+
+/// A conservative bound of every ray the camera shoots through a rectangle of the film,
+/// whatever the lens sample: spheres wholly outside it cannot be any of those rays' hit.
+///
+/// In camera coordinates (`x` along `u`, `y` along `v`, depth `z` along the view, the lens
+/// at `z = 0` and the focus plane at `z = D`), a ray from lens point `a` (with `|a| ≤ R` per
+/// axis) through film point `f` is at `x = a + (z/D)(f - a)` at depth `z`. Over all `a` and
+/// `f ∈ [f0, f1]` that spans `[(z/D) f0 - R|1 - z/D|, (z/D) f1 + R|1 - z/D|]`: each side is
+/// bounded by the outer of two planes meeting at the film rectangle's edge, one for the
+/// stretch between lens and focus plane, one beyond. A sphere is outside the bundle when it
+/// lies wholly beyond both planes of any one side.
+#[derive(Clone, Copy, Debug)]
+pub struct RayBundle {
+    origin: Vec3,
+    axes: [Vec3; 3],
+    /// x min, x max, y min, y max.
+    sides: [BundleSide; 4],
+}
+
+/// One side of a `RayBundle`: the planes `sign · (coordinate - slope · z - offset) = 0`,
+/// for `(slope, offset)` in `planes`, with the bundle on their positive side.
+#[derive(Clone, Copy, Debug)]
+struct BundleSide {
+    axis: usize,
+    sign: f32,
+    planes: [(f32, f32); 2],
+}
+
+impl RayBundle {
+    /// False only if no ray of the bundle can meet the sphere (margins cover rounding).
+    pub fn may_hit(&self, center: Vec3, radius: f32) -> bool {
+        let rel = center - self.origin;
+        let c = self.axes.map(|axis| rel.dot(axis));
+        let r = radius.abs() + 1e-4 * (rel.length() + radius.abs()) + 1e-5;
+        let outside = |side: BundleSide| {
+            side.planes.iter().all(|&(slope, offset)| {
+                let signed = side.sign * (c[side.axis] - slope * c[2] - offset);
+                signed + r * (1.0 + slope * slope).sqrt() < 0.0
+            })
+        };
+        !self.sides.into_iter().any(outside)
+    }
 }
 
 impl Camera {
@@ -42,6 +88,8 @@ impl Camera {
         let horizontal = s.focus_dist * viewport_width * u;
         let vertical = s.focus_dist * viewport_height * v;
         Self {
+            forward: -w,
+            focus_dist: s.focus_dist,
             origin: s.lookfrom,
             lower_left_corner: s.lookfrom - horizontal / 2.0 - vertical / 2.0 - s.focus_dist * w,
             horizontal,
@@ -67,6 +115,32 @@ impl Camera {
         let origin = self.origin + offset;
         Ray::new(origin, (target - origin).normalize())
     }
+
+    /// Bounds every ray `ray(s, t, _)` with `s` in `s_range` and `t` in `t_range`.
+    pub fn bundle(&self, s_range: (f32, f32), t_range: (f32, f32)) -> RayBundle {
+        let (d, r) = (self.focus_dist, self.lens_radius.abs());
+        // Film rectangle edges, in camera coordinates on the focus plane.
+        let (width, height) = (self.horizontal.length(), self.vertical.length());
+        let x = (width * (s_range.0 - 0.5), width * (s_range.1 - 0.5));
+        let y = (height * (t_range.0 - 0.5), height * (t_range.1 - 0.5));
+        // Lower edge f0: x ≥ (z/D)(f0 + R) - R up to the focus plane, (z/D)(f0 - R) + R beyond.
+        let low = |axis, f0: f32| BundleSide {
+            axis,
+            sign: 1.0,
+            planes: [((f0 + r) / d, -r), ((f0 - r) / d, r)],
+        };
+        // Upper edge f1: x ≤ (z/D)(f1 - R) + R, then (z/D)(f1 + R) - R.
+        let high = |axis, f1: f32| BundleSide {
+            axis,
+            sign: -1.0,
+            planes: [((f1 - r) / d, r), ((f1 + r) / d, -r)],
+        };
+        RayBundle {
+            origin: self.origin,
+            axes: [self.u, self.v, self.forward],
+            sides: [low(0, x.0), high(0, x.1), low(1, y.0), high(1, y.1)],
+        }
+    }
 }
 
 #[cfg(test)]
@@ -82,6 +156,45 @@ mod tests {
             aspect_ratio: 2.0,
             aperture: 0.0,
             focus_dist: 1.0,
+        }
+    }
+
+    /// Spheres placed on camera rays through a film rectangle: the bundle must keep every
+    /// one, and must drop spheres well off to the side.
+    #[test]
+    fn ray_bundles_keep_every_sphere_a_ray_can_hit() {
+        let mut rng = Sampler::from_seed(11);
+        for aperture in [0.0, 0.1, 2.0] {
+            let mut s = settings();
+            s.lookfrom = Vec3::new(13.0, 2.0, 3.0);
+            s.lookat = Vec3::ZERO;
+            s.vfov_deg = 20.0;
+            s.aperture = aperture;
+            s.focus_dist = 10.0;
+            let cam = Camera::new(&s);
+            for _ in 0..200 {
+                let s0 = rng.uniform() * 0.9;
+                let t0 = rng.uniform() * 0.9;
+                let (s1, t1) = (s0 + 0.02, t0 + 0.03);
+                let bundle = cam.bundle((s0, s1), (t0, t1));
+                for _ in 0..20 {
+                    let ray = cam.ray(
+                        s0 + (s1 - s0) * rng.uniform(),
+                        t0 + (t1 - t0) * rng.uniform(),
+                        &mut rng,
+                    );
+                    let radius = rng.range(0.01, 1.0);
+                    // The sphere's surface just touches the ray at a random distance.
+                    let along = ray.at(rng.range(0.1, 40.0));
+                    let side = ray.dir.any_orthonormal_vector();
+                    let center = along + side * radius * 0.999;
+                    assert!(bundle.may_hit(center, radius), "{ray:?} {center} {radius}");
+                }
+                // Far off to one side of the rectangle, at the rectangle's own depth.
+                let mid = cam.ray((s0 + s1) / 2.0, (t0 + t1) / 2.0, &mut rng);
+                let away = mid.at(10.0) + cam.u * 5.0;
+                assert!(!bundle.may_hit(away, 0.5));
+            }
         }
     }
 

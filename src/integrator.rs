@@ -1,7 +1,7 @@
 //! What one camera ray brings back: the book's `ray_color`, as a bounce loop carrying
 //! throughput, plus the simpler shading modes of the book's first chapters. No threads, no I/O.
 
-use crate::bvh::TraversalStack;
+use crate::bvh::{Candidates, TraversalStack};
 use crate::geometry::Hit;
 use crate::material::Material;
 use crate::math::{Color, Interval};
@@ -82,20 +82,37 @@ pub fn path_trace(
 
 /// Traces the path of every camera sample `samples` yields (a key, its camera ray and its
 /// generator), two at a time with their hierarchy walks interleaved (`Bvh::intersect_pair`),
-/// and hands each radiance to `done` with its key as the path ends. Each path's numbers are
-/// exactly those `path_trace` gives it; only the order in which paths end differs.
+/// and hands each radiance to `done` with its key as the path ends. Camera rays are tested
+/// against `primary` alone when given: the spheres picked for all of them
+/// (`Scene::camera_candidates`). Each path's numbers are exactly those `path_trace` gives it;
+/// only the order in which paths end differs.
 pub fn trace_paths<K>(
     scene: &Scene,
     mut samples: impl Iterator<Item = (K, Ray, Sampler)>,
+    primary: Option<&Candidates>,
     stack: &mut TraversalStack,
     mut done: impl FnMut(K, Radiance),
 ) {
-    // A path that ends before tracing anything (zero depth) is handed over at once.
+    // The next path with a segment left to trace; paths that end sooner (zero depth, or
+    // at their camera ray's hit) are handed over at once.
     let mut next = |done: &mut dyn FnMut(K, Radiance)| {
         for (key, ray, rng) in samples.by_ref() {
-            let path = Path::new(key, ray, rng);
-            match path.finished(scene) {
-                Some(color) => done(path.key, Radiance { color, rays: 0 }),
+            let mut path = Path::new(key, ray, rng);
+            let mut end = path.finished(scene);
+            if end.is_none()
+                && let Some(candidates) = primary
+            {
+                let hit = scene.hit_candidates(candidates, &path.ray, ANY_DISTANCE);
+                end = path.advance(scene, hit);
+            }
+            match end {
+                Some(color) => done(
+                    path.key,
+                    Radiance {
+                        color,
+                        rays: path.rays,
+                    },
+                ),
                 None => return Some(path),
             }
         }

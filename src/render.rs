@@ -326,7 +326,8 @@ pub fn render_tile_samples(scene: &Scene, tile: &PixelRect, range: SampleRange) 
                 (pixel, ray, rng)
             })
         });
-        integrator::trace_paths(scene, samples, &mut stack, |pixel, r| {
+        let primary = scene.camera_candidates(tile);
+        integrator::trace_paths(scene, samples, primary.as_ref(), &mut stack, |pixel, r| {
             add(pixel, r.color, r.rays)
         });
     } else {

@@ -81,3 +81,60 @@ fn cropped_regions_equal_the_same_pixels_of_the_whole_image() {
         }
     }
 }
+
+/// The renderer traces paths two at a time and tests camera rays against the few spheres
+/// picked for their tile (`Scene::camera_candidates`). Tracing each sample alone through the
+/// whole hierarchy, the simple reference, must give the very same sums and ray counts.
+#[test]
+fn fast_tile_tracer_equals_tracing_each_sample_alone() {
+    use tessera::film::to_fixed;
+    use tessera::render::{SampleRange, render_tile_samples, sample_pixel};
+    let scene = load(
+        &scene_path("cover.toml"),
+        Overrides {
+            width: Some(300),
+            ..Overrides::default()
+        },
+    );
+    let range = SampleRange { start: 5, end: 9 };
+    let rect = |x0, y0, width, height| PixelRect {
+        x0,
+        y0,
+        width,
+        height,
+    };
+    // Sky, the three big spheres, the field of small ones, the ground near the camera, an
+    // odd-sized tile, and one too wide for a candidate list.
+    let tiles = [
+        rect(0, 0, 16, 16),
+        rect(140, 80, 16, 16),
+        rect(60, 120, 16, 16),
+        rect(200, 184, 16, 16),
+        rect(37, 101, 9, 13),
+        rect(0, 100, 300, 8),
+    ];
+    let mut stack = scene.new_stack();
+    let mut listed = 0;
+    for tile in &tiles {
+        listed += usize::from(scene.camera_candidates(tile).is_some());
+        let fast = render_tile_samples(&scene, tile, range);
+        let mut rays = 0u64;
+        for (i, y) in (tile.y0..tile.y0 + tile.height).enumerate() {
+            for (j, x) in (tile.x0..tile.x0 + tile.width).enumerate() {
+                let mut sum = [0u64; 3];
+                for sample in range.start..range.end {
+                    let (c, r) = sample_pixel(&scene, x, y, sample, &mut stack);
+                    sum[0] += to_fixed(c.x);
+                    sum[1] += to_fixed(c.y);
+                    sum[2] += to_fixed(c.z);
+                    rays += u64::from(r);
+                }
+                let pixel = i * tile.width as usize + j;
+                assert_eq!(fast.sums[pixel], sum, "pixel ({x}, {y}) of {tile:?}");
+            }
+        }
+        assert_eq!(fast.rays, rays, "{tile:?}");
+    }
+    assert!(listed >= 4, "only {listed} tiles had candidate lists");
+    assert!(scene.camera_candidates(&tiles[5]).is_none());
+}

@@ -6,7 +6,7 @@ pub mod desc;
 
 pub use build::{MAX_PIXELS, Overrides};
 
-use crate::bvh::{Bvh, TraversalStack};
+use crate::bvh::{Bvh, Candidates, TraversalStack};
 use crate::camera::{Camera, CameraSettings};
 use crate::error::{Error, Location, Result};
 use crate::geometry::{Hit, PrimitiveId, Sphere};
@@ -149,6 +149,36 @@ impl Scene {
             a.map(|(t, id)| self.surface(rays[0], t, id)),
             b.map(|(t, id)| self.surface(rays[1], t, id)),
         ]
+    }
+
+    /// The spheres any camera ray through film rectangle `rect` might hit (besides the
+    /// giants), when they are few enough to test without the hierarchy.
+    pub fn camera_candidates(&self, rect: &PixelRect) -> Option<Candidates> {
+        let s = &self.settings;
+        // The film coordinates `render::film_coordinates` gives the rectangle's samples,
+        // jitter included: pixel i covers [i, i + 1) / (width - 1), rows counted from below.
+        let (w, h) = ((s.width.max(2) - 1) as f32, (s.height.max(2) - 1) as f32);
+        let u = (rect.x0 as f32 / w, (rect.x0 + rect.width) as f32 / w);
+        let below = s.height.saturating_sub(rect.y0 + rect.height);
+        let v = (below as f32 / h, (s.height - rect.y0) as f32 / h);
+        let bundle = self.camera.bundle(u, v);
+        self.bvh.candidates(&self.spheres, |sphere| {
+            bundle.may_hit(sphere.center, sphere.radius)
+        })
+    }
+
+    /// The closest hit along a camera ray, among the giants and `candidates` picked for it:
+    /// the same as `hit`.
+    #[inline]
+    pub fn hit_candidates(
+        &self,
+        candidates: &Candidates,
+        ray: &Ray,
+        interval: Interval,
+    ) -> Option<Hit> {
+        self.bvh
+            .intersect_candidates(candidates, ray, interval)
+            .map(|(t, id)| self.surface(ray, t, id))
     }
 
     /// Scratch space for `hit`, sized for this scene.
