@@ -309,41 +309,10 @@ impl Bvh {
             *stack = self.new_stack();
         }
         let mut walk = Traversal::new(self, ray, interval);
-        while !walk.step(self, &mut stack.0[..need]) {}
+        if !self.nodes.is_empty() {
+            while !walk.step(self, &mut stack.0[..need]) {}
+        }
         walk.result()
-    }
-
-    /// The closest hits of two independent rays, each as `intersect` gives it. The two
-    /// traversals advance node by node in turn, so while one waits on a load or a compare
-    /// the processor works on the other: a single ray's walk is one long chain of dependent
-    /// steps and leaves most of the core idle.
-    #[inline]
-    pub fn intersect_pair(
-        &self,
-        rays: [&Ray; 2],
-        interval: Interval,
-        stack: &mut TraversalStack,
-    ) -> [Option<(f32, PrimitiveId)>; 2] {
-        let need = self.stack_need();
-        if stack.0.len() < 2 * need {
-            stack.0 = vec![(0, 0.0); 2 * need];
-        }
-        let (stack_a, rest) = stack.0.split_at_mut(need);
-        let stack_b = &mut rest[..need];
-        let mut a = Traversal::new(self, rays[0], interval);
-        let mut b = Traversal::new(self, rays[1], interval);
-        loop {
-            let a_done = a.step(self, stack_a);
-            let b_done = b.step(self, stack_b);
-            match (a_done, b_done) {
-                (false, false) => continue,
-                (true, false) => while !b.step(self, stack_b) {},
-                (false, true) => while !a.step(self, stack_a) {},
-                (true, true) => {}
-            }
-            break;
-        }
-        [a.result(), b.result()]
     }
 }
 
@@ -431,11 +400,10 @@ struct Traversal {
     t_min: Lanes,
     closest: f32,
     found: u32,
-    /// The node to visit next, unless `done`.
+    /// The node to visit next.
     current: u32,
     /// Entries of the caller's stack in use.
     top: usize,
-    done: bool,
 }
 
 impl Traversal {
@@ -463,7 +431,6 @@ impl Traversal {
             found,
             current: 0,
             top: 0,
-            done: bvh.nodes.is_empty(),
         }
     }
 
@@ -472,12 +439,9 @@ impl Traversal {
     }
 
     /// Visits the current node: tests its leaf children's spheres at once and picks the
-    /// next inner node. True when the walk is over (and stays so).
+    /// next inner node. True when the walk is over.
     #[inline(always)]
     fn step(&mut self, bvh: &Bvh, stack: &mut [(u32, f32)]) -> bool {
-        if self.done {
-            return true;
-        }
         let (o, inv) = (&self.o, &self.inv);
         let node = &bvh.nodes[self.current as usize];
         let p = &node.planes;
@@ -552,7 +516,6 @@ impl Traversal {
                 return false;
             }
         }
-        self.done = true;
         true
     }
 }

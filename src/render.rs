@@ -318,18 +318,15 @@ pub fn render_tile_samples(scene: &Scene, tile: &PixelRect, range: SampleRange) 
         .flat_map(|y| (tile.x0..tile.x0 + tile.width).map(move |x| (x, y)))
         .enumerate();
     if scene.settings.shading == Shading::Path {
-        // Fixed-point sums do not depend on the order samples arrive in, so paths may end
-        // in any order: trace them two at a time.
-        let samples = pixels.flat_map(|(pixel, (x, y))| {
-            (range.start..range.end).map(move |sample| {
-                let (ray, rng) = camera_sample(scene, x, y, sample);
-                (pixel, ray, rng)
-            })
-        });
+        // Camera rays of one tile can reach only a few spheres: test those alone.
         let primary = scene.camera_candidates(tile);
-        integrator::trace_paths(scene, samples, primary.as_ref(), &mut stack, |pixel, r| {
-            add(pixel, r.color, r.rays)
-        });
+        for (pixel, (x, y)) in pixels {
+            for sample in range.start..range.end {
+                let (ray, mut rng) = camera_sample(scene, x, y, sample);
+                let r = integrator::path_trace(scene, ray, &mut rng, primary.as_ref(), &mut stack);
+                add(pixel, r.color, r.rays);
+            }
+        }
     } else {
         for (pixel, (x, y)) in pixels {
             for sample in range.start..range.end {

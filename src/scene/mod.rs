@@ -135,22 +135,6 @@ impl Scene {
             .map(|(t, id)| self.surface(ray, t, id))
     }
 
-    /// The closest hits along two independent rays, each as `hit` gives it, found together
-    /// (see `Bvh::intersect_pair`).
-    #[inline]
-    pub fn hit_pair(
-        &self,
-        rays: [&Ray; 2],
-        interval: Interval,
-        stack: &mut TraversalStack,
-    ) -> [Option<Hit>; 2] {
-        let [a, b] = self.bvh.intersect_pair(rays, interval, stack);
-        [
-            a.map(|(t, id)| self.surface(rays[0], t, id)),
-            b.map(|(t, id)| self.surface(rays[1], t, id)),
-        ]
-    }
-
     /// The spheres any camera ray through film rectangle `rect` might hit (besides the
     /// giants), when they are few enough to test without the hierarchy.
     pub fn camera_candidates(&self, rect: &PixelRect) -> Option<Candidates> {
