@@ -378,18 +378,38 @@ impl Bvh {
         ray: &Ray,
         interval: Interval,
     ) -> Option<(f32, PrimitiveId)> {
-        let mut walk = Traversal::new(self, ray, interval);
+        let (mut closest, mut found) = self.nearest_giant(ray, interval);
+        let (o, d) = (splat3(ray.origin), splat3(ray.dir));
+        let t_min = Lanes::splat(interval.min);
         for pack in &candidates.packs {
-            pack.intersect(
-                &walk.o,
-                &walk.d,
-                walk.t_min,
-                &mut walk.closest,
-                &mut walk.found,
-            );
+            pack.intersect(&o, &d, t_min, &mut closest, &mut found);
         }
-        walk.result()
+        hit_of(closest, found)
     }
+
+    /// The nearest giant hit in `interval`: its parameter and id, else `(interval.max,
+    /// NO_HIT)`.
+    #[inline(always)]
+    fn nearest_giant(&self, ray: &Ray, interval: Interval) -> (f32, u32) {
+        let mut closest = interval.max;
+        let mut found = NO_HIT;
+        for (sphere, id) in &self.giants {
+            if let Some(t) = sphere.intersect(ray, Interval::new(interval.min, closest)) {
+                closest = t;
+                found = *id;
+            }
+        }
+        (closest, found)
+    }
+}
+
+#[inline(always)]
+fn splat3(v: Vec3) -> [Lanes; 3] {
+    [Lanes::splat(v.x), Lanes::splat(v.y), Lanes::splat(v.z)]
+}
+
+fn hit_of(closest: f32, found: u32) -> Option<(f32, PrimitiveId)> {
+    (found != NO_HIT).then_some((closest, PrimitiveId(found)))
 }
 
 /// One ray's walk through the hierarchy, advanced a node at a time by `step`.
@@ -410,18 +430,10 @@ impl Traversal {
     /// Starts a walk: tests the giant spheres, and sets up the root as the first node.
     #[inline(always)]
     fn new(bvh: &Bvh, ray: &Ray, interval: Interval) -> Self {
-        let mut closest = interval.max;
-        let mut found = NO_HIT;
-        for (sphere, id) in &bvh.giants {
-            if let Some(t) = sphere.intersect(ray, Interval::new(interval.min, closest)) {
-                closest = t;
-                found = *id;
-            }
-        }
+        let (closest, found) = bvh.nearest_giant(ray, interval);
         // Clamped so a zero direction component gives a huge finite slope, never the
         // 0 · ∞ = NaN of a box face through the origin.
         let inv = (Vec3::ONE / ray.dir).clamp(Vec3::splat(-1e30), Vec3::splat(1e30));
-        let splat3 = |v: Vec3| [Lanes::splat(v.x), Lanes::splat(v.y), Lanes::splat(v.z)];
         Traversal {
             o: splat3(ray.origin),
             d: splat3(ray.dir),
@@ -435,7 +447,7 @@ impl Traversal {
     }
 
     fn result(&self) -> Option<(f32, PrimitiveId)> {
-        (self.found != NO_HIT).then_some((self.closest, PrimitiveId(self.found)))
+        hit_of(self.closest, self.found)
     }
 
     /// Visits the current node: tests its leaf children's spheres at once and picks the

@@ -6,7 +6,7 @@ use crate::film::{Film, add_sums, to_fixed};
 use crate::integrator;
 use crate::math::{Color, PixelRect};
 use crate::ray::Ray;
-use crate::sampling::Sampler;
+use crate::sampling::{PixelSeed, Sampler};
 use crate::scene::{Scene, Shading};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -321,8 +321,9 @@ pub fn render_tile_samples(scene: &Scene, tile: &PixelRect, range: SampleRange) 
         // Camera rays of one tile can reach only a few spheres: test those alone.
         let primary = scene.camera_candidates(tile);
         for (pixel, (x, y)) in pixels {
+            let seed = PixelSeed::new(scene.settings.seed, x, y);
             for sample in range.start..range.end {
-                let (ray, mut rng) = camera_sample(scene, x, y, sample);
+                let (ray, mut rng) = camera_sample(scene, x, y, seed.sample(sample));
                 let r = integrator::path_trace(scene, ray, &mut rng, primary.as_ref(), &mut stack);
                 add(pixel, r.color, r.rays);
             }
@@ -348,30 +349,30 @@ pub fn sample_pixel(
     sample: u32,
     stack: &mut TraversalStack,
 ) -> (Color, u32) {
+    let rng = Sampler::for_sample(scene.settings.seed, x, y, sample);
     if scene.settings.shading == Shading::Uv {
-        let (u, v, _) = film_coordinates(scene, x, y, sample);
+        let (u, v, _) = film_coordinates(scene, x, y, rng);
         return (Color::new(u, v, 0.25), 0);
     }
-    let (ray, mut rng) = camera_sample(scene, x, y, sample);
+    let (ray, mut rng) = camera_sample(scene, x, y, rng);
     let r = integrator::radiance(scene, ray, &mut rng, stack);
     (r.color, r.rays)
 }
 
-/// The camera ray of one sample of pixel `(x, y)`, and the sample's generator as the ray
-/// leaves it.
+/// The camera ray of one sample of pixel `(x, y)` drawn with the sample's generator `rng`,
+/// and the generator as the ray leaves it.
 #[inline]
-fn camera_sample(scene: &Scene, x: u32, y: u32, sample: u32) -> (Ray, Sampler) {
-    let (u, v, mut rng) = film_coordinates(scene, x, y, sample);
+fn camera_sample(scene: &Scene, x: u32, y: u32, rng: Sampler) -> (Ray, Sampler) {
+    let (u, v, mut rng) = film_coordinates(scene, x, y, rng);
     let ray = scene.camera.ray(u, v, &mut rng);
     (ray, rng)
 }
 
 /// Where one sample of pixel `(x, y)` falls on the film, in the book's coordinates, and
-/// its generator after jittering.
+/// the sample's generator `rng` after jittering.
 #[inline]
-fn film_coordinates(scene: &Scene, x: u32, y: u32, sample: u32) -> (f32, f32, Sampler) {
+fn film_coordinates(scene: &Scene, x: u32, y: u32, mut rng: Sampler) -> (f32, f32, Sampler) {
     let s = &scene.settings;
-    let mut rng = Sampler::for_sample(s.seed, x, y, sample);
     let (du, dv) = if s.jitter {
         (rng.uniform(), rng.uniform())
     } else {

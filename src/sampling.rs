@@ -12,6 +12,9 @@ use rand_pcg::Pcg32;
 /// The increment PCG32 uses by default; every stream shares it and differs by state.
 const PCG_STREAM: u64 = 0x0a02_bdbf_7bb3_c0a7;
 
+/// 2^64 / φ, the odd constant words are spread by before mixing.
+const GOLDEN: u64 = 0x9e37_79b9_7f4a_7c15;
+
 /// Finaliser of SplitMix64 / Stafford's Mix13: a bijective, well-avalanching 64-bit hash.
 #[inline]
 pub fn mix64(mut z: u64) -> u64 {
@@ -23,11 +26,34 @@ pub fn mix64(mut z: u64) -> u64 {
 /// Hash of a seed and a sequence of words, each folded in through `mix64`.
 #[inline]
 pub fn hash_words(seed: u64, words: &[u64]) -> u64 {
-    let mut h = mix64(seed ^ 0x9e37_79b9_7f4a_7c15);
+    let mut h = mix64(seed ^ GOLDEN);
     for &w in words {
-        h = mix64(h ^ w.wrapping_mul(0x9e37_79b9_7f4a_7c15));
+        h = mix64(h ^ w.wrapping_mul(GOLDEN));
     }
     h
+}
+
+/// The hash of (seed, pixel) that all of a pixel's sample generators start from, so a
+/// pixel's many samples each hash only their own index.
+#[derive(Clone, Copy, Debug)]
+pub struct PixelSeed(u64);
+
+impl PixelSeed {
+    #[inline]
+    pub fn new(seed: u64, x: u32, y: u32) -> Self {
+        let pixel = (u64::from(y) << 32) | u64::from(x);
+        PixelSeed(hash_words(seed, &[pixel]))
+    }
+
+    /// The generator of sample `sample`: the same as `hash_words(seed, &[pixel, sample])`
+    /// would seed.
+    #[inline]
+    pub fn sample(self, sample: u32) -> Sampler {
+        let state = mix64(self.0 ^ u64::from(sample).wrapping_mul(GOLDEN));
+        Sampler {
+            pcg: Pcg32::new(state, PCG_STREAM),
+        }
+    }
 }
 
 /// A seeded random source: the only kind of randomness the renderer uses.
@@ -47,10 +73,7 @@ impl Sampler {
     /// The generator for one camera sample: a pure function of its four coordinates.
     #[inline]
     pub fn for_sample(seed: u64, x: u32, y: u32, sample: u32) -> Self {
-        let pixel = (u64::from(y) << 32) | u64::from(x);
-        Self {
-            pcg: Pcg32::new(hash_words(seed, &[pixel, u64::from(sample)]), PCG_STREAM),
-        }
+        PixelSeed::new(seed, x, y).sample(sample)
     }
 
     /// A uniform `f32` in `[0, 1)` with 24 random bits.
@@ -124,6 +147,18 @@ impl Sampler {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn pixel_seeds_give_the_streams_hashing_all_four_coordinates_gives() {
+        let pixel = (4u64 << 32) | 3;
+        let mut a = PixelSeed::new(7, 3, 4).sample(5);
+        let mut b = Sampler {
+            pcg: Pcg32::new(hash_words(7, &[pixel, 5]), PCG_STREAM),
+        };
+        for _ in 0..16 {
+            assert_eq!(a.uniform().to_bits(), b.uniform().to_bits());
+        }
+    }
 
     #[test]
     fn sample_streams_are_pure_functions_of_their_coordinates() {
