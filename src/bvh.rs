@@ -297,7 +297,7 @@ impl Bvh {
     }
 
     /// The closest hit in `interval`: its parameter and primitive id.
-    #[inline]
+    #[inline(always)]
     pub fn intersect(
         &self,
         ray: &Ray,
