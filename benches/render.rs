@@ -1,5 +1,7 @@
 //! Criterion benchmarks: a tile of the cover scene (samples/s), the BVH build, and
-//! closest-hit queries against the cover (rays/s). Fixed seeds and sizes.
+//! closest-hit queries against the cover (rays/s): camera rays through the tree, camera rays
+//! of one tile against that tile's candidate spheres, and diffuse bounces off the ground.
+//! Fixed seeds and sizes.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;
@@ -67,6 +69,76 @@ fn bvh(c: &mut Criterion) {
         let mut stack = scene.new_stack();
         b.iter(|| {
             rays.iter()
+                .filter(|r| {
+                    scene
+                        .hit(r, Interval::new(0.0, f32::INFINITY), &mut stack)
+                        .is_some()
+                })
+                .count()
+        })
+    });
+
+    // Most rays are bounces: from the ground, up in a cosine lobe.
+    let bounces: Vec<Ray> = (0..4096)
+        .map(|_| {
+            let origin =
+                tessera::math::Vec3::new(rng.range(-11.0, 11.0), 1e-3, rng.range(-11.0, 11.0));
+            let dir = (tessera::math::Vec3::Y + rng.unit_vector()).normalize();
+            Ray::new(origin, dir)
+        })
+        .collect();
+    g.throughput(Throughput::Elements(bounces.len() as u64));
+    g.bench_function("cover_ground_bounce", |b| {
+        let mut stack = scene.new_stack();
+        b.iter(|| {
+            bounces
+                .iter()
+                .filter(|r| {
+                    scene
+                        .hit(r, Interval::new(0.0, f32::INFINITY), &mut stack)
+                        .is_some()
+                })
+                .count()
+        })
+    });
+
+    // Camera rays of one 16x16 tile, against the spheres picked for the tile.
+    let tile = PixelRect {
+        x0: 600,
+        y0: 400,
+        width: 16,
+        height: 16,
+    };
+    let (w, h) = (
+        scene.settings.width as f32 - 1.0,
+        scene.settings.height as f32 - 1.0,
+    );
+    let camera_rays: Vec<Ray> = (0..4096)
+        .map(|i| {
+            let x = (tile.x0 + i % 16) as f32 + rng.uniform();
+            let y = (tile.y0 + (i / 16) % 16) as f32 + rng.uniform();
+            scene.camera.ray(x / w, (h - y) / h, &mut rng)
+        })
+        .collect();
+    let candidates = scene.camera_candidates(&tile).expect("a short list");
+    g.throughput(Throughput::Elements(camera_rays.len() as u64));
+    g.bench_function("tile_camera_rays_candidates", |b| {
+        b.iter(|| {
+            camera_rays
+                .iter()
+                .filter(|r| {
+                    scene
+                        .hit_candidates(&candidates, r, Interval::new(0.0, f32::INFINITY))
+                        .is_some()
+                })
+                .count()
+        })
+    });
+    g.bench_function("tile_camera_rays_tree", |b| {
+        let mut stack = scene.new_stack();
+        b.iter(|| {
+            camera_rays
+                .iter()
                 .filter(|r| {
                     scene
                         .hit(r, Interval::new(0.0, f32::INFINITY), &mut stack)
