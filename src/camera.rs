@@ -53,12 +53,30 @@ pub struct RayBundle {
 }
 
 /// One side of a `RayBundle`: the planes `sign · (coordinate - slope · z - offset) = 0`,
-/// for `(slope, offset)` in `planes`, with the bundle on their positive side.
+/// with the bundle on their positive side.
 #[derive(Clone, Copy, Debug)]
 struct BundleSide {
     axis: usize,
     sign: f32,
-    planes: [(f32, f32); 2],
+    planes: [SlopedPlane; 2],
+}
+
+#[derive(Clone, Copy, Debug)]
+struct SlopedPlane {
+    slope: f32,
+    offset: f32,
+    /// `√(1 + slope²)`: the length of the plane's normal `(1, -slope)`.
+    norm: f32,
+}
+
+impl SlopedPlane {
+    fn new(slope: f32, offset: f32) -> Self {
+        SlopedPlane {
+            slope,
+            offset,
+            norm: (1.0 + slope * slope).sqrt(),
+        }
+    }
 }
 
 impl RayBundle {
@@ -68,9 +86,9 @@ impl RayBundle {
         let c = self.axes.map(|axis| rel.dot(axis));
         let r = radius.abs() + 1e-4 * (rel.length() + radius.abs()) + 1e-5;
         let outside = |side: BundleSide| {
-            side.planes.iter().all(|&(slope, offset)| {
-                let signed = side.sign * (c[side.axis] - slope * c[2] - offset);
-                signed + r * (1.0 + slope * slope).sqrt() < 0.0
+            side.planes.iter().all(|p| {
+                let signed = side.sign * (c[side.axis] - p.slope * c[2] - p.offset);
+                signed + r * p.norm < 0.0
             })
         };
         !self.sides.into_iter().any(outside)
@@ -127,13 +145,19 @@ impl Camera {
         let low = |axis, f0: f32| BundleSide {
             axis,
             sign: 1.0,
-            planes: [((f0 + r) / d, -r), ((f0 - r) / d, r)],
+            planes: [
+                SlopedPlane::new((f0 + r) / d, -r),
+                SlopedPlane::new((f0 - r) / d, r),
+            ],
         };
         // Upper edge f1: x ≤ (z/D)(f1 - R) + R, then (z/D)(f1 + R) - R.
         let high = |axis, f1: f32| BundleSide {
             axis,
             sign: -1.0,
-            planes: [((f1 - r) / d, r), ((f1 + r) / d, -r)],
+            planes: [
+                SlopedPlane::new((f1 - r) / d, r),
+                SlopedPlane::new((f1 + r) / d, -r),
+            ],
         };
         RayBundle {
             origin: self.origin,
