@@ -341,24 +341,49 @@ impl Candidates {
 
 impl Bvh {
     /// The tree's spheres `keep` accepts, or `None` when there are more than
-    /// `Candidates::MAX`.
+    /// `Candidates::MAX`. Subtrees whose box `keep_box` (given min and max corners) rejects
+    /// are skipped whole, so `keep_box` must accept every box holding a sphere `keep` would.
     pub fn candidates(
         &self,
         spheres: &[Sphere],
+        keep_box: impl Fn(Vec3, Vec3) -> bool,
         keep: impl Fn(&Sphere) -> bool,
     ) -> Option<Candidates> {
         let mut ids = Vec::new();
-        let tree_ids = self
-            .packs
-            .iter()
-            .flat_map(|p| p.id)
-            .filter(|&id| id != u32::MAX);
-        for id in tree_ids {
-            if keep(&spheres[id as usize]) {
-                if ids.len() == Candidates::MAX {
-                    return None;
+        let mut todo = if self.nodes.is_empty() {
+            vec![]
+        } else {
+            vec![0]
+        };
+        while let Some(index) = todo.pop() {
+            let node = &self.nodes[index as usize];
+            let planes = node.planes.map(Lanes::to_array);
+            for (lane, &child) in node.child.iter().enumerate() {
+                let corner = |first: usize| {
+                    Vec3::new(
+                        planes[first][lane],
+                        planes[first + 1][lane],
+                        planes[first + 2][lane],
+                    )
+                };
+                if child == EMPTY || !keep_box(corner(0), corner(3)) {
+                    continue;
                 }
-                ids.push(id);
+                if child & LEAF == 0 {
+                    todo.push(child);
+                    continue;
+                }
+                let first = ((child & !LEAF) >> PACK_SHIFT) as usize;
+                let count = (child & ((1 << PACK_SHIFT) - 1)) as usize;
+                let leaf_ids = self.packs[first..first + count].iter().flat_map(|p| p.id);
+                for id in leaf_ids.filter(|&id| id != u32::MAX) {
+                    if keep(&spheres[id as usize]) {
+                        if ids.len() == Candidates::MAX {
+                            return None;
+                        }
+                        ids.push(id);
+                    }
+                }
             }
         }
         ids.sort_unstable();
@@ -769,6 +794,57 @@ mod tests {
             }
         }
         assert!(hits > 200, "only {hits} hits");
+    }
+
+    /// Picking candidates through the tree, skipping subtrees whose boxes the bundle misses,
+    /// must pick exactly the spheres a scan of every sphere picks.
+    #[test]
+    fn candidates_through_the_tree_equal_a_scan_of_every_sphere() {
+        use crate::camera::{Camera, CameraSettings};
+        let mut rng = Sampler::from_seed(21);
+        let spheres = random_spheres(500, &mut rng);
+        let bvh = Bvh::build(&spheres);
+        let tree_ids: Vec<u32> = (bvh.packs.iter().flat_map(|p| p.id))
+            .filter(|&id| id != u32::MAX)
+            .collect();
+        let camera = Camera::new(&CameraSettings {
+            lookfrom: Vec3::new(13.0, 2.0, 3.0),
+            lookat: Vec3::ZERO,
+            vup: Vec3::Y,
+            vfov_deg: 20.0,
+            aspect_ratio: 1.5,
+            aperture: 0.3,
+            focus_dist: 10.0,
+        });
+        let (mut listed, mut refused) = (0, 0);
+        for _ in 0..300 {
+            let (s0, t0) = (rng.uniform(), rng.uniform());
+            let size = rng.range(0.002, 0.3);
+            let bundle = camera.bundle((s0, s0 + size), (t0, t0 + size));
+            let keep = |s: &Sphere| bundle.may_hit(s.center, s.radius);
+            let mut scan: Vec<u32> = (tree_ids.iter().copied())
+                .filter(|&id| keep(&spheres[id as usize]))
+                .collect();
+            scan.sort_unstable();
+            let picked = bvh.candidates(&spheres, |lo, hi| bundle.may_hit_box(lo, hi), keep);
+            match picked {
+                Some(c) => {
+                    let ids: Vec<u32> = (c.packs.iter().flat_map(|p| p.id))
+                        .filter(|&id| id != u32::MAX)
+                        .collect();
+                    assert_eq!(ids, scan);
+                    listed += 1;
+                }
+                None => {
+                    assert!(scan.len() > Candidates::MAX);
+                    refused += 1;
+                }
+            }
+        }
+        assert!(
+            listed > 30 && refused > 30,
+            "{listed} listed, {refused} refused"
+        );
     }
 
     #[test]

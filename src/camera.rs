@@ -93,6 +93,23 @@ impl RayBundle {
         };
         !self.sides.into_iter().any(outside)
     }
+
+    /// False only if no ray of the bundle can meet the box from `min` to `max`.
+    pub fn may_hit_box(&self, min: Vec3, max: Vec3) -> bool {
+        let (center, half) = ((min + max) * 0.5, (max - min) * 0.5);
+        let rel = center - self.origin;
+        let margin = 1e-4 * (rel.length() + half.length()) + 1e-5;
+        let outside = |side: &BundleSide| {
+            side.planes.iter().all(|p| {
+                // The plane's normal in world space; the box reaches out along it by the
+                // sum of its half extents times the normal's components.
+                let n = side.sign * (self.axes[side.axis] - p.slope * self.axes[2]);
+                let signed = n.dot(rel) - side.sign * p.offset;
+                signed + n.abs().dot(half) + margin * p.norm < 0.0
+            })
+        };
+        !self.sides.iter().any(outside)
+    }
 }
 
 impl Camera {

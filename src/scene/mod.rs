@@ -146,9 +146,11 @@ impl Scene {
         let below = s.height.saturating_sub(rect.y0 + rect.height);
         let v = (below as f32 / h, (s.height - rect.y0) as f32 / h);
         let bundle = self.camera.bundle(u, v);
-        self.bvh.candidates(&self.spheres, |sphere| {
-            bundle.may_hit(sphere.center, sphere.radius)
-        })
+        self.bvh.candidates(
+            &self.spheres,
+            |min, max| bundle.may_hit_box(min, max),
+            |sphere| bundle.may_hit(sphere.center, sphere.radius),
+        )
     }
 
     /// The closest hit along a camera ray, among the giants and `candidates` picked for it:
