@@ -6,7 +6,7 @@
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;
 use std::path::Path;
-use tessera::bvh::Bvh;
+use tessera::bvh::{Bvh, TraversalStack};
 use tessera::math::{Interval, PixelRect};
 use tessera::ray::Ray;
 use tessera::render::render_tile;
@@ -67,15 +67,7 @@ fn bvh(c: &mut Criterion) {
     g.throughput(Throughput::Elements(rays.len() as u64));
     g.bench_function("cover_closest_hit", |b| {
         let mut stack = scene.new_stack();
-        b.iter(|| {
-            rays.iter()
-                .filter(|r| {
-                    scene
-                        .hit(r, Interval::new(0.0, f32::INFINITY), &mut stack)
-                        .is_some()
-                })
-                .count()
-        })
+        b.iter(|| count_tree_hits(&scene, &rays, &mut stack))
     });
 
     // Most rays are bounces: from the ground, up in a cosine lobe.
@@ -90,16 +82,7 @@ fn bvh(c: &mut Criterion) {
     g.throughput(Throughput::Elements(bounces.len() as u64));
     g.bench_function("cover_ground_bounce", |b| {
         let mut stack = scene.new_stack();
-        b.iter(|| {
-            bounces
-                .iter()
-                .filter(|r| {
-                    scene
-                        .hit(r, Interval::new(0.0, f32::INFINITY), &mut stack)
-                        .is_some()
-                })
-                .count()
-        })
+        b.iter(|| count_tree_hits(&scene, &bounces, &mut stack))
     });
 
     // Camera rays of one 16x16 tile, against the spheres picked for the tile.
@@ -136,18 +119,17 @@ fn bvh(c: &mut Criterion) {
     });
     g.bench_function("tile_camera_rays_tree", |b| {
         let mut stack = scene.new_stack();
-        b.iter(|| {
-            camera_rays
-                .iter()
-                .filter(|r| {
-                    scene
-                        .hit(r, Interval::new(0.0, f32::INFINITY), &mut stack)
-                        .is_some()
-                })
-                .count()
-        })
+        b.iter(|| count_tree_hits(&scene, &camera_rays, &mut stack))
     });
     g.finish();
+}
+
+/// How many of `rays` hit something, found through the tree.
+fn count_tree_hits(scene: &Scene, rays: &[Ray], stack: &mut TraversalStack) -> usize {
+    let all = Interval::new(0.0, f32::INFINITY);
+    rays.iter()
+        .filter(|r| scene.hit(r, all, stack).is_some())
+        .count()
 }
 
 criterion_group!(benches, tile, bvh);
