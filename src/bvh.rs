@@ -316,8 +316,8 @@ impl Bvh {
     }
 }
 
-/// A few spheres of the hierarchy picked out for a bundle of rays (the camera rays of one
-/// tile), tested without walking the tree. The giants are tested as always.
+/// A few spheres picked out for a bundle of rays (the camera rays of one tile), giants
+/// included, tested together in SIMD packs without walking the tree.
 #[derive(Clone, Debug)]
 pub struct Candidates {
     packs: Vec<SpherePack>,
@@ -340,8 +340,8 @@ impl Candidates {
 }
 
 impl Bvh {
-    /// The tree's spheres `keep` accepts, or `None` when there are more than
-    /// `Candidates::MAX`. Subtrees whose box `keep_box` (given min and max corners) rejects
+    /// The spheres `keep` accepts, giants and the tree's, or `None` when there are more
+    /// than `Candidates::MAX`. Subtrees whose box `keep_box` (given min and max corners) rejects
     /// are skipped whole, so `keep_box` must accept every box holding a sphere `keep` would.
     pub fn candidates(
         &self,
@@ -349,7 +349,10 @@ impl Bvh {
         keep_box: impl Fn(Vec3, Vec3) -> bool,
         keep: impl Fn(&Sphere) -> bool,
     ) -> Option<Candidates> {
-        let mut ids = Vec::new();
+        let mut ids: Vec<u32> = (self.giants.iter())
+            .filter(|(sphere, _)| keep(sphere))
+            .map(|(_, id)| *id)
+            .collect();
         let mut todo = if self.nodes.is_empty() {
             vec![]
         } else {
@@ -394,8 +397,8 @@ impl Bvh {
         Some(Candidates { packs })
     }
 
-    /// The closest hit among the giants and `candidates`: what `intersect` gives for any ray
-    /// the candidates were picked for.
+    /// The closest hit among `candidates`: what `intersect` gives for any ray the
+    /// candidates were picked for.
     #[inline]
     pub fn intersect_candidates(
         &self,
@@ -403,7 +406,7 @@ impl Bvh {
         ray: &Ray,
         interval: Interval,
     ) -> Option<(f32, PrimitiveId)> {
-        let (mut closest, mut found) = self.nearest_giant(ray, interval);
+        let (mut closest, mut found) = (interval.max, NO_HIT);
         let (o, d) = (splat3(ray.origin), splat3(ray.dir));
         let t_min = Lanes::splat(interval.min);
         for pack in &candidates.packs {
@@ -804,9 +807,6 @@ mod tests {
         let mut rng = Sampler::from_seed(21);
         let spheres = random_spheres(500, &mut rng);
         let bvh = Bvh::build(&spheres);
-        let tree_ids: Vec<u32> = (bvh.packs.iter().flat_map(|p| p.id))
-            .filter(|&id| id != u32::MAX)
-            .collect();
         let camera = Camera::new(&CameraSettings {
             lookfrom: Vec3::new(13.0, 2.0, 3.0),
             lookat: Vec3::ZERO,
@@ -822,10 +822,10 @@ mod tests {
             let size = rng.range(0.002, 0.3);
             let bundle = camera.bundle((s0, s0 + size), (t0, t0 + size));
             let keep = |s: &Sphere| bundle.may_hit(s.center, s.radius);
-            let mut scan: Vec<u32> = (tree_ids.iter().copied())
+            // Every sphere is a giant or in the tree.
+            let scan: Vec<u32> = (0..spheres.len() as u32)
                 .filter(|&id| keep(&spheres[id as usize]))
                 .collect();
-            scan.sort_unstable();
             let picked = bvh.candidates(&spheres, |lo, hi| bundle.may_hit_box(lo, hi), keep);
             match picked {
                 Some(c) => {

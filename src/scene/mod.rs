@@ -135,8 +135,8 @@ impl Scene {
             .map(|(t, id)| self.surface(ray, t, id))
     }
 
-    /// The spheres any camera ray through film rectangle `rect` might hit (besides the
-    /// giants), when they are few enough to test without the hierarchy.
+    /// The spheres, giants included, that any camera ray through film rectangle `rect`
+    /// might hit, when they are few enough to test without the hierarchy.
     pub fn camera_candidates(&self, rect: &PixelRect) -> Option<Candidates> {
         let s = &self.settings;
         // The film coordinates `render::film_coordinates` gives the rectangle's samples,
@@ -153,8 +153,8 @@ impl Scene {
         )
     }
 
-    /// The closest hit along a camera ray, among the giants and `candidates` picked for it:
-    /// the same as `hit`.
+    /// The closest hit along a camera ray among the `candidates` picked for it: the same as
+    /// `hit`.
     #[inline]
     pub fn hit_candidates(
         &self,
