@@ -25,6 +25,8 @@ const LEAF: u32 = 1 << 31;
 const EMPTY: u32 = u32::MAX;
 /// The primitive id of no hit, during traversal.
 const NO_HIT: u32 = u32::MAX;
+/// The id in an unused lane of a sphere pack.
+const NO_SPHERE: u32 = u32::MAX;
 
 /// A node of the binary build tree: either two children (`count == 0`, at `first` and
 /// `first + 1`) or a leaf of `count` primitives starting at `first` of the build order.
@@ -60,7 +62,7 @@ impl SpherePack {
     fn new(spheres: &[Sphere], ids: &[u32]) -> Self {
         let mut center = [[0.0; WIDTH]; 3];
         let mut r2 = [-1.0; WIDTH];
-        let mut id = [u32::MAX; WIDTH];
+        let mut id = [NO_SPHERE; WIDTH];
         for (lane, &i) in ids.iter().enumerate() {
             let s = &spheres[i as usize];
             for (axis, lanes) in center.iter_mut().enumerate() {
@@ -74,6 +76,11 @@ impl SpherePack {
             r2: Lanes::from(r2),
             id,
         }
+    }
+
+    /// The ids of the spheres the pack holds, leaving out its unused lanes.
+    fn ids(&self) -> impl Iterator<Item = u32> + '_ {
+        self.id.iter().copied().filter(|&id| id != NO_SPHERE)
     }
 
     /// Takes a hit among the spheres that beats `(closest, found)`, the best so far: the
@@ -208,7 +215,7 @@ impl Bvh {
         bvh
     }
 
-    /// A stack deep enough for this hierarchy: each inner level pushes at most three
+    /// A stack deep enough for this hierarchy: each inner level pushes at most `WIDTH - 1`
     /// siblings beyond the node it descends into.
     pub fn new_stack(&self) -> TraversalStack {
         TraversalStack(vec![(0, 0.0); self.stack_need()])
@@ -252,11 +259,9 @@ impl Bvh {
             kids.push(first + 1);
         }
         let index = self.nodes.len();
-        let (inf, neg_inf) = (f32::INFINITY, f32::NEG_INFINITY);
-        let mut planes = [[inf; WIDTH], [inf; WIDTH], [inf; WIDTH]]
-            .into_iter()
-            .chain([[neg_inf; WIDTH]; 3])
-            .collect::<Vec<_>>();
+        // Empty lanes keep an inverted box; the masks leave them out anyway.
+        let mut planes = [[f32::INFINITY; WIDTH]; 6];
+        planes[3..].fill([f32::NEG_INFINITY; WIDTH]);
         let mut node_out = WideNode {
             planes: [Lanes::ZERO; 6],
             child: [EMPTY; WIDTH],
@@ -296,6 +301,14 @@ impl Bvh {
         index as u32
     }
 
+    /// The packs of the leaf child reference `child`.
+    #[inline(always)]
+    fn leaf_packs(&self, child: u32) -> &[SpherePack] {
+        let first = ((child & !LEAF) >> PACK_SHIFT) as usize;
+        let count = (child & ((1 << PACK_SHIFT) - 1)) as usize;
+        &self.packs[first..first + count]
+    }
+
     /// The closest hit in `interval`: its parameter and primitive id.
     #[inline(always)]
     pub fn intersect(
@@ -328,10 +341,7 @@ impl Candidates {
     pub const MAX: usize = 2 * WIDTH;
 
     pub fn len(&self) -> usize {
-        self.packs
-            .iter()
-            .map(|p| p.id.iter().filter(|&&id| id != u32::MAX).count())
-            .sum()
+        self.packs.iter().map(|p| p.ids().count()).sum()
     }
 
     pub fn is_empty(&self) -> bool {
@@ -376,10 +386,7 @@ impl Bvh {
                     todo.push(child);
                     continue;
                 }
-                let first = ((child & !LEAF) >> PACK_SHIFT) as usize;
-                let count = (child & ((1 << PACK_SHIFT) - 1)) as usize;
-                let leaf_ids = self.packs[first..first + count].iter().flat_map(|p| p.id);
-                for id in leaf_ids.filter(|&id| id != u32::MAX) {
+                for id in self.leaf_packs(child).iter().flat_map(SpherePack::ids) {
                     if keep(&spheres[id as usize]) {
                         if ids.len() == Candidates::MAX {
                             return None;
@@ -508,10 +515,7 @@ impl Traversal {
             let lane = leaves.trailing_zeros() as usize;
             leaves &= leaves - 1;
             if t_near[lane] <= self.closest {
-                let child = node.child[lane] & !LEAF;
-                let first = (child >> PACK_SHIFT) as usize;
-                let count = (child & ((1 << PACK_SHIFT) - 1)) as usize;
-                for pack in &bvh.packs[first..first + count] {
+                for pack in bvh.leaf_packs(node.child[lane]) {
                     pack.intersect(
                         &self.o,
                         &self.d,
@@ -829,9 +833,7 @@ mod tests {
             let picked = bvh.candidates(&spheres, |lo, hi| bundle.may_hit_box(lo, hi), keep);
             match picked {
                 Some(c) => {
-                    let ids: Vec<u32> = (c.packs.iter().flat_map(|p| p.id))
-                        .filter(|&id| id != u32::MAX)
-                        .collect();
+                    let ids: Vec<u32> = c.packs.iter().flat_map(SpherePack::ids).collect();
                     assert_eq!(ids, scan);
                     listed += 1;
                 }
@@ -852,12 +854,7 @@ mod tests {
         let spheres = vec![Sphere::new(Vec3::ZERO, 1.0, MaterialId(0)); 40];
         let bvh = Bvh::build(&spheres);
         assert!(bvh.packs.len() >= 40 / MAX_LEAF);
-        let ids = bvh
-            .packs
-            .iter()
-            .flat_map(|p| p.id)
-            .filter(|&i| i != u32::MAX);
-        assert_eq!(ids.count(), 40);
+        assert_eq!(bvh.packs.iter().flat_map(SpherePack::ids).count(), 40);
         let ray = Ray::new(Vec3::new(0.0, 0.0, -5.0), Vec3::Z);
         assert_eq!(
             bvh.intersect(
