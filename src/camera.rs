@@ -42,56 +42,31 @@ pub struct Camera {
 /// axis) through film point `f` is at `x = a + (z/D)(f - a)` at depth `z`. Over all `a` and
 /// `f ∈ [f0, f1]` that spans `[(z/D) f0 - R|1 - z/D|, (z/D) f1 + R|1 - z/D|]`: each side is
 /// bounded by the outer of two planes meeting at the film rectangle's edge, one for the
-/// stretch between lens and focus plane, one beyond. A sphere is outside the bundle when it
+/// stretch between lens and focus plane, one beyond. A shape is outside the bundle when it
 /// lies wholly beyond both planes of any one side.
 #[derive(Clone, Copy, Debug)]
 pub struct RayBundle {
     origin: Vec3,
-    axes: [Vec3; 3],
-    /// x min, x max, y min, y max.
-    sides: [BundleSide; 4],
+    /// x min, x max, y min, y max: two planes each.
+    sides: [[BundlePlane; 2]; 4],
 }
 
-/// One side of a `RayBundle`: the planes `sign · (coordinate - slope · z - offset) = 0`,
-/// with the bundle on their positive side.
+/// A plane through the bundle's side, in world space relative to the camera's origin: the
+/// bundle lies where `normal · p - offset ≥ 0`.
 #[derive(Clone, Copy, Debug)]
-struct BundleSide {
-    axis: usize,
-    sign: f32,
-    planes: [SlopedPlane; 2],
-}
-
-#[derive(Clone, Copy, Debug)]
-struct SlopedPlane {
-    slope: f32,
+struct BundlePlane {
+    normal: Vec3,
     offset: f32,
-    /// `√(1 + slope²)`: the length of the plane's normal `(1, -slope)`.
+    /// The normal's length, which scales distances measured with it.
     norm: f32,
-}
-
-impl SlopedPlane {
-    fn new(slope: f32, offset: f32) -> Self {
-        SlopedPlane {
-            slope,
-            offset,
-            norm: (1.0 + slope * slope).sqrt(),
-        }
-    }
 }
 
 impl RayBundle {
     /// False only if no ray of the bundle can meet the sphere (margins cover rounding).
     pub fn may_hit(&self, center: Vec3, radius: f32) -> bool {
         let rel = center - self.origin;
-        let c = self.axes.map(|axis| rel.dot(axis));
         let r = radius.abs() + 1e-4 * (rel.length() + radius.abs()) + 1e-5;
-        let outside = |side: BundleSide| {
-            side.planes.iter().all(|p| {
-                let signed = side.sign * (c[side.axis] - p.slope * c[2] - p.offset);
-                signed + r * p.norm < 0.0
-            })
-        };
-        !self.sides.into_iter().any(outside)
+        self.may_reach(rel, |p| r * p.norm)
     }
 
     /// False only if no ray of the bundle can meet the box from `min` to `max`.
@@ -99,16 +74,16 @@ impl RayBundle {
         let (center, half) = ((min + max) * 0.5, (max - min) * 0.5);
         let rel = center - self.origin;
         let margin = 1e-4 * (rel.length() + half.length()) + 1e-5;
-        let outside = |side: &BundleSide| {
-            side.planes.iter().all(|p| {
-                // The plane's normal in world space; the box reaches out along it by the
-                // sum of its half extents times the normal's components.
-                let n = side.sign * (self.axes[side.axis] - p.slope * self.axes[2]);
-                let signed = n.dot(rel) - side.sign * p.offset;
-                signed + n.abs().dot(half) + margin * p.norm < 0.0
-            })
-        };
-        !self.sides.iter().any(outside)
+        // The box reaches out along a normal by its half extents times the normal's
+        // components.
+        self.may_reach(rel, |p| p.normal.abs().dot(half) + margin * p.norm)
+    }
+
+    /// False when a shape centred at `rel` (from the camera's origin), reaching `reach(plane)`
+    /// along each plane's normal, lies beyond both planes of some side.
+    fn may_reach(&self, rel: Vec3, reach: impl Fn(&BundlePlane) -> f32) -> bool {
+        let beyond = |p: &BundlePlane| p.normal.dot(rel) - p.offset + reach(p) < 0.0;
+        !self.sides.iter().any(|side| side.iter().all(beyond))
     }
 }
 
@@ -158,28 +133,35 @@ impl Camera {
         let (width, height) = (self.horizontal.length(), self.vertical.length());
         let x = (width * (s_range.0 - 0.5), width * (s_range.1 - 0.5));
         let y = (height * (t_range.0 - 0.5), height * (t_range.1 - 0.5));
-        // Lower edge f0: x ≥ (z/D)(f0 + R) - R up to the focus plane, (z/D)(f0 - R) + R beyond.
-        let low = |axis, f0: f32| BundleSide {
-            axis,
-            sign: 1.0,
-            planes: [
-                SlopedPlane::new((f0 + r) / d, -r),
-                SlopedPlane::new((f0 - r) / d, r),
-            ],
+        // In camera coordinates a plane `sign · (c - slope · z - offset) = 0` for coordinate
+        // `c` along `axis`; in world space its normal is `sign · (axis - slope · forward)`.
+        let plane = |axis: Vec3, sign: f32, slope: f32, offset: f32| BundlePlane {
+            normal: sign * (axis - slope * self.forward),
+            offset: sign * offset,
+            norm: (1.0 + slope * slope).sqrt(),
         };
-        // Upper edge f1: x ≤ (z/D)(f1 - R) + R, then (z/D)(f1 + R) - R.
-        let high = |axis, f1: f32| BundleSide {
-            axis,
-            sign: -1.0,
-            planes: [
-                SlopedPlane::new((f1 - r) / d, r),
-                SlopedPlane::new((f1 + r) / d, -r),
-            ],
+        // Lower edge f0: c ≥ (z/D)(f0 + R) - R up to the focus plane, (z/D)(f0 - R) + R beyond.
+        let low = |axis, f0: f32| {
+            [
+                plane(axis, 1.0, (f0 + r) / d, -r),
+                plane(axis, 1.0, (f0 - r) / d, r),
+            ]
+        };
+        // Upper edge f1: c ≤ (z/D)(f1 - R) + R, then (z/D)(f1 + R) - R.
+        let high = |axis, f1: f32| {
+            [
+                plane(axis, -1.0, (f1 - r) / d, r),
+                plane(axis, -1.0, (f1 + r) / d, -r),
+            ]
         };
         RayBundle {
             origin: self.origin,
-            axes: [self.u, self.v, self.forward],
-            sides: [low(0, x.0), high(0, x.1), low(1, y.0), high(1, y.1)],
+            sides: [
+                low(self.u, x.0),
+                high(self.u, x.1),
+                low(self.v, y.0),
+                high(self.v, y.1),
+            ],
         }
     }
 }
