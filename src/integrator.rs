@@ -17,13 +17,15 @@ pub struct Radiance {
 
 const ANY_DISTANCE: Interval = Interval::new(0.0, f32::INFINITY);
 
-/// Radiance arriving along `ray` under the scene's shading mode. `Shading::Uv` has no rays;
-/// the renderer handles it before calling here.
+/// Radiance arriving along camera ray `ray` under the scene's shading mode. `Shading::Uv`
+/// has no rays; the renderer handles it before calling here. `primary`, the spheres picked
+/// for this camera ray, serves path tracing (see `path_trace`).
 #[inline]
 pub fn radiance(
     scene: &Scene,
     ray: Ray,
     rng: &mut Sampler,
+    primary: Option<&Candidates>,
     stack: &mut TraversalStack,
 ) -> Radiance {
     match scene.settings.shading {
@@ -48,7 +50,7 @@ pub fn radiance(
             },
             rays: 1,
         },
-        Shading::Path => path_trace(scene, ray, rng, None, stack),
+        Shading::Path => path_trace(scene, ray, rng, primary, stack),
     }
 }
 

@@ -1,11 +1,10 @@
 //! Rendering an image: cutting it into tiles, spreading them over a rayon pool, and taking
 //! every sample's random numbers from its own seed. The only module that knows threads.
 
-use crate::bvh::TraversalStack;
+use crate::bvh::{Candidates, TraversalStack};
 use crate::film::{Film, add_sums, to_fixed};
 use crate::integrator;
 use crate::math::{Color, PixelRect};
-use crate::ray::Ray;
 use crate::sampling::{PixelSeed, Sampler};
 use crate::scene::{Scene, Shading};
 use rayon::prelude::*;
@@ -304,44 +303,34 @@ pub fn render_tile(scene: &Scene, tile: &PixelRect) -> TileResult {
 
 /// Renders the samples `range` of every pixel of one tile.
 pub fn render_tile_samples(scene: &Scene, tile: &PixelRect, range: SampleRange) -> TileResult {
-    let mut sums = vec![[0u64; 3]; tile.area() as usize];
+    let mut sums = Vec::with_capacity(tile.area() as usize);
     let mut rays = 0u64;
     let mut stack = scene.new_stack();
-    let mut add = |pixel: usize, c: Color, r: u32| {
-        let acc = &mut sums[pixel];
-        acc[0] += to_fixed(c.x);
-        acc[1] += to_fixed(c.y);
-        acc[2] += to_fixed(c.z);
-        rays += u64::from(r);
-    };
-    let pixels = (tile.y0..tile.y0 + tile.height)
-        .flat_map(|y| (tile.x0..tile.x0 + tile.width).map(move |x| (x, y)))
-        .enumerate();
-    if scene.settings.shading == Shading::Path {
-        // Camera rays of one tile can reach only a few spheres: test those alone.
-        let primary = scene.camera_candidates(tile);
-        for (pixel, (x, y)) in pixels {
+    // Camera rays of one tile can reach only a few spheres: path tracing tests those alone.
+    let primary = (scene.settings.shading == Shading::Path)
+        .then(|| scene.camera_candidates(tile))
+        .flatten();
+    for y in tile.y0..tile.y0 + tile.height {
+        for x in tile.x0..tile.x0 + tile.width {
             let seed = PixelSeed::new(scene.settings.seed, x, y);
+            let mut acc = [0u64; 3];
             for sample in range.start..range.end {
-                let (ray, mut rng) = camera_sample(scene, x, y, seed.sample(sample));
-                let r = integrator::path_trace(scene, ray, &mut rng, primary.as_ref(), &mut stack);
-                add(pixel, r.color, r.rays);
+                let rng = seed.sample(sample);
+                let (c, r) = trace_sample(scene, x, y, rng, primary.as_ref(), &mut stack);
+                acc[0] += to_fixed(c.x);
+                acc[1] += to_fixed(c.y);
+                acc[2] += to_fixed(c.z);
+                rays += u64::from(r);
             }
-        }
-    } else {
-        for (pixel, (x, y)) in pixels {
-            for sample in range.start..range.end {
-                let (c, r) = sample_pixel(scene, x, y, sample, &mut stack);
-                add(pixel, c, r);
-            }
+            sums.push(acc);
         }
     }
     TileResult { sums, rays }
 }
 
 /// One camera sample of pixel `(x, y)` (top row is `y = 0`): its radiance and ray count,
-/// traced on its own. Everything random in it is drawn from the sample's own generator.
-#[inline]
+/// traced on its own through the hierarchy. Everything random in it is drawn from the
+/// sample's own generator.
 pub fn sample_pixel(
     scene: &Scene,
     x: u32,
@@ -350,22 +339,27 @@ pub fn sample_pixel(
     stack: &mut TraversalStack,
 ) -> (Color, u32) {
     let rng = Sampler::for_sample(scene.settings.seed, x, y, sample);
-    if scene.settings.shading == Shading::Uv {
-        let (u, v, _) = film_coordinates(scene, x, y, rng);
-        return (Color::new(u, v, 0.25), 0);
-    }
-    let (ray, mut rng) = camera_sample(scene, x, y, rng);
-    let r = integrator::radiance(scene, ray, &mut rng, stack);
-    (r.color, r.rays)
+    trace_sample(scene, x, y, rng, None, stack)
 }
 
-/// The camera ray of one sample of pixel `(x, y)` drawn with the sample's generator `rng`,
-/// and the generator as the ray leaves it.
+/// One camera sample of pixel `(x, y)` drawn with the sample's generator `rng`, its camera
+/// ray tested against `primary` when given (see `integrator::path_trace`).
 #[inline]
-fn camera_sample(scene: &Scene, x: u32, y: u32, rng: Sampler) -> (Ray, Sampler) {
+fn trace_sample(
+    scene: &Scene,
+    x: u32,
+    y: u32,
+    rng: Sampler,
+    primary: Option<&Candidates>,
+    stack: &mut TraversalStack,
+) -> (Color, u32) {
     let (u, v, mut rng) = film_coordinates(scene, x, y, rng);
+    if scene.settings.shading == Shading::Uv {
+        return (Color::new(u, v, 0.25), 0);
+    }
     let ray = scene.camera.ray(u, v, &mut rng);
-    (ray, rng)
+    let r = integrator::radiance(scene, ray, &mut rng, primary, stack);
+    (r.color, r.rays)
 }
 
 /// Where one sample of pixel `(x, y)` falls on the film, in the book's coordinates, and
@@ -378,9 +372,8 @@ fn film_coordinates(scene: &Scene, x: u32, y: u32, mut rng: Sampler) -> (f32, f3
     } else {
         (0.0, 0.0)
     };
-    // The book's mapping: u = (i + du) / (width - 1), v counted up from the bottom row.
+    // The book's mapping, v counted up from the bottom row.
     let j = s.height - 1 - y;
-    let u = (x as f32 + du) / (s.width.max(2) - 1) as f32;
-    let v = (j as f32 + dv) / (s.height.max(2) - 1) as f32;
+    let (u, v) = scene.film_point(x as f32 + du, j as f32 + dv);
     (u, v, rng)
 }

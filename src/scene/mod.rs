@@ -135,17 +135,27 @@ impl Scene {
             .map(|(t, id)| self.surface(ray, t, id))
     }
 
+    /// The book's film coordinates `(u, v)` of the point `i` pixels from the left and `j`
+    /// rows up from the bottom row: `u = i / (width - 1)`, `v = j / (height - 1)`.
+    #[inline]
+    pub fn film_point(&self, i: f32, j: f32) -> (f32, f32) {
+        let s = &self.settings;
+        (
+            i / (s.width.max(2) - 1) as f32,
+            j / (s.height.max(2) - 1) as f32,
+        )
+    }
+
     /// The spheres, giants included, that any camera ray through film rectangle `rect`
     /// might hit, when they are few enough to test without the hierarchy.
     pub fn camera_candidates(&self, rect: &PixelRect) -> Option<Candidates> {
-        let s = &self.settings;
-        // The film coordinates `render::film_coordinates` gives the rectangle's samples,
-        // jitter included: pixel i covers [i, i + 1) / (width - 1), rows counted from below.
-        let (w, h) = ((s.width.max(2) - 1) as f32, (s.height.max(2) - 1) as f32);
-        let u = (rect.x0 as f32 / w, (rect.x0 + rect.width) as f32 / w);
-        let below = s.height.saturating_sub(rect.y0 + rect.height);
-        let v = (below as f32 / h, (s.height - rect.y0) as f32 / h);
-        let bundle = self.camera.bundle(u, v);
+        // Jitter included, pixel (x, y) covers [x, x + 1) × [j, j + 1) of `film_point`, with
+        // j = height - 1 - y counted from the bottom row.
+        let height = self.settings.height;
+        let below = height.saturating_sub(rect.y0 + rect.height);
+        let (u0, v0) = self.film_point(rect.x0 as f32, below as f32);
+        let (u1, v1) = self.film_point((rect.x0 + rect.width) as f32, (height - rect.y0) as f32);
+        let bundle = self.camera.bundle((u0, u1), (v0, v1));
         self.bvh.candidates(
             &self.spheres,
             |min, max| bundle.may_hit_box(min, max),
