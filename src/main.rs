@@ -412,17 +412,25 @@ fn cmd_bench(args: BenchArgs) -> Result<()> {
         None => median_run(&scene, threads, args.repeat)?,
     };
     let base = scaling.first().map_or(1.0, RenderStats::samples_per_sec);
+    // Per thread count: samples/s, speedup over one thread, parallel efficiency.
+    let rows: Vec<(usize, f64, f64, f64)> = scaling
+        .iter()
+        .map(|r| {
+            let speedup = r.samples_per_sec() / base;
+            let efficiency = speedup / r.threads as f64;
+            (r.threads, r.samples_per_sec(), speedup, efficiency)
+        })
+        .collect();
     let s = &scene.settings;
     if args.json {
-        let table: Vec<_> = scaling
+        let table: Vec<_> = rows
             .iter()
-            .map(|r| {
-                let speedup = r.samples_per_sec() / base;
+            .map(|&(threads, samples_per_sec, speedup, efficiency)| {
                 serde_json::json!({
-                    "threads": r.threads,
-                    "samples_per_sec": r.samples_per_sec(),
+                    "threads": threads,
+                    "samples_per_sec": samples_per_sec,
                     "speedup": speedup,
-                    "efficiency": speedup / r.threads as f64,
+                    "efficiency": efficiency,
                 })
             })
             .collect();
@@ -449,16 +457,13 @@ fn cmd_bench(args: BenchArgs) -> Result<()> {
             args.repeat.max(1)
         );
         println!("{}", summary(&stats));
-        if !scaling.is_empty() {
+        if !rows.is_empty() {
             println!("threads  M samples/s  speedup  efficiency");
-            for r in &scaling {
-                let speedup = r.samples_per_sec() / base;
+            for (threads, samples_per_sec, speedup, efficiency) in rows {
                 println!(
-                    "{:>7}  {:>11.3}  {:>7.2}  {:>9.0}%",
-                    r.threads,
-                    r.samples_per_sec() / 1e6,
-                    speedup,
-                    100.0 * speedup / r.threads as f64
+                    "{threads:>7}  {:>11.3}  {speedup:>7.2}  {:>9.0}%",
+                    samples_per_sec / 1e6,
+                    100.0 * efficiency
                 );
             }
         }

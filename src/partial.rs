@@ -9,7 +9,7 @@
 use crate::error::{Error, Result};
 use crate::film::{Film, add_sums};
 use crate::math::PixelRect;
-use crate::render::{Job, Progress, SampleRange, samples_done};
+use crate::render::{Job, Progress, SampleRange, percent, samples_done};
 use crate::sampling::mix64;
 use crate::scene::Scene;
 use serde::{Deserialize, Serialize};
@@ -334,7 +334,7 @@ pub fn merge(parts: &[(PathBuf, Part)]) -> Result<(Film, f32)> {
                 path,
                 format!(
                     "is an unfinished render ({:.1}% done); finish it by running its render command again",
-                    100.0 * done as f64 / total.max(1) as f64
+                    percent(done, total)
                 ),
             ));
         }

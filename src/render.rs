@@ -141,7 +141,7 @@ impl Progress {
 
     /// How much of the job is done, in percent.
     pub fn percent_done(&self) -> f64 {
-        100.0 * self.finished_samples() as f64 / self.total_samples().max(1) as f64
+        percent(self.finished_samples(), self.total_samples())
     }
 
     /// Extends the job to more samples (progressive rendering): finished tiles keep their sums.
@@ -175,6 +175,11 @@ pub fn samples_done(region: PixelRect, tile: u32, done: &[u32], len: u32) -> u64
         .zip(done)
         .map(|(t, &d)| t.area() * u64::from(d.min(len)))
         .sum()
+}
+
+/// `done` of `total`, in percent (0 of nothing is 0%).
+pub fn percent(done: u64, total: u64) -> f64 {
+    100.0 * done as f64 / total.max(1) as f64
 }
 
 /// A callback that sees the job's state, e.g. to save a checkpoint.
