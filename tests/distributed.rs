@@ -54,6 +54,11 @@ fn other_scene() -> String {
 /// A small cover render's settings, as arguments.
 const SMALL: [&str; 4] = ["--width", "120", "--spp", "12"];
 
+/// `render SCENE -q MORE…` at the small size.
+fn small<'a>(scene: &'a str, more: &[&'a str]) -> Vec<&'a str> {
+    with(&with(&["render", scene, "-q"], more), &SMALL)
+}
+
 fn with<'a>(base: &[&'a str], more: &[&'a str]) -> Vec<&'a str> {
     base.iter().chain(more).copied().collect()
 }
@@ -66,25 +71,14 @@ fn bytes(dir: &Path, name: &str) -> Vec<u8> {
 fn parallel_sample_shards_merge_to_the_single_render() {
     let dir = temp_dir("shards-samples");
     let scene = cover();
-    ok(
-        &with(&["render", &scene, "-q", "-o", "single.png"], &SMALL),
-        &dir,
-    );
-    ok(
-        &with(&["render", &scene, "-q", "-o", "single.exr"], &SMALL),
-        &dir,
-    );
+    ok(&small(&scene, &["-o", "single.png"]), &dir);
+    ok(&small(&scene, &["-o", "single.exr"]), &dir);
     let names: Vec<String> = (0..4).map(|i| format!("part{i}.bin")).collect();
     let specs: Vec<String> = (0..4).map(|i| format!("{i}/4")).collect();
     let children: Vec<Child> = (0..4)
         .map(|i| {
             spawn(
-                &with(
-                    &[
-                        "render", &scene, "-q", "--shard", &specs[i], "-o", &names[i],
-                    ],
-                    &SMALL,
-                ),
+                &small(&scene, &["--shard", &specs[i], "-o", &names[i]]),
                 &dir,
             )
         })
@@ -106,20 +100,12 @@ fn parallel_sample_shards_merge_to_the_single_render() {
 fn row_shards_and_sample_ranges_merge_to_the_single_render() {
     let dir = temp_dir("shards-rows");
     let scene = cover();
-    ok(
-        &with(&["render", &scene, "-q", "-o", "single.ppm"], &SMALL),
-        &dir,
-    );
+    ok(&small(&scene, &["-o", "single.ppm"]), &dir);
     for i in 0..3 {
         let spec = format!("{i}/3");
         let out = format!("rows{i}.part");
         ok(
-            &with(
-                &[
-                    "render", &scene, "-q", "--shard", &spec, "--split", "rows", "-o", &out,
-                ],
-                &SMALL,
-            ),
+            &small(&scene, &["--shard", &spec, "--split", "rows", "-o", &out]),
             &dir,
         );
     }
@@ -137,27 +123,19 @@ fn row_shards_and_sample_ranges_merge_to_the_single_render() {
     assert_eq!(bytes(&dir, "rows.ppm"), bytes(&dir, "single.ppm"));
 
     // Sample ranges, one of them split again into row shards.
-    ok(
-        &with(
-            &["render", &scene, "-q", "--samples", "0..5", "-o", "a.part"],
-            &SMALL,
-        ),
-        &dir,
-    );
+    ok(&small(&scene, &["--samples", "0..5", "-o", "a.part"]), &dir);
     for (spec, out) in [("0/2", "b.part"), ("1/2", "c.part")] {
         let args = [
-            "render",
-            &scene,
-            "-q",
             "--samples",
             "5..12",
             "--shard",
             spec,
+            "--split",
+            "rows",
+            "-o",
+            out,
         ];
-        ok(
-            &with(&with(&args, &["--split", "rows", "-o", out]), &SMALL),
-            &dir,
-        );
+        ok(&small(&scene, &args), &dir);
     }
     ok(
         &["merge", "a.part", "b.part", "c.part", "-o", "ranges.ppm"],
@@ -171,25 +149,11 @@ fn shard_index_from_slurm_and_kubernetes_environments() {
     let dir = temp_dir("shards-env");
     let scene = cover();
     ok(
-        &with(
-            &[
-                "render",
-                &scene,
-                "-q",
-                "--shard",
-                "1/3",
-                "-o",
-                "explicit.part",
-            ],
-            &SMALL,
-        ),
+        &small(&scene, &["--shard", "1/3", "-o", "explicit.part"]),
         &dir,
     );
     let slurm = tessera()
-        .args(with(
-            &["render", &scene, "-q", "--shard", "env", "-o", "slurm.part"],
-            &SMALL,
-        ))
+        .args(small(&scene, &["--shard", "env", "-o", "slurm.part"]))
         .env("SLURM_ARRAY_TASK_ID", "2")
         .env("SLURM_ARRAY_TASK_MIN", "1")
         .env("SLURM_ARRAY_TASK_COUNT", "3")
@@ -202,10 +166,7 @@ fn shard_index_from_slurm_and_kubernetes_environments() {
         String::from_utf8_lossy(&slurm.stderr)
     );
     let k8s = tessera()
-        .args(with(
-            &["render", &scene, "-q", "--shard", "env/3", "-o", "k8s.part"],
-            &SMALL,
-        ))
+        .args(small(&scene, &["--shard", "env/3", "-o", "k8s.part"]))
         .env("JOB_COMPLETION_INDEX", "1")
         .current_dir(&dir)
         .output()
@@ -399,47 +360,22 @@ fn bad_parts_are_refused_and_nothing_is_damaged() {
     let scene = cover();
     for i in 0..3 {
         let (spec, out) = (format!("{i}/3"), format!("p{i}.part"));
-        ok(
-            &with(
-                &["render", &scene, "-q", "--shard", &spec, "-o", &out],
-                &SMALL,
-            ),
-            &dir,
-        );
+        ok(&small(&scene, &["--shard", &spec, "-o", &out]), &dir);
     }
     ok(
-        &with(
-            &[
-                "render",
-                &scene,
-                "-q",
-                "--seed",
-                "7",
-                "--shard",
-                "1/3",
-                "-o",
-                "seed7.part",
-            ],
-            &SMALL,
+        &small(
+            &scene,
+            &["--seed", "7", "--shard", "1/3", "-o", "seed7.part"],
         ),
         &dir,
     );
     let other = other_scene();
-    let args = ["render", &other, "-q", "--shard", "1/3", "-o", "other.part"];
-    ok(&with(&args, &SMALL), &dir);
     ok(
-        &with(
-            &[
-                "render",
-                &scene,
-                "-q",
-                "--samples",
-                "3..6",
-                "-o",
-                "overlap.part",
-            ],
-            &SMALL,
-        ),
+        &small(&other, &["--shard", "1/3", "-o", "other.part"]),
+        &dir,
+    );
+    ok(
+        &small(&scene, &["--samples", "3..6", "-o", "overlap.part"]),
         &dir,
     );
     let good = bytes(&dir, "p1.part");
