@@ -14,15 +14,25 @@ fn tessera() -> Command {
 }
 
 fn run(args: &[&str], dir: &Path) -> Output {
+    run_in_env(args, &[], dir)
+}
+
+/// Runs tessera with the environment variables `env` set.
+fn run_in_env(args: &[&str], env: &[(&str, &str)], dir: &Path) -> Output {
     tessera()
         .args(args)
+        .envs(env.iter().copied())
         .current_dir(dir)
         .output()
         .expect("run tessera")
 }
 
 fn ok(args: &[&str], dir: &Path) {
-    let o = run(args, dir);
+    ok_in_env(args, &[], dir);
+}
+
+fn ok_in_env(args: &[&str], env: &[(&str, &str)], dir: &Path) {
+    let o = run_in_env(args, env, dir);
     assert!(
         o.status.success(),
         "{args:?}: {}",
@@ -152,29 +162,20 @@ fn shard_index_from_slurm_and_kubernetes_environments() {
         &small(&scene, &["--shard", "1/3", "-o", "explicit.part"]),
         &dir,
     );
-    let slurm = tessera()
-        .args(small(&scene, &["--shard", "env", "-o", "slurm.part"]))
-        .env("SLURM_ARRAY_TASK_ID", "2")
-        .env("SLURM_ARRAY_TASK_MIN", "1")
-        .env("SLURM_ARRAY_TASK_COUNT", "3")
-        .current_dir(&dir)
-        .output()
-        .unwrap();
-    assert!(
-        slurm.status.success(),
-        "{}",
-        String::from_utf8_lossy(&slurm.stderr)
+    let slurm = [
+        ("SLURM_ARRAY_TASK_ID", "2"),
+        ("SLURM_ARRAY_TASK_MIN", "1"),
+        ("SLURM_ARRAY_TASK_COUNT", "3"),
+    ];
+    ok_in_env(
+        &small(&scene, &["--shard", "env", "-o", "slurm.part"]),
+        &slurm,
+        &dir,
     );
-    let k8s = tessera()
-        .args(small(&scene, &["--shard", "env/3", "-o", "k8s.part"]))
-        .env("JOB_COMPLETION_INDEX", "1")
-        .current_dir(&dir)
-        .output()
-        .unwrap();
-    assert!(
-        k8s.status.success(),
-        "{}",
-        String::from_utf8_lossy(&k8s.stderr)
+    ok_in_env(
+        &small(&scene, &["--shard", "env/3", "-o", "k8s.part"]),
+        &[("JOB_COMPLETION_INDEX", "1")],
+        &dir,
     );
     assert_eq!(bytes(&dir, "slurm.part"), bytes(&dir, "explicit.part"));
     assert_eq!(bytes(&dir, "k8s.part"), bytes(&dir, "explicit.part"));
