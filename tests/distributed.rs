@@ -313,39 +313,20 @@ fn checkpoint_of_another_scene_is_refused() {
     let dir = temp_dir("ckpt-scene");
     let scene = cover();
     let other = other_scene();
-    ok(
-        &[
-            "render",
-            &other,
-            "-q",
-            "--width",
-            "60",
-            "--spp",
-            "2",
-            "--checkpoint",
-            "c.ckpt",
-            "-o",
-            "o.png",
-        ],
-        &dir,
-    );
+    // The same small checkpointed render of each scene, into one checkpoint file.
+    let tiny = [
+        "-q",
+        "--width",
+        "60",
+        "--spp",
+        "2",
+        "--checkpoint",
+        "c.ckpt",
+        "-o",
+    ];
+    ok(&with(&with(&["render", &other], &tiny), &["o.png"]), &dir);
     let before = bytes(&dir, "c.ckpt");
-    let o = run(
-        &[
-            "render",
-            &scene,
-            "-q",
-            "--width",
-            "60",
-            "--spp",
-            "2",
-            "--checkpoint",
-            "c.ckpt",
-            "-o",
-            "x.png",
-        ],
-        &dir,
-    );
+    let o = run(&with(&with(&["render", &scene], &tiny), &["x.png"]), &dir);
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("c.ckpt"));
     assert_eq!(
