@@ -339,14 +339,6 @@ pub struct Candidates {
 impl Candidates {
     /// At most this many spheres are worth a list: beyond it the tree is faster.
     pub const MAX: usize = 2 * WIDTH;
-
-    pub fn len(&self) -> usize {
-        self.packs.iter().map(|p| p.ids().count()).sum()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
 }
 
 impl Bvh {
