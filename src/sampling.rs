@@ -96,31 +96,25 @@ impl Sampler {
         min + (max - min) * self.uniform()
     }
 
-    /// A uniform point inside the unit ball, by rejection (the book's `random_in_unit_sphere`).
+    /// A uniform point inside the unit ball (the book's `random_in_unit_sphere`): a uniform
+    /// direction scaled by the largest of three uniforms, whose distribution `P(r < x) = x³`
+    /// is the ball's radial one. No rejection loop, so no unpredictable branch.
     #[inline]
     pub fn in_unit_sphere(&mut self) -> Vec3 {
-        loop {
-            let p = Vec3::new(
-                self.range(-1.0, 1.0),
-                self.range(-1.0, 1.0),
-                self.range(-1.0, 1.0),
-            );
-            if p.length_squared() < 1.0 {
-                return p;
-            }
-        }
+        let dir = self.unit_vector();
+        let r = self.uniform().max(self.uniform()).max(self.uniform());
+        r * dir
     }
 
     /// A uniform direction on the unit sphere (the book's `random_unit_vector`), by
-    /// Marsaglia's method: a point `(u, v)` of the unit disk (by rejection, 1.27 tries on
-    /// average) lifts to `(2u√(1-s), 2v√(1-s), 1-2s)` with `s = u² + v²`. Same distribution
-    /// as normalising a point of the ball, with fewer random numbers and no trigonometry.
+    /// Archimedes' hat-box theorem: the height `z = 1 - 2u` is uniform, the azimuth too, and
+    /// the radius of that height's circle is `√(1 - z²) = 2√(u(1 - u))`.
     #[inline]
     pub fn unit_vector(&mut self) -> Vec3 {
-        let (u, v) = self.in_unit_disk();
-        let s = u * u + v * v;
-        let r = 2.0 * (1.0 - s).max(0.0).sqrt();
-        Vec3::new(u * r, v * r, 1.0 - 2.0 * s)
+        let u = self.uniform();
+        let r = 2.0 * (u * (1.0 - u)).sqrt();
+        let (x, y) = self.on_unit_circle();
+        Vec3::new(r * x, r * y, 1.0 - 2.0 * u)
     }
 
     /// A point of the unit ball flipped into the hemisphere around `normal`
@@ -131,17 +125,49 @@ impl Sampler {
         if p.dot(normal) > 0.0 { p } else { -p }
     }
 
-    /// A uniform point of the unit disk in the xy plane, by rejection.
+    /// A uniform point of the unit disk in the xy plane: radius `√u`, uniform azimuth.
     #[inline]
     pub fn in_unit_disk(&mut self) -> (f32, f32) {
-        loop {
-            let x = self.range(-1.0, 1.0);
-            let y = self.range(-1.0, 1.0);
-            if x * x + y * y < 1.0 {
-                return (x, y);
-            }
-        }
+        let r = self.uniform().sqrt();
+        let (x, y) = self.on_unit_circle();
+        (r * x, r * y)
     }
+
+    /// A uniform point of the unit circle from one 32-bit draw: the top 24 bits give an
+    /// angle in `[0, π/4)`, and three low bits reflect it into any of the eight octants
+    /// (swap x and y, then each sign), each with probability 1/8. Only `+`, `*` and bit
+    /// operations, so every machine gives the same bits, and no data-dependent branch.
+    #[inline]
+    pub fn on_unit_circle(&mut self) -> (f32, f32) {
+        let bits = self.pcg.next_u32();
+        let angle = (bits >> 8) as f32 * (std::f32::consts::FRAC_PI_4 / (1u32 << 24) as f32);
+        let (sin, cos) = sin_cos_octant(angle);
+        let swap = 0u32.wrapping_sub(bits & 1);
+        let x = (cos.to_bits() & !swap) | (sin.to_bits() & swap);
+        let y = (sin.to_bits() & !swap) | (cos.to_bits() & swap);
+        (
+            f32::from_bits(x ^ ((bits & 2) << 30)),
+            f32::from_bits(y ^ ((bits & 4) << 29)),
+        )
+    }
+}
+
+/// Sine and cosine of `a` in `[0, π/4]` by their Taylor series to `a⁹` and `a¹⁰`, whose
+/// truncation errors there stay below 10⁻⁹, far under `f32`'s rounding.
+#[inline]
+pub fn sin_cos_octant(a: f32) -> (f32, f32) {
+    const S: [f32; 4] = [-1.0 / 6.0, 1.0 / 120.0, -1.0 / 5040.0, 1.0 / 362_880.0];
+    const C: [f32; 5] = [
+        -1.0 / 2.0,
+        1.0 / 24.0,
+        -1.0 / 720.0,
+        1.0 / 40_320.0,
+        -1.0 / 3_628_800.0,
+    ];
+    let a2 = a * a;
+    let sin = a + a * a2 * (S[0] + a2 * (S[1] + a2 * (S[2] + a2 * S[3])));
+    let cos = 1.0 + a2 * (C[0] + a2 * (C[1] + a2 * (C[2] + a2 * (C[3] + a2 * C[4]))));
+    (sin, cos)
 }
 
 #[cfg(test)]
@@ -207,6 +233,69 @@ mod tests {
             mean += v;
         }
         assert!((mean / n as f32).length() < 0.02);
+    }
+
+    #[test]
+    fn octant_sine_and_cosine_match_f64_to_rounding() {
+        for k in 0..=10_000 {
+            let a = k as f32 * (std::f32::consts::FRAC_PI_4 / 10_000.0);
+            let (sin, cos) = sin_cos_octant(a);
+            let exact = f64::from(a);
+            assert!((f64::from(sin) - exact.sin()).abs() < 1.2e-7, "sin {a}");
+            assert!((f64::from(cos) - exact.cos()).abs() < 1.2e-7, "cos {a}");
+        }
+    }
+
+    /// Fraction of `n` points falling in each of `bins` equal sectors of azimuth.
+    fn azimuth_shares(points: impl Iterator<Item = (f32, f32)>, bins: usize) -> Vec<f64> {
+        let mut counts = vec![0usize; bins];
+        let mut n = 0;
+        for (x, y) in points {
+            let turn = f64::from(y).atan2(f64::from(x)) / std::f64::consts::TAU + 0.5;
+            counts[((turn * bins as f64) as usize).min(bins - 1)] += 1;
+            n += 1;
+        }
+        counts.iter().map(|&c| c as f64 / n as f64).collect()
+    }
+
+    #[test]
+    fn circle_points_are_unit_and_spread_evenly_over_every_octant() {
+        let mut s = Sampler::from_seed(5);
+        let points: Vec<(f32, f32)> = (0..200_000).map(|_| s.on_unit_circle()).collect();
+        for &(x, y) in &points {
+            assert!((x * x + y * y - 1.0).abs() < 1e-6);
+        }
+        // 48 sectors: six per octant, so a missing reflection or a bent angle shows.
+        for share in azimuth_shares(points.into_iter(), 48) {
+            assert!((share - 1.0 / 48.0).abs() < 0.002, "{share}");
+        }
+    }
+
+    #[test]
+    fn disk_ball_and_sphere_samples_have_the_right_radial_law() {
+        let mut s = Sampler::from_seed(13);
+        let n = 200_000;
+        let share = |f: &mut dyn FnMut() -> bool| (0..n).filter(|_| f()).count() as f64 / n as f64;
+        // Uniform in area: a quarter of the disk lies within radius 1/2.
+        let inner_disk = share(&mut || {
+            let (x, y) = s.in_unit_disk();
+            x * x + y * y < 0.25
+        });
+        assert!((inner_disk - 0.25).abs() < 0.005, "{inner_disk}");
+        // Uniform in volume: an eighth of the ball lies within radius 1/2.
+        let inner_ball = share(&mut || s.in_unit_sphere().length_squared() < 0.25);
+        assert!((inner_ball - 0.125).abs() < 0.004, "{inner_ball}");
+        // Uniform on the sphere: each axis is uniform in [-1, 1] (Archimedes), so a
+        // quarter of the directions have |z| < 1/4, and likewise for x.
+        let equator_z = share(&mut || s.unit_vector().z.abs() < 0.25);
+        let equator_x = share(&mut || s.unit_vector().x.abs() < 0.25);
+        for band in [equator_z, equator_x] {
+            assert!((band - 0.25).abs() < 0.005, "{band}");
+        }
+        let disk_points = (0..n).map(|_| s.in_unit_disk());
+        for sector in azimuth_shares(disk_points, 16) {
+            assert!((sector - 1.0 / 16.0).abs() < 0.003, "{sector}");
+        }
     }
 
     #[test]
