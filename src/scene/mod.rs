@@ -140,9 +140,11 @@ impl Scene {
     #[inline]
     pub fn film_point(&self, i: f32, j: f32) -> (f32, f32) {
         let s = &self.settings;
+        // Multiplying by the reciprocal keeps the division (a constant of the scene) off
+        // each sample's chain of dependent arithmetic.
         (
-            i / (s.width.max(2) - 1) as f32,
-            j / (s.height.max(2) - 1) as f32,
+            i * (1.0 / (s.width.max(2) - 1) as f32),
+            j * (1.0 / (s.height.max(2) - 1) as f32),
         )
     }
 
