@@ -2,6 +2,7 @@
 //! throughput, plus the simpler shading modes of the book's first chapters. No threads, no I/O.
 
 use crate::bvh::{Candidates, TraversalStack};
+use crate::geometry::Hit;
 use crate::material::Material;
 use crate::math::{Color, Interval};
 use crate::ray::Ray;
@@ -18,14 +19,12 @@ pub struct Radiance {
 const ANY_DISTANCE: Interval = Interval::new(0.0, f32::INFINITY);
 
 /// Radiance arriving along camera ray `ray` under the scene's shading mode. `Shading::Uv`
-/// has no rays; the renderer handles it before calling here. `primary`, the spheres picked
-/// for this camera ray, serves path tracing (see `path_trace`).
+/// has no rays; the renderer handles it before calling here.
 #[inline]
 pub fn radiance(
     scene: &Scene,
     ray: Ray,
     rng: &mut Sampler,
-    primary: Option<&Candidates>,
     stack: &mut TraversalStack,
 ) -> Radiance {
     match scene.settings.shading {
@@ -50,60 +49,93 @@ pub fn radiance(
             },
             rays: 1,
         },
-        Shading::Path => path_trace(scene, ray, rng, primary, stack),
+        Shading::Path => path_trace(scene, ray, rng, stack),
     }
 }
 
 /// The book's recursive `ray_color` unrolled: at most `max_depth` segments, each hit
 /// multiplying the throughput by the material's attenuation, escape rays picking up the
-/// background. When `primary` is given, the first segment (a camera ray) is tested against
-/// those spheres alone, the ones `Scene::camera_candidates` picked for it; the answer is
-/// the same as the hierarchy's.
+/// background.
 #[inline]
 pub fn path_trace(
     scene: &Scene,
-    mut ray: Ray,
+    ray: Ray,
     rng: &mut Sampler,
+    stack: &mut TraversalStack,
+) -> Radiance {
+    if scene.settings.max_depth == 0 {
+        return Radiance {
+            color: Color::ZERO,
+            rays: 0,
+        };
+    }
+    let hit = scene.hit(&ray, ANY_DISTANCE, stack);
+    path_trace_from(scene, ray, hit, rng, stack)
+}
+
+/// What camera ray `ray` hits first: among `primary` when given (the spheres
+/// `Scene::camera_candidates` picked for its tile, which give the same answer as the tree),
+/// else through the tree.
+#[inline(always)]
+pub fn camera_hit(
+    scene: &Scene,
+    ray: &Ray,
     primary: Option<&Candidates>,
+    stack: &mut TraversalStack,
+) -> Option<Hit> {
+    match primary {
+        Some(candidates) => scene.hit_candidates(candidates, ray, ANY_DISTANCE),
+        None => scene.hit(ray, ANY_DISTANCE, stack),
+    }
+}
+
+/// `path_trace` after its first segment: camera ray `ray` has been traced and met `first`
+/// (`None`: it escaped). The caller checks that `max_depth` allows one segment.
+#[inline(always)]
+pub fn path_trace_from(
+    scene: &Scene,
+    mut ray: Ray,
+    first: Option<Hit>,
+    rng: &mut Sampler,
     stack: &mut TraversalStack,
 ) -> Radiance {
     let settings = &scene.settings;
     let mut throughput = Color::ONE;
-    let mut rays = 0;
-    while rays < settings.max_depth {
-        let hit = match primary {
-            Some(candidates) if rays == 0 => scene.hit_candidates(candidates, &ray, ANY_DISTANCE),
-            _ => scene.hit(&ray, ANY_DISTANCE, stack),
-        };
-        rays += 1;
-        let Some(hit) = hit else {
+    let mut hit = first;
+    let mut rays = 1;
+    loop {
+        let Some(here) = hit else {
             return Radiance {
                 color: throughput * scene.background.radiance(ray.dir),
                 rays,
             };
         };
         let Some(scatter) = scene
-            .material(&hit)
-            .scatter(ray.dir, &hit, settings.diffuse, rng)
+            .material(&here)
+            .scatter(ray.dir, &here, settings.diffuse, rng)
         else {
             return Radiance {
                 color: Color::ZERO,
                 rays,
             };
         };
+        if rays >= settings.max_depth {
+            return Radiance {
+                color: Color::ZERO,
+                rays,
+            };
+        }
         throughput *= scatter.attenuation;
         let dir = scatter.dir.normalize();
         // Start the next segment off the surface on the side it leaves towards, which
         // avoids shadow acne (§8.4) without the book's t_min cut-off losing real hits.
-        let side = if dir.dot(hit.normal) >= 0.0 {
-            hit.normal
+        let side = if dir.dot(here.normal) >= 0.0 {
+            here.normal
         } else {
-            -hit.normal
+            -here.normal
         };
-        ray = Ray::new(hit.p + settings.t_min * side, dir);
-    }
-    Radiance {
-        color: Color::ZERO,
-        rays,
+        ray = Ray::new(here.p + settings.t_min * side, dir);
+        hit = scene.hit(&ray, ANY_DISTANCE, stack);
+        rays += 1;
     }
 }

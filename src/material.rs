@@ -49,7 +49,7 @@ pub struct Scatter {
 
 impl Material {
     /// Scatters the unit direction `dir_in` at `hit`; `None` when the ray is absorbed.
-    #[inline]
+    #[inline(always)]
     pub fn scatter(
         &self,
         dir_in: Vec3,

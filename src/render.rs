@@ -5,6 +5,7 @@ use crate::bvh::{Candidates, TraversalStack};
 use crate::film::{Film, add_sums, to_fixed};
 use crate::integrator;
 use crate::math::{Color, PixelRect};
+use crate::ray::Ray;
 use crate::sampling::{PixelSeed, Sampler};
 use crate::scene::{Scene, Shading};
 use rayon::prelude::*;
@@ -311,26 +312,72 @@ pub fn render_tile_samples(scene: &Scene, tile: &PixelRect, range: SampleRange) 
     let mut sums = Vec::with_capacity(tile.area() as usize);
     let mut rays = 0u64;
     let mut stack = scene.new_stack();
+    let path = scene.settings.shading == Shading::Path && scene.settings.max_depth > 0;
     // Camera rays of one tile can reach only a few spheres: path tracing tests those alone.
-    let primary = (scene.settings.shading == Shading::Path)
-        .then(|| scene.camera_candidates(tile))
-        .flatten();
+    let primary = path.then(|| scene.camera_candidates(tile)).flatten();
     for y in tile.y0..tile.y0 + tile.height {
         for x in tile.x0..tile.x0 + tile.width {
             let seed = PixelSeed::new(scene.settings.seed, x, y);
             let mut acc = [0u64; 3];
-            for sample in range.start..range.end {
-                let rng = seed.sample(sample);
-                let (c, r) = trace_sample(scene, x, y, rng, primary.as_ref(), &mut stack);
+            let mut add = |c: Color, r: u32| {
                 acc[0] += to_fixed(c.x);
                 acc[1] += to_fixed(c.y);
                 acc[2] += to_fixed(c.z);
                 rays += u64::from(r);
+            };
+            if path {
+                trace_pixel_paths(scene, x, y, seed, range, primary.as_ref(), &mut stack, add);
+            } else {
+                for sample in range.start..range.end {
+                    let (c, r) = trace_sample(scene, x, y, seed.sample(sample), &mut stack);
+                    add(c, r);
+                }
             }
             sums.push(acc);
         }
     }
     TileResult { sums, rays }
+}
+
+/// Path traces samples `range` of pixel `(x, y)`, handing each one's radiance and ray count
+/// to `add` in sample order. Software pipelining: the next sample's camera ray is made
+/// before this sample's path is traced. It depends on nothing the path computes and has no
+/// branch of its own, so the processor works it out while the path waits on its long chains
+/// of arithmetic, and no mispredicted branch of the path can undo it. Each sample's own
+/// arithmetic is exactly `trace_sample`'s.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn trace_pixel_paths(
+    scene: &Scene,
+    x: u32,
+    y: u32,
+    seed: PixelSeed,
+    range: SampleRange,
+    primary: Option<&Candidates>,
+    stack: &mut TraversalStack,
+    mut add: impl FnMut(Color, u32),
+) {
+    if range.start >= range.end {
+        return;
+    }
+    let mut next = camera_sample(scene, x, y, seed.sample(range.start));
+    for sample in range.start..range.end {
+        let (ray, mut rng) = next.clone();
+        if sample + 1 < range.end {
+            next = camera_sample(scene, x, y, seed.sample(sample + 1));
+        }
+        let hit = integrator::camera_hit(scene, &ray, primary, stack);
+        let r = integrator::path_trace_from(scene, ray, hit, &mut rng, stack);
+        add(r.color, r.rays);
+    }
+}
+
+/// The camera ray of one sample of pixel `(x, y)`, drawn with the sample's generator `rng`,
+/// and the generator after those draws.
+#[inline(always)]
+fn camera_sample(scene: &Scene, x: u32, y: u32, mut rng: Sampler) -> (Ray, Sampler) {
+    let (u, v) = film_coordinates(scene, x, y, &mut rng);
+    (scene.camera.ray(u, v, &mut rng), rng)
 }
 
 /// One camera sample of pixel `(x, y)` (top row is `y = 0`): its radiance and ray count,
@@ -344,33 +391,32 @@ pub fn sample_pixel(
     stack: &mut TraversalStack,
 ) -> (Color, u32) {
     let rng = Sampler::for_sample(scene.settings.seed, x, y, sample);
-    trace_sample(scene, x, y, rng, None, stack)
+    trace_sample(scene, x, y, rng, stack)
 }
 
-/// One camera sample of pixel `(x, y)` drawn with the sample's generator `rng`, its camera
-/// ray tested against `primary` when given (see `integrator::path_trace`).
+/// One camera sample of pixel `(x, y)` drawn with the sample's generator `rng`, traced
+/// through the hierarchy.
 #[inline]
 fn trace_sample(
     scene: &Scene,
     x: u32,
     y: u32,
-    rng: Sampler,
-    primary: Option<&Candidates>,
+    mut rng: Sampler,
     stack: &mut TraversalStack,
 ) -> (Color, u32) {
-    let (u, v, mut rng) = film_coordinates(scene, x, y, rng);
+    let (u, v) = film_coordinates(scene, x, y, &mut rng);
     if scene.settings.shading == Shading::Uv {
         return (Color::new(u, v, 0.25), 0);
     }
     let ray = scene.camera.ray(u, v, &mut rng);
-    let r = integrator::radiance(scene, ray, &mut rng, primary, stack);
+    let r = integrator::radiance(scene, ray, &mut rng, stack);
     (r.color, r.rays)
 }
 
-/// Where one sample of pixel `(x, y)` falls on the film, in the book's coordinates, and
-/// the sample's generator `rng` after jittering.
+/// Where one sample of pixel `(x, y)` falls on the film, in the book's coordinates, drawing
+/// its jitter from `rng`.
 #[inline]
-fn film_coordinates(scene: &Scene, x: u32, y: u32, mut rng: Sampler) -> (f32, f32, Sampler) {
+fn film_coordinates(scene: &Scene, x: u32, y: u32, rng: &mut Sampler) -> (f32, f32) {
     let s = &scene.settings;
     let (du, dv) = if s.jitter {
         (rng.uniform(), rng.uniform())
@@ -379,6 +425,5 @@ fn film_coordinates(scene: &Scene, x: u32, y: u32, mut rng: Sampler) -> (f32, f3
     };
     // The book's mapping, v counted up from the bottom row.
     let j = s.height - 1 - y;
-    let (u, v) = scene.film_point(x as f32 + du, j as f32 + dv);
-    (u, v, rng)
+    scene.film_point(x as f32 + du, j as f32 + dv)
 }
