@@ -12,15 +12,14 @@ use wide::f32x8;
 const WIDTH: usize = 8;
 type Lanes = f32x8;
 
-/// Leaves hold at most this many primitives, in consecutive SIMD packs of `WIDTH`.
+/// Leaves hold at most this many primitives: one SIMD pack.
 const MAX_LEAF: usize = WIDTH;
-/// A leaf child reference: `LEAF | first_pack << PACK_SHIFT | pack_count`.
-const PACK_SHIFT: u32 = 4;
+const _: () = assert!(MAX_LEAF <= WIDTH, "a leaf must fit in one pack");
 /// Cost of visiting a node relative to testing one pack, for the SAH.
 const TRAVERSAL_COST: f32 = 1.0;
 /// Number of SAH bins per axis.
 const BINS: usize = 12;
-/// Child reference flags: a leaf (pack index in the low bits), or no child at all.
+/// Child reference flags: a leaf (its pack's index in the low bits), or no child at all.
 const LEAF: u32 = 1 << 31;
 const EMPTY: u32 = u32::MAX;
 /// The primitive id of no hit, during traversal.
@@ -125,11 +124,11 @@ impl SpherePack {
             return;
         }
         let t = t.to_array();
-        let mut lane = hits.trailing_zeros() as usize;
+        let mut lane = lowest_lane(hits);
         // Rarely does a ray meet two spheres of one pack: then the nearer.
         let mut rest = hits & (hits - 1);
         while rest != 0 {
-            let other = rest.trailing_zeros() as usize;
+            let other = lowest_lane(rest);
             rest &= rest - 1;
             if (t[other], self.id[other]) < (t[lane], self.id[lane]) {
                 lane = other;
@@ -275,11 +274,8 @@ impl Bvh {
             let child = if node.count > 0 {
                 let first = node.first as usize;
                 let ids = &order[first..first + node.count as usize];
-                let first_pack = self.packs.len() as u32;
-                for chunk in ids.chunks(WIDTH) {
-                    self.packs.push(SpherePack::new(spheres, chunk));
-                }
-                LEAF | first_pack << PACK_SHIFT | ids.len().div_ceil(WIDTH) as u32
+                self.packs.push(SpherePack::new(spheres, ids));
+                LEAF | (self.packs.len() - 1) as u32
             } else {
                 self.collapse(binary, order, spheres, k, Vec::new(), level + 1)
             };
@@ -301,12 +297,10 @@ impl Bvh {
         index as u32
     }
 
-    /// The packs of the leaf child reference `child`.
+    /// The pack of the leaf child reference `child`.
     #[inline(always)]
-    fn leaf_packs(&self, child: u32) -> &[SpherePack] {
-        let first = ((child & !LEAF) >> PACK_SHIFT) as usize;
-        let count = (child & ((1 << PACK_SHIFT) - 1)) as usize;
-        &self.packs[first..first + count]
+    fn leaf_pack(&self, child: u32) -> &SpherePack {
+        &self.packs[(child & !LEAF) as usize]
     }
 
     /// The closest hit in `interval`: its parameter and primitive id.
@@ -378,7 +372,7 @@ impl Bvh {
                     todo.push(child);
                     continue;
                 }
-                for id in self.leaf_packs(child).iter().flat_map(SpherePack::ids) {
+                for id in self.leaf_pack(child).ids() {
                     if keep(&spheres[id as usize]) {
                         if ids.len() == Candidates::MAX {
                             return None;
@@ -428,6 +422,13 @@ impl Bvh {
         }
         (closest, found)
     }
+}
+
+/// The lowest set lane of a non-empty lane mask. (Masked to `WIDTH`, which changes nothing
+/// but lets the compiler drop the bounds checks of indexing by it.)
+#[inline(always)]
+fn lowest_lane(mask: u32) -> usize {
+    mask.trailing_zeros() as usize & (WIDTH - 1)
 }
 
 #[inline(always)]
@@ -504,24 +505,22 @@ impl Traversal {
         // not already behind the closest hit.
         let mut leaves = hits & node.leaf_mask;
         while leaves != 0 {
-            let lane = leaves.trailing_zeros() as usize;
+            let lane = lowest_lane(leaves);
             leaves &= leaves - 1;
             if t_near[lane] <= self.closest {
-                for pack in bvh.leaf_packs(node.child[lane]) {
-                    pack.intersect(
-                        &self.o,
-                        &self.d,
-                        self.t_min,
-                        &mut self.closest,
-                        &mut self.found,
-                    );
-                }
+                bvh.leaf_pack(node.child[lane]).intersect(
+                    &self.o,
+                    &self.d,
+                    self.t_min,
+                    &mut self.closest,
+                    &mut self.found,
+                );
             }
         }
         hits &= node.inner_mask;
         // One inner child (the common case): descend without touching the stack.
         if hits != 0 && hits & (hits - 1) == 0 {
-            let lane = hits.trailing_zeros() as usize;
+            let lane = lowest_lane(hits);
             if t_near[lane] <= self.closest {
                 self.current = node.child[lane];
                 return false;
@@ -532,7 +531,7 @@ impl Traversal {
         // the stack.
         let base = self.top;
         while hits != 0 {
-            let lane = hits.trailing_zeros() as usize;
+            let lane = lowest_lane(hits);
             hits &= hits - 1;
             let entry = (node.child[lane], t_near[lane]);
             let mut i = self.top;
