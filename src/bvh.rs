@@ -5,7 +5,7 @@
 use crate::geometry::{Aabb, PrimitiveId, Sphere};
 use crate::math::{Interval, Vec3};
 use crate::ray::Ray;
-use wide::f32x8;
+use wide::{f32x8, u32x8};
 
 /// Children per node and spheres per pack: one SIMD lane each (AVX where the build has it,
 /// two SSE halves otherwise).
@@ -92,6 +92,7 @@ impl SpherePack {
         o: &[Lanes; 3],
         d: &[Lanes; 3],
         t_min: Lanes,
+        skip: u32x8,
         closest: &mut f32,
         found: &mut u32,
     ) {
@@ -102,9 +103,11 @@ impl SpherePack {
         let b = -(fx * d[0] + fy * d[1] + fz * d[2]);
         let (gx, gy, gz) = (fx + b * d[0], fy + b * d[1], fz + b * d[2]);
         let disc = self.r2 - (gx * gx + gy * gy + gz * gz);
-        let valid = disc.simd_ge(zero);
+        // Lanes whose line meets the sphere, less the sphere the ray is known to leave.
+        let valid =
+            disc.simd_ge(zero).to_bitmask() & !u32x8::from(self.id).simd_eq(skip).to_bitmask();
         // Most packs a ray reaches it misses outright: leave before the square root.
-        if !valid.any() {
+        if valid == 0 {
             return;
         }
         let sq = disc.fast_max(zero).sqrt();
@@ -118,8 +121,7 @@ impl SpherePack {
         let inside = |t: Lanes| t_min.simd_lt(t) & t.simd_le(hi);
         let inf = Lanes::splat(f32::INFINITY);
         let t = inside(near).select(near, inside(far).select(far, inf));
-        let t = valid.select(t, inf);
-        let hits = t.simd_lt(inf).to_bitmask();
+        let hits = t.simd_lt(inf).to_bitmask() & valid;
         if hits == 0 {
             return;
         }
@@ -311,11 +313,27 @@ impl Bvh {
         interval: Interval,
         stack: &mut TraversalStack,
     ) -> Option<(f32, PrimitiveId)> {
+        self.intersect_leaving(ray, interval, stack, None)
+    }
+
+    /// `intersect` for a ray that starts outside sphere `leaving` (off its surface) and
+    /// heads away from it, so cannot meet that convex sphere again: the tree's test of it
+    /// is left out. Most bounce rays leave the sphere they bounced off this way, and its
+    /// pack would otherwise pass the cheap first check for every one of them.
+    #[inline(always)]
+    pub fn intersect_leaving(
+        &self,
+        ray: &Ray,
+        interval: Interval,
+        stack: &mut TraversalStack,
+        leaving: Option<PrimitiveId>,
+    ) -> Option<(f32, PrimitiveId)> {
         let need = self.stack_need();
         if stack.0.len() < need {
             *stack = self.new_stack();
         }
-        let mut walk = Traversal::new(self, ray, interval);
+        let skip = leaving.map_or(NO_SPHERE, |id| id.0);
+        let mut walk = Traversal::new(self, ray, interval, skip);
         if !self.nodes.is_empty() {
             while !walk.step(self, &mut stack.0[..need]) {}
         }
@@ -403,7 +421,8 @@ impl Bvh {
         let (o, d) = (splat3(ray.origin), splat3(ray.dir));
         let t_min = Lanes::splat(interval.min);
         for pack in &candidates.packs {
-            pack.intersect(&o, &d, t_min, &mut closest, &mut found);
+            let skip = u32x8::splat(NO_SPHERE);
+            pack.intersect(&o, &d, t_min, skip, &mut closest, &mut found);
         }
         hit_of(closest, found)
     }
@@ -446,6 +465,8 @@ struct Traversal {
     d: [Lanes; 3],
     inv: [Lanes; 3],
     t_min: Lanes,
+    /// The id of a sphere the ray cannot hit (see `Bvh::intersect_leaving`), or `NO_SPHERE`.
+    skip: u32x8,
     closest: f32,
     found: u32,
     /// The node to visit next.
@@ -457,7 +478,7 @@ struct Traversal {
 impl Traversal {
     /// Starts a walk: tests the giant spheres, and sets up the root as the first node.
     #[inline(always)]
-    fn new(bvh: &Bvh, ray: &Ray, interval: Interval) -> Self {
+    fn new(bvh: &Bvh, ray: &Ray, interval: Interval, skip: u32) -> Self {
         let (closest, found) = bvh.nearest_giant(ray, interval);
         // Clamped so a zero direction component gives a huge finite slope, never the
         // 0 · ∞ = NaN of a box face through the origin.
@@ -467,6 +488,7 @@ impl Traversal {
             d: splat3(ray.dir),
             inv: splat3(inv),
             t_min: Lanes::splat(interval.min),
+            skip: u32x8::splat(skip),
             closest,
             found,
             current: 0,
@@ -512,6 +534,7 @@ impl Traversal {
                     &self.o,
                     &self.d,
                     self.t_min,
+                    self.skip,
                     &mut self.closest,
                     &mut self.found,
                 );
@@ -767,6 +790,48 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn rays_leaving_a_sphere_find_what_brute_force_finds_without_testing_it() {
+        // Crowded spheres, so a bounce ray often meets a neighbour of its own pack.
+        let mut rng = Sampler::from_seed(21);
+        let spheres: Vec<Sphere> = (0..300)
+            .map(|i| {
+                let c = Vec3::new(
+                    rng.range(-4.0, 4.0),
+                    rng.range(0.0, 1.0),
+                    rng.range(-4.0, 4.0),
+                );
+                Sphere::new(c, rng.range(0.1, 0.5), MaterialId(i))
+            })
+            .collect();
+        let bvh = Bvh::build(&spheres);
+        let mut stack = TraversalStack::default();
+        let iv = Interval::new(0.0, f32::INFINITY);
+        let mut neighbours = 0;
+        for _ in 0..20_000 {
+            let id = (rng.uniform() * spheres.len() as f32) as usize % spheres.len();
+            let s = &spheres[id];
+            // Off the surface by the renderer's default t_min, heading outwards.
+            let n = rng.unit_vector();
+            let mut d = rng.unit_vector();
+            if d.dot(n) < 0.0 {
+                d = -d;
+            }
+            let ray = Ray::new(s.center + s.radius * n + 1e-3 * n, d);
+            let leaving = Some(PrimitiveId(id as u32));
+            let fast = bvh.intersect_leaving(&ray, iv, &mut stack, leaving);
+            let full = bvh.intersect(&ray, iv, &mut stack);
+            let brute = intersect_brute_force(&spheres, &ray, iv);
+            assert_eq!(fast, brute, "{ray:?} leaving {id}");
+            assert_eq!(full, brute, "{ray:?} leaving {id}");
+            neighbours += usize::from(brute.is_some());
+        }
+        assert!(
+            neighbours > 5_000,
+            "too few rays meet another sphere: {neighbours}"
+        );
     }
 
     #[test]

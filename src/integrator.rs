@@ -129,13 +129,17 @@ pub fn path_trace_from(
         let dir = scatter.dir.normalize();
         // Start the next segment off the surface on the side it leaves towards, which
         // avoids shadow acne (§8.4) without the book's t_min cut-off losing real hits.
-        let side = if dir.dot(here.normal) >= 0.0 {
+        let along_normal = dir.dot(here.normal) >= 0.0;
+        let side = if along_normal {
             here.normal
         } else {
             -here.normal
         };
         ray = Ray::new(here.p + settings.t_min * side, dir);
-        hit = scene.hit(&ray, ANY_DISTANCE, stack);
+        // A ray that leaves a sphere from outside cannot meet it again: the tree skips it.
+        let leaving = (settings.t_min > 0.0 && scene.leaves_outside(&here, along_normal))
+            .then_some(here.primitive);
+        hit = scene.hit_leaving(&ray, ANY_DISTANCE, stack, leaving);
         rays += 1;
     }
 }
