@@ -248,29 +248,30 @@ pub fn render_job(
             )
         })
         .collect();
-    let (sender, receiver) = std::sync::mpsc::channel::<(usize, TileResult)>();
+    let (sender, receiver) = std::sync::mpsc::channel::<Vec<(usize, TileResult)>>();
     let (stop, on_samples) = (control.stop, control.on_samples);
     let mut samples = 0u64;
     let mut rays = 0u64;
     std::thread::scope(|scope| {
         let work = move || {
-            todo.par_iter()
-                .for_each_with(sender, |sender, (i, tile, range)| {
+            todo.par_iter().for_each_init(
+                || TileBatch::new(sender.clone()),
+                |batch, (i, tile, range)| {
                     if stop.load(Ordering::Relaxed) {
                         return;
                     }
                     let result = render_tile_samples(scene, tile, *range);
                     on_samples(tile.area() * u64::from(range.len()));
-                    // The receiver outlives the workers; a failed send cannot happen.
-                    let _ = sender.send((*i, result));
-                });
+                    batch.push(*i, result);
+                },
+            );
         };
         scope.spawn(move || match &pool {
             Some(p) => p.install(work),
             None => work(),
         });
         let mut last_snapshot = Instant::now();
-        for (index, result) in receiver {
+        for (index, result) in receiver.into_iter().flatten() {
             let tile = tiles[index];
             samples += tile.area() * u64::from(state.job.samples.len() - state.done[index]);
             rays += result.rays;
@@ -289,6 +290,50 @@ pub fn render_job(
         wall: start.elapsed(),
         threads,
     })
+}
+
+/// Finished tiles on their way from a worker to the thread folding them into the image,
+/// sent a few at a time: one message per tile woke that thread, and switched it in on a
+/// worker's core, a thousand times a second. Whatever is left is sent when the batch is
+/// dropped, as its worker finishes.
+struct TileBatch {
+    sender: std::sync::mpsc::Sender<Vec<(usize, TileResult)>>,
+    tiles: Vec<(usize, TileResult)>,
+    since: Instant,
+}
+
+impl TileBatch {
+    /// The longest a finished tile waits before it is sent.
+    const HOLD: Duration = Duration::from_millis(20);
+
+    fn new(sender: std::sync::mpsc::Sender<Vec<(usize, TileResult)>>) -> Self {
+        Self {
+            sender,
+            tiles: Vec::new(),
+            since: Instant::now(),
+        }
+    }
+
+    fn push(&mut self, index: usize, result: TileResult) {
+        self.tiles.push((index, result));
+        if self.since.elapsed() >= Self::HOLD {
+            self.send();
+        }
+    }
+
+    fn send(&mut self) {
+        if !self.tiles.is_empty() {
+            // The receiver outlives the workers; a failed send cannot happen.
+            let _ = self.sender.send(std::mem::take(&mut self.tiles));
+        }
+        self.since = Instant::now();
+    }
+}
+
+impl Drop for TileBatch {
+    fn drop(&mut self) {
+        self.send();
+    }
 }
 
 /// One finished tile: fixed-point sums per pixel (row-major) and the rays traced.
