@@ -388,8 +388,10 @@ pub fn render_tile_samples(scene: &Scene, tile: &PixelRect, range: SampleRange) 
 /// to `add` in sample order. Software pipelining: the next sample's camera ray is made
 /// before this sample's path is traced. It depends on nothing the path computes and has no
 /// branch of its own, so the processor works it out while the path waits on its long chains
-/// of arithmetic, and no mispredicted branch of the path can undo it. Each sample's own
-/// arithmetic is exactly `trace_sample`'s.
+/// of arithmetic, and no mispredicted branch of the path can undo it. It comes after this
+/// sample's camera hit, not before: made first, it reached the head of the reorder window
+/// before its own chain was done and held up what followed (measured 2–4% slower). Each
+/// sample's own arithmetic is exactly `trace_sample`'s.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn trace_pixel_paths(
@@ -408,10 +410,10 @@ fn trace_pixel_paths(
     let mut next = camera_sample(scene, x, y, seed.sample(range.start));
     for sample in range.start..range.end {
         let (ray, mut rng) = next.clone();
+        let hit = integrator::camera_hit(scene, &ray, primary, stack);
         if sample + 1 < range.end {
             next = camera_sample(scene, x, y, seed.sample(sample + 1));
         }
-        let hit = integrator::camera_hit(scene, &ray, primary, stack);
         let r = integrator::path_trace_from(scene, ray, hit, &mut rng, stack);
         add(r.color, r.rays);
     }
