@@ -313,32 +313,43 @@ impl Bvh {
         interval: Interval,
         stack: &mut TraversalStack,
     ) -> Option<(f32, PrimitiveId)> {
-        self.intersect_leaving(ray, interval, stack, None)
+        self.intersect_with(ray, interval, stack, RayHints::default())
     }
 
-    /// `intersect` for a ray that starts outside sphere `leaving` (off its surface) and
-    /// heads away from it, so cannot meet that convex sphere again: the tree's test of it
-    /// is left out. Most bounce rays leave the sphere they bounced off this way, and its
-    /// pack would otherwise pass the cheap first check for every one of them.
+    /// `intersect` helped by what the caller knows of the ray (see `RayHints`).
     #[inline(always)]
-    pub fn intersect_leaving(
+    pub fn intersect_with(
         &self,
         ray: &Ray,
         interval: Interval,
         stack: &mut TraversalStack,
-        leaving: Option<PrimitiveId>,
+        hints: RayHints,
     ) -> Option<(f32, PrimitiveId)> {
         let need = self.stack_need();
         if stack.0.len() < need {
             *stack = self.new_stack();
         }
-        let skip = leaving.map_or(NO_SPHERE, |id| id.0);
-        let mut walk = Traversal::new(self, ray, interval, skip);
+        let mut walk = Traversal::new(self, ray, interval, hints);
         if !self.nodes.is_empty() {
             while !walk.step(self, &mut stack.0[..need]) {}
         }
         walk.result()
     }
+}
+
+/// What a caller may know of a ray that lets `Bvh::intersect_with` do less or start sooner.
+/// The default knows nothing.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct RayHints {
+    /// A sphere the ray starts just outside of (off its surface) and heads away from, so
+    /// cannot meet again (convex): its test is left out. Most bounce rays leave the sphere
+    /// they bounced off this way, and its pack would otherwise pass the cheap first check
+    /// for every one of them.
+    pub leaving: Option<PrimitiveId>,
+    /// `1 / dir` (up to rounding), for a caller that has it before `dir` itself: a bounce
+    /// ray's `len × (1 / raw)` is ready a division sooner than `1 / (raw / len)`, and the
+    /// first box test waits for it.
+    pub inv_dir: Option<Vec3>,
 }
 
 /// A few spheres picked out for a bundle of rays (the camera rays of one tile), giants
@@ -465,7 +476,7 @@ struct Traversal {
     d: [Lanes; 3],
     inv: [Lanes; 3],
     t_min: Lanes,
-    /// The id of a sphere the ray cannot hit (see `Bvh::intersect_leaving`), or `NO_SPHERE`.
+    /// The id of a sphere the ray cannot hit (`RayHints::leaving`), or `NO_SPHERE`.
     skip: u32x8,
     closest: f32,
     found: u32,
@@ -478,17 +489,18 @@ struct Traversal {
 impl Traversal {
     /// Starts a walk: tests the giant spheres, and sets up the root as the first node.
     #[inline(always)]
-    fn new(bvh: &Bvh, ray: &Ray, interval: Interval, skip: u32) -> Self {
+    fn new(bvh: &Bvh, ray: &Ray, interval: Interval, hints: RayHints) -> Self {
         let (closest, found) = bvh.nearest_giant(ray, interval);
         // Clamped so a zero direction component gives a huge finite slope, never the
         // 0 · ∞ = NaN of a box face through the origin.
-        let inv = (Vec3::ONE / ray.dir).clamp(Vec3::splat(-1e30), Vec3::splat(1e30));
+        let inv = hints.inv_dir.unwrap_or_else(|| Vec3::ONE / ray.dir);
+        let inv = inv.clamp(Vec3::splat(-1e30), Vec3::splat(1e30));
         Traversal {
             o: splat3(ray.origin),
             d: splat3(ray.dir),
             inv: splat3(inv),
             t_min: Lanes::splat(interval.min),
-            skip: u32x8::splat(skip),
+            skip: u32x8::splat(hints.leaving.map_or(NO_SPHERE, |id| id.0)),
             closest,
             found,
             current: 0,
@@ -820,8 +832,13 @@ mod tests {
                 d = -d;
             }
             let ray = Ray::new(s.center + s.radius * n + 1e-3 * n, d);
-            let leaving = Some(PrimitiveId(id as u32));
-            let fast = bvh.intersect_leaving(&ray, iv, &mut stack, leaving);
+            // As the path tracer hints it: the sphere left, and 1/dir from the raw direction.
+            let raw = 3.0 * d;
+            let hints = RayHints {
+                leaving: Some(PrimitiveId(id as u32)),
+                inv_dir: Some(raw.length() * (Vec3::ONE / raw)),
+            };
+            let fast = bvh.intersect_with(&ray, iv, &mut stack, hints);
             let full = bvh.intersect(&ray, iv, &mut stack);
             let brute = intersect_brute_force(&spheres, &ray, iv);
             assert_eq!(fast, brute, "{ray:?} leaving {id}");

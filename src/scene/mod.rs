@@ -6,7 +6,7 @@ pub mod desc;
 
 pub use build::{MAX_PIXELS, Overrides};
 
-use crate::bvh::{Bvh, Candidates, TraversalStack};
+use crate::bvh::{Bvh, Candidates, RayHints, TraversalStack};
 use crate::camera::{Camera, CameraSettings};
 use crate::error::{Error, Location, Result};
 use crate::geometry::{Hit, PrimitiveId, Sphere};
@@ -130,21 +130,20 @@ impl Scene {
     /// The closest hit along `ray` within `interval`, using `stack` as scratch space.
     #[inline]
     pub fn hit(&self, ray: &Ray, interval: Interval, stack: &mut TraversalStack) -> Option<Hit> {
-        self.hit_leaving(ray, interval, stack, None)
+        self.hit_with(ray, interval, stack, RayHints::default())
     }
 
-    /// `hit` for a ray that starts just outside sphere `leaving` and heads away from it
-    /// (see `Bvh::intersect_leaving`); the same answer, found faster.
+    /// `hit` helped by what the caller knows of the ray (see `RayHints`); the same answer.
     #[inline]
-    pub fn hit_leaving(
+    pub fn hit_with(
         &self,
         ray: &Ray,
         interval: Interval,
         stack: &mut TraversalStack,
-        leaving: Option<PrimitiveId>,
+        hints: RayHints,
     ) -> Option<Hit> {
         self.bvh
-            .intersect_leaving(ray, interval, stack, leaving)
+            .intersect_with(ray, interval, stack, hints)
             .map(|(t, id)| self.surface(ray, t, id))
     }
 
