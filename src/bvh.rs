@@ -431,8 +431,8 @@ impl Bvh {
         let (mut closest, mut found) = (interval.max, NO_HIT);
         let (o, d) = (splat3(ray.origin), splat3(ray.dir));
         let t_min = Lanes::splat(interval.min);
+        let skip = u32x8::splat(NO_SPHERE);
         for pack in &candidates.packs {
-            let skip = u32x8::splat(NO_SPHERE);
             pack.intersect(&o, &d, t_min, skip, &mut closest, &mut found);
         }
         hit_of(closest, found)

@@ -451,11 +451,11 @@ fn trace_sample(
     mut rng: Sampler,
     stack: &mut TraversalStack,
 ) -> (Color, u32) {
-    let (u, v) = film_coordinates(scene, x, y, &mut rng);
     if scene.settings.shading == Shading::Uv {
+        let (u, v) = film_coordinates(scene, x, y, &mut rng);
         return (Color::new(u, v, 0.25), 0);
     }
-    let ray = scene.camera.ray(u, v, &mut rng);
+    let (ray, mut rng) = camera_sample(scene, x, y, rng);
     let r = integrator::radiance(scene, ray, &mut rng, stack);
     (r.color, r.rays)
 }

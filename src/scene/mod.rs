@@ -147,9 +147,10 @@ impl Scene {
             .map(|(t, id)| self.surface(ray, t, id))
     }
 
-    /// True when a ray leaving `hit` off the side `side` (the hit's normal or its opposite)
-    /// starts outside the hit sphere and heads away from it: it cannot meet that sphere
-    /// again. The sphere's outside is where `p - centre` points, whatever the radius' sign.
+    /// True when a ray leaving `hit` off the side of its normal (`side_is_normal`) or of the
+    /// opposite starts outside the hit sphere and heads away from it: it cannot meet that
+    /// sphere again. The sphere's outside is where `p - centre` points, whatever the radius'
+    /// sign.
     #[inline]
     pub fn leaves_outside(&self, hit: &Hit, side_is_normal: bool) -> bool {
         // normal = ±(p - c)/r, + on a front face: it points outside when r > 0 on a front
