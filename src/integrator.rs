@@ -152,8 +152,7 @@ pub fn bounce(scene: &Scene, here: &Hit, raw: Vec3) -> (Ray, RayHints) {
     };
     let hints = RayHints {
         // A ray that leaves a sphere from outside cannot meet it again.
-        leaving: (t_min > 0.0 && scene.leaves_outside(here, along_normal))
-            .then_some(here.primitive),
+        leaving: (t_min > 0.0 && here.leaves_outside(along_normal)).then_some(here.primitive),
         // From the raw direction, a division sooner than `1 / dir`.
         inv_dir: Some(len * (Vec3::ONE / raw)),
     };

@@ -126,6 +126,7 @@ mod tests {
             p: Vec3::ZERO,
             normal,
             front_face,
+            normal_points_out: front_face,
             material: MaterialId(0),
             primitive: PrimitiveId(0),
         }

@@ -28,6 +28,19 @@ pub struct Hit {
     pub normal: Vec3,
     /// True when the ray arrived from the side the geometric normal points to.
     pub front_face: bool,
+    /// True when `normal` points out of the primitive's solid (for a sphere, where
+    /// `p - centre` points, whatever the radius' sign).
+    pub normal_points_out: bool,
     pub material: MaterialId,
     pub primitive: PrimitiveId,
+}
+
+impl Hit {
+    /// True when a ray leaving this hit off the side of its normal (`side_is_normal`) or of
+    /// the opposite starts outside the solid it hit and heads away from it: it cannot meet
+    /// that (convex) solid again.
+    #[inline]
+    pub fn leaves_outside(&self, side_is_normal: bool) -> bool {
+        self.normal_points_out == side_is_normal
+    }
 }

@@ -147,18 +147,6 @@ impl Scene {
             .map(|(t, id)| self.surface(ray, t, id))
     }
 
-    /// True when a ray leaving `hit` off the side of its normal (`side_is_normal`) or of the
-    /// opposite starts outside the hit sphere and heads away from it: it cannot meet that
-    /// sphere again. The sphere's outside is where `p - centre` points, whatever the radius'
-    /// sign.
-    #[inline]
-    pub fn leaves_outside(&self, hit: &Hit, side_is_normal: bool) -> bool {
-        // normal = ±(p - c)/r, + on a front face: it points outside when r > 0 on a front
-        // face or r < 0 on a back face; `side` flips it when the ray leaves against it.
-        let radius = self.spheres[hit.primitive.0 as usize].radius;
-        ((radius > 0.0) == hit.front_face) == side_is_normal
-    }
-
     /// The book's film coordinates `(u, v)` of the point `i` pixels from the left and `j`
     /// rows up from the bottom row: `u = i / (width - 1)`, `v = j / (height - 1)`.
     #[inline]
@@ -219,6 +207,8 @@ impl Scene {
             p,
             normal: if front_face { outward } else { -outward },
             front_face,
+            // `outward` is (p - c)/r: out of the ball when r > 0; flipped on a back face.
+            normal_points_out: (sphere.radius > 0.0) == front_face,
             material: sphere.material,
             primitive: id,
         }
@@ -335,11 +325,7 @@ mod tests {
                     -hit.normal
                 };
                 let outside = side.dot(hit.p - sphere.center) > 0.0;
-                assert_eq!(
-                    scene.leaves_outside(&hit, side_is_normal),
-                    outside,
-                    "{hit:?}"
-                );
+                assert_eq!(hit.leaves_outside(side_is_normal), outside, "{hit:?}");
                 seen[usize::from(sphere.radius < 0.0)][usize::from(outside)] += 1;
             }
         }
