@@ -1,5 +1,5 @@
 //! Every figure of the book, rendered from its scene file at the book's size and sample
-//! count, compared with the book's own picture in `../shared/book-figures/`.
+//! count, compared with the book's own picture in `tests/data/book-figures/`.
 //!
 //! The book's figures are noisy 100-sample renders from another random number generator
 //! (and some are compressed), so no render can match them byte for byte. The comparison is

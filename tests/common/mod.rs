@@ -14,9 +14,9 @@ pub fn scene_path(name: &str) -> PathBuf {
     root().join("scenes").join(name)
 }
 
-/// The book's figures, beside the project in `../shared/book-figures`.
+/// The book's figures (CC0, like the book), kept with the tests.
 pub fn figures_dir() -> PathBuf {
-    root().join("..").join("shared").join("book-figures")
+    root().join("tests").join("data").join("book-figures")
 }
 
 pub fn load(path: &Path, overrides: Overrides) -> Scene {
