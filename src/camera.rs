@@ -126,6 +126,36 @@ impl Camera {
         Ray::new(origin, (target - origin).normalize())
     }
 
+    /// True when every ray the camera shoots has a sound unit direction: the view's
+    /// arithmetic (focus distance times the viewport, plus the lens) neither overflows nor
+    /// underflows f32.
+    pub fn rays_are_finite(&self) -> bool {
+        let basis = [
+            self.origin,
+            self.lower_left_corner,
+            self.horizontal,
+            self.vertical,
+            self.u,
+            self.v,
+            self.forward,
+        ];
+        let lens = self.lens_radius * std::f32::consts::SQRT_2;
+        // A ray's direction before normalising is at most a corner's reach plus the lens,
+        // and at least the focus distance (the lens lies across the view).
+        let longest_fits =
+            [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)]
+                .iter()
+                .all(|&(s, t)| {
+                    let corner = self.lower_left_corner + s * self.horizontal + t * self.vertical;
+                    let reach = (corner - self.origin).length() + lens;
+                    (reach * reach).is_finite()
+                });
+        basis.iter().all(|v| v.is_finite())
+            && lens.is_finite()
+            && longest_fits
+            && self.focus_dist * self.focus_dist >= f32::MIN_POSITIVE
+    }
+
     /// Bounds every ray `ray(s, t, _)` with `s` in `s_range` and `t` in `t_range`.
     pub fn bundle(&self, s_range: (f32, f32), t_range: (f32, f32)) -> RayBundle {
         let (d, r) = (self.focus_dist, self.lens_radius.abs());

@@ -3,7 +3,7 @@
 
 use super::desc::{self, SceneDesc, Vec3Desc};
 use super::{Background, RenderSettings, Scene, Shading, cover};
-use crate::camera::CameraSettings;
+use crate::camera::{Camera, CameraSettings};
 use crate::error::{Error, Location, Result};
 use crate::geometry::{MaterialId, Sphere};
 use crate::material::{DiffuseModel, Material, Refraction};
@@ -16,6 +16,13 @@ use toml::Spanned;
 /// The most pixels an image may have (2²⁸: 6 GiB of sums), so a typo cannot exhaust memory.
 pub const MAX_PIXELS: u64 = 1 << 28;
 
+/// The largest magnitude of a coordinate, radius or distance. Ray-sphere tests square
+/// differences of points and sum three of them: within ±10¹⁸ that stays far inside f32's
+/// range (3.4·10³⁸); a sphere of radius 10²⁰ would square to infinity and vanish.
+pub const MAX_LENGTH: f32 = 1e18;
+/// The smallest magnitude of a sphere's radius, whose square stays a normal f32 number.
+pub const MIN_RADIUS: f32 = 1e-18;
+
 /// Settings given on the command line that replace the file's.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Overrides {
@@ -24,6 +31,15 @@ pub struct Overrides {
     pub samples_per_pixel: Option<u32>,
     pub max_depth: Option<u32>,
     pub seed: Option<u64>,
+}
+
+/// A number as a scene author would write it: `1e20` rather than a digit per power of ten.
+fn plain(x: f64) -> String {
+    if x != 0.0 && !(1e-4..1e7).contains(&x.abs()) {
+        format!("{x:e}")
+    } else {
+        x.to_string()
+    }
 }
 
 /// Where validation errors point: the source text and its path.
@@ -58,6 +74,7 @@ impl Checker<'_> {
     pub(super) fn finite(&self, v: &Spanned<f64>, field: &str) -> Result<f32> {
         let x = *v.get_ref();
         if !x.is_finite() || !(x as f32).is_finite() {
+            let x = plain(x);
             return Err(self.error(v.span(), field, format!("must be a finite number, got {x}")));
         }
         Ok(x as f32)
@@ -72,13 +89,14 @@ impl Checker<'_> {
     ) -> Result<f32> {
         let x = self.finite(v, field)?;
         if !ok(f64::from(x)) {
-            return Err(self.error(v.span(), field, format!("must be {what}, got {x}")));
+            let written = plain(*v.get_ref());
+            return Err(self.error(v.span(), field, format!("must be {what}, got {written}")));
         }
         Ok(x)
     }
 
     pub(super) fn vec3(&self, v: &Vec3Desc, field: &str) -> Result<Vec3> {
-        let [x, y, z] = *v.get_ref();
+        let [x, y, z] = v.get_ref().0;
         if ![x, y, z]
             .iter()
             .all(|c| c.is_finite() && (*c as f32).is_finite())
@@ -86,10 +104,96 @@ impl Checker<'_> {
             return Err(self.error(
                 v.span(),
                 field,
-                format!("must have three finite numbers, got [{x}, {y}, {z}]"),
+                format!(
+                    "must have three finite numbers, got [{}, {}, {}]",
+                    plain(x),
+                    plain(y),
+                    plain(z)
+                ),
             ));
         }
         Ok(Vec3::new(x as f32, y as f32, z as f32))
+    }
+
+    /// A point of the scene's geometry: three numbers within `±MAX_LENGTH`.
+    pub(super) fn point(&self, v: &Vec3Desc, field: &str) -> Result<Vec3> {
+        let p = self.vec3(v, field)?;
+        if p.abs().max_element() > MAX_LENGTH {
+            return Err(self.error(
+                v.span(),
+                field,
+                format!(
+                    "coordinates must lie within ±{MAX_LENGTH:e} (beyond, f32 arithmetic \
+                     overflows), got [{}, {}, {}]",
+                    plain(p.x.into()),
+                    plain(p.y.into()),
+                    plain(p.z.into())
+                ),
+            ));
+        }
+        Ok(p)
+    }
+
+    /// A length or distance: `ok` (described by `what`), and at most `MAX_LENGTH`.
+    pub(super) fn length(
+        &self,
+        v: &Spanned<f64>,
+        field: &str,
+        ok: impl Fn(f64) -> bool,
+        what: &str,
+    ) -> Result<f32> {
+        let limited = |x: f64| ok(x) && x.abs() <= f64::from(MAX_LENGTH);
+        self.in_range(
+            v,
+            field,
+            limited,
+            &format!("{what}, at most {MAX_LENGTH:e}"),
+        )
+    }
+
+    /// A sphere radius: `positive_only` or either sign, of magnitude within
+    /// `[MIN_RADIUS, MAX_LENGTH]`.
+    pub(super) fn radius(&self, v: &Spanned<f64>, field: &str, positive_only: bool) -> Result<f32> {
+        let sign_ok = |r: f64| if positive_only { r > 0.0 } else { r != 0.0 };
+        let ok = |r: f64| sign_ok(r) && r.abs() >= f64::from(MIN_RADIUS);
+        let what = if positive_only {
+            "positive"
+        } else {
+            "non-zero"
+        };
+        self.length(
+            v,
+            field,
+            ok,
+            &format!("{what} and at least {MIN_RADIUS:e} in size"),
+        )
+    }
+
+    /// A direction, scaled to unit length in f64 so any non-zero length works: `vup` means
+    /// the same at `[0, 1e-18, 0]` and `[0, 1e20, 0]`.
+    pub(super) fn direction(&self, v: &Vec3Desc, field: &str) -> Result<Vec3> {
+        let [x, y, z] = v.get_ref().0;
+        let largest = x.abs().max(y.abs()).max(z.abs());
+        if !largest.is_finite() || largest == 0.0 {
+            return Err(self.error(
+                v.span(),
+                field,
+                format!(
+                    "must be a non-zero direction of finite numbers, got [{}, {}, {}]",
+                    plain(x),
+                    plain(y),
+                    plain(z)
+                ),
+            ));
+        }
+        // Dividing by the largest component first keeps the squares finite.
+        let (x, y, z) = (x / largest, y / largest, z / largest);
+        let len = (x * x + y * y + z * z).sqrt();
+        Ok(Vec3::new(
+            (x / len) as f32,
+            (y / len) as f32,
+            (z / len) as f32,
+        ))
     }
 
     pub(super) fn color(&self, v: &Vec3Desc, field: &str) -> Result<Color> {
@@ -110,7 +214,7 @@ pub(super) fn build(
     let ck = Checker { text, path };
     let settings = render_settings(desc, &ck, overrides)?;
     let mut camera = match &desc.camera {
-        Some(c) => camera_settings(c, &ck)?,
+        Some(c) => camera_settings(c.get_ref(), &ck)?,
         None => CameraSettings {
             lookfrom: Vec3::ZERO,
             lookat: -Vec3::Z,
@@ -123,6 +227,19 @@ pub(super) fn build(
     };
     // The viewport keeps the file's shape, whatever width the command line asks for.
     camera.aspect_ratio = *desc.image.width.get_ref() as f32 / *desc.image.height.get_ref() as f32;
+    if !Camera::new(&camera).rays_are_finite() {
+        let (span, field) = match &desc.camera {
+            Some(c) => (c.span(), "camera"),
+            None => (desc.image.width.span(), "image.width"),
+        };
+        return Err(ck.error(
+            span,
+            field,
+            "the view is beyond f32 arithmetic: with this focus distance, field of view and \
+             image shape, camera rays overflow or vanish; bring focus_dist (or lookat) and the \
+             view's width nearer",
+        ));
+    }
     let background = match &desc.background {
         None => Background::Gradient {
             bottom: Color::ONE,
@@ -141,8 +258,8 @@ pub(super) fn build(
     let mut spheres = Vec::with_capacity(desc.spheres.len());
     for (i, s) in desc.spheres.iter().enumerate() {
         let field = |f: &str| format!("spheres[{i}].{f}");
-        let center = ck.vec3(&s.center, &field("center"))?;
-        let radius = ck.in_range(&s.radius, &field("radius"), |r| r != 0.0, "non-zero")?;
+        let center = ck.point(&s.center, &field("center"))?;
+        let radius = ck.radius(&s.radius, &field("radius"), false)?;
         let name = s.material.get_ref();
         let Some(&id) = ids.get(name.as_str()) else {
             let known: Vec<&str> = ids.keys().copied().collect();
@@ -246,18 +363,24 @@ fn render_settings(desc: &SceneDesc, ck: &Checker, ov: &Overrides) -> Result<Ren
 
 /// The crop window, checked against the file's image size and scaled with a width override.
 fn crop(
-    c: &Spanned<[i64; 4]>,
+    c: &Spanned<desc::Exactly<i64, 4>>,
     ck: &Checker,
     (file_w, file_h): (u32, u32),
     (w, h): (u32, u32),
 ) -> Result<PixelRect> {
-    let [x0, y0, cw, ch] = *c.get_ref();
+    let [x0, y0, cw, ch] = c.get_ref().0;
+    // Checked: a width near i64::MAX must not wrap round to a small right edge.
+    let ends_inside = |start: i64, len: i64, size: u32| {
+        start
+            .checked_add(len)
+            .is_some_and(|end| end <= i64::from(size))
+    };
     let fits = x0 >= 0
         && y0 >= 0
         && cw > 0
         && ch > 0
-        && x0 + cw <= i64::from(file_w)
-        && y0 + ch <= i64::from(file_h);
+        && ends_inside(x0, cw, file_w)
+        && ends_inside(y0, ch, file_h);
     if !fits {
         return Err(ck.error(
             c.span(),
@@ -277,8 +400,8 @@ fn crop(
 }
 
 fn camera_settings(c: &desc::CameraDesc, ck: &Checker) -> Result<CameraSettings> {
-    let lookfrom = ck.vec3(&c.lookfrom, "camera.lookfrom")?;
-    let lookat = ck.vec3(&c.lookat, "camera.lookat")?;
+    let lookfrom = ck.point(&c.lookfrom, "camera.lookfrom")?;
+    let lookat = ck.point(&c.lookat, "camera.lookat")?;
     let view = lookat - lookfrom;
     if view.length_squared() == 0.0 {
         return Err(ck.error(
@@ -289,7 +412,7 @@ fn camera_settings(c: &desc::CameraDesc, ck: &Checker) -> Result<CameraSettings>
     }
     let vup = match &c.vup {
         Some(v) => {
-            let vup = ck.vec3(v, "camera.vup")?;
+            let vup = ck.direction(v, "camera.vup")?;
             if view.normalize().cross(vup).length_squared() < 1e-12 {
                 return Err(ck.error(
                     v.span(),
@@ -308,11 +431,11 @@ fn camera_settings(c: &desc::CameraDesc, ck: &Checker) -> Result<CameraSettings>
         "between 0 and 180 degrees",
     )?;
     let aperture = match &c.aperture {
-        Some(a) => ck.in_range(a, "camera.aperture", |a| a >= 0.0, "zero or positive")?,
+        Some(a) => ck.length(a, "camera.aperture", |a| a >= 0.0, "zero or positive")?,
         None => 0.0,
     };
     let focus_dist = match &c.focus_dist {
-        Some(f) => ck.in_range(f, "camera.focus_dist", |f| f > 0.0, "positive")?,
+        Some(f) => ck.length(f, "camera.focus_dist", |f| f > 0.0, "positive")?,
         None => view.length(),
     };
     Ok(CameraSettings {

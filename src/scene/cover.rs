@@ -54,13 +54,13 @@ impl RandomSpheres {
         let keep_clear = d
             .keep_clear
             .iter()
-            .map(|p| ck.vec3(p, "random_spheres.keep_clear"))
+            .map(|p| ck.point(p, "random_spheres.keep_clear"))
             .collect::<Result<_>>()?;
         Ok(Self {
             grid: grid as i32,
-            radius: ck.in_range(&d.radius, "random_spheres.radius", |r| r > 0.0, "positive")?,
+            radius: ck.radius(&d.radius, "random_spheres.radius", true)?,
             keep_clear,
-            clearance: ck.in_range(
+            clearance: ck.length(
                 &d.clearance,
                 "random_spheres.clearance",
                 |c| c >= 0.0,

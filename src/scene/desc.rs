@@ -2,10 +2,51 @@
 //! values that are validated later. Nothing here is used by the renderer directly.
 
 use serde::Deserialize;
+use serde::de::{self, Deserializer, IgnoredAny, SeqAccess, Visitor};
 use std::collections::BTreeMap;
+use std::fmt;
+use std::marker::PhantomData;
 use toml::Spanned;
 
-pub type Vec3Desc = Spanned<[f64; 3]>;
+pub type Vec3Desc = Spanned<Exactly<f64, 3>>;
+
+/// An array of exactly `N` values. Serde's own `[T; N]` stops reading after `N` elements
+/// and ignores the rest, so `center = [0, 0, -1, "junk"]` would pass for a point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Exactly<T, const N: usize>(pub [T; N]);
+
+impl<'de, T: Deserialize<'de> + Copy + Default, const N: usize> Deserialize<'de> for Exactly<T, N> {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct Elements<T, const N: usize>(PhantomData<T>);
+
+        impl<'de, T: Deserialize<'de> + Copy + Default, const N: usize> Visitor<'de> for Elements<T, N> {
+            type Value = Exactly<T, N>;
+
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                write!(f, "an array of {N} numbers")
+            }
+
+            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Self::Value, A::Error> {
+                let mut out = [T::default(); N];
+                for (i, slot) in out.iter_mut().enumerate() {
+                    *slot = seq
+                        .next_element()?
+                        .ok_or_else(|| de::Error::invalid_length(i, &self))?;
+                }
+                let mut len = N;
+                while seq.next_element::<IgnoredAny>()?.is_some() {
+                    len += 1;
+                }
+                if len != N {
+                    return Err(de::Error::invalid_length(len, &self));
+                }
+                Ok(Exactly(out))
+            }
+        }
+
+        deserializer.deserialize_seq(Elements::<T, N>(PhantomData))
+    }
+}
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -15,7 +56,7 @@ pub struct SceneDesc {
     pub render: RenderDesc,
     /// Defaults to the book's first camera: at the origin, looking down -z, 90° vertical fov.
     #[serde(default)]
-    pub camera: Option<CameraDesc>,
+    pub camera: Option<Spanned<CameraDesc>>,
     #[serde(default)]
     pub background: Option<Spanned<BackgroundDesc>>,
     #[serde(default)]
@@ -37,7 +78,7 @@ pub struct ImageDesc {
     pub seed: u64,
     /// Render and write only `[x, y, width, height]` of the image (pixels, top row 0).
     #[serde(default)]
-    pub crop: Option<Spanned<[i64; 4]>>,
+    pub crop: Option<Spanned<Exactly<i64, 4>>>,
 }
 
 #[derive(Debug, Default, Deserialize, Clone, Copy, PartialEq, Eq)]
@@ -189,7 +230,7 @@ fn default_radius() -> Spanned<f64> {
     Spanned::new(0..0, 0.2)
 }
 fn default_keep_clear() -> Vec<Vec3Desc> {
-    vec![Spanned::new(0..0, [4.0, 0.2, 0.0])]
+    vec![Spanned::new(0..0, Exactly([4.0, 0.2, 0.0]))]
 }
 fn default_clearance() -> Spanned<f64> {
     Spanned::new(0..0, 0.9)

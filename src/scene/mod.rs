@@ -107,9 +107,22 @@ impl Scene {
 
     /// Reads, parses and validates a scene file, applying command-line overrides.
     pub fn load(path: &Path, overrides: &Overrides) -> Result<Scene> {
-        let text = std::fs::read_to_string(path).map_err(|cause| Error::Io {
+        let bytes = std::fs::read(path).map_err(|cause| Error::Io {
             path: path.to_owned(),
             cause,
+        })?;
+        let text = String::from_utf8(bytes).map_err(|e| {
+            let valid = &e.as_bytes()[..e.utf8_error().valid_up_to()];
+            // The valid prefix is text: its end is where the bad byte sits.
+            let prefix = std::str::from_utf8(valid).unwrap_or_default();
+            Error::SceneSyntax {
+                path: path.to_owned(),
+                at: Location::of_offset(prefix, prefix.len()),
+                message: format!(
+                    "invalid UTF-8 (byte 0x{:02x}); a scene file is UTF-8 text",
+                    e.as_bytes()[valid.len()]
+                ),
+            }
         })?;
         Self::parse(&text, path, overrides)
     }
