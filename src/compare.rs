@@ -13,7 +13,8 @@ pub struct Difference {
     pub psnr_db: f64,
 }
 
-/// An RGB image as floats: 8-bit formats scaled to [0, 1], EXR as stored (linear).
+/// An RGB image as floats in [0, 1]: 8-bit formats scaled, EXR's linear values clamped (NaN
+/// counts as 0), so an over-bright float image compares as a display would show it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RgbImage {
     pub width: u32,
@@ -31,7 +32,7 @@ impl RgbImage {
         Ok(Self {
             width: rgb.width(),
             height: rgb.height(),
-            data: rgb.into_raw(),
+            data: rgb.into_raw().into_iter().map(unit).collect(),
         })
     }
 
@@ -43,6 +44,11 @@ impl RgbImage {
             data: bytes.iter().map(|&b| f32::from(b) / 255.0).collect(),
         }
     }
+}
+
+/// `c` clamped to [0, 1]; NaN is 0.
+fn unit(c: f32) -> f32 {
+    if c > 0.0 { c.min(1.0) } else { 0.0 }
 }
 
 /// Compares two images; they must have the same size.
@@ -91,6 +97,25 @@ mod tests {
         let d = difference(&a, &a).unwrap();
         assert_eq!(d.rmse, 0.0);
         assert!(d.psnr_db.is_infinite());
+    }
+
+    #[test]
+    fn float_images_compare_clamped_to_the_unit_range() {
+        let dir = std::env::temp_dir().join(format!("tessera-compare-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        // Linear values far above 1 (and below 0) read as white (and black), as an 8-bit
+        // image of them shows.
+        let mut film = crate::film::Film::new(2, 1, 1);
+        film.sums[0] = [crate::film::to_fixed(1e5); 3];
+        film.sums[1] = [crate::film::to_fixed(0.5), 0, crate::film::to_fixed(3.0)];
+        let exr = dir.join("bright.exr");
+        film.save(&exr, 1.0).unwrap();
+        let loaded = RgbImage::load(&exr).unwrap();
+        assert_eq!(loaded.data, [1.0, 1.0, 1.0, 0.5, 0.0, 1.0]);
+        let white = RgbImage::from_rgb8(2, 1, &[255, 255, 255, 0, 0, 0]);
+        let d = difference(&loaded, &white).unwrap();
+        assert!(d.psnr_db > 0.0 && d.rmse <= 1.0, "{d:?}");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
