@@ -152,15 +152,35 @@ impl Film {
 /// Adds `sums`, the row-major sums of the pixels `rect`, into `into`, the row-major sums of
 /// the pixels `frame`, which contains `rect`. Integer addition: the order never matters.
 pub fn add_sums(into: &mut [[u64; 3]], frame: PixelRect, sums: &[[u64; 3]], rect: PixelRect) {
+    add_run(into, frame, rect, 0, sums);
+}
+
+/// Adds `run`, the sums of consecutive pixels of `rect` in row-major order from its
+/// `start`-th pixel, into `into`, the row-major sums of the pixels `frame`, which contains
+/// `rect`. Saturating integer addition: the order never matters, and a sum too large for 64
+/// bits stays the brightest value instead of wrapping round to black.
+pub fn add_run(
+    into: &mut [[u64; 3]],
+    frame: PixelRect,
+    rect: PixelRect,
+    start: u64,
+    mut run: &[[u64; 3]],
+) {
     debug_assert!(frame.contains(&rect));
-    for (row, chunk) in sums.chunks_exact(rect.width as usize).enumerate() {
-        let y = (rect.y0 - frame.y0) as usize + row;
-        let start = y * frame.width as usize + (rect.x0 - frame.x0) as usize;
-        for (acc, add) in into[start..start + chunk.len()].iter_mut().zip(chunk) {
+    let width = u64::from(rect.width);
+    let mut at = start;
+    while !run.is_empty() {
+        let (row, column) = (at / width, at % width);
+        let n = ((width - column) as usize).min(run.len());
+        let y = (rect.y0 - frame.y0) as usize + row as usize;
+        let begin = y * frame.width as usize + (rect.x0 - frame.x0) as usize + column as usize;
+        for (acc, add) in into[begin..begin + n].iter_mut().zip(&run[..n]) {
             for c in 0..3 {
-                acc[c] += add[c];
+                acc[c] = acc[c].saturating_add(add[c]);
             }
         }
+        run = &run[n..];
+        at += n as u64;
     }
 }
 
@@ -177,13 +197,8 @@ pub fn encode_8bit(c: f32, gamma: f32) -> u8 {
     (256.0 * c.clamp(0.0, 0.999)) as u8
 }
 
-/// Writes `bytes` to a temporary file beside `path`, syncs it and renames it over `path`, so
-/// a reader (or a crash) never sees a half-written file and an old file survives a failure.
-pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
-    let io = |cause| Error::Io {
-        path: path.to_owned(),
-        cause,
-    };
+/// The temporary file beside `path` that `write_atomically` writes first.
+fn temporary_beside(path: &Path) -> Result<PathBuf> {
     let dir = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_owned(),
         _ => PathBuf::from("."),
@@ -195,7 +210,35 @@ pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
     let mut tmp_name = std::ffi::OsString::from(".");
     tmp_name.push(name);
     tmp_name.push(format!(".tmp-{}", std::process::id()));
-    let tmp = dir.join(tmp_name);
+    Ok(dir.join(tmp_name))
+}
+
+/// Checks, before any work is spent on it, that `write_atomically` can write `path`: its
+/// directory exists and takes a new file, and `path` is not a directory.
+pub fn check_writable(path: &Path) -> Result<()> {
+    let io = |cause| Error::Io {
+        path: path.to_owned(),
+        cause,
+    };
+    if path.is_dir() {
+        return Err(io(std::io::Error::new(
+            std::io::ErrorKind::IsADirectory,
+            "is a directory, not a file name",
+        )));
+    }
+    let tmp = temporary_beside(path)?;
+    std::fs::File::create(&tmp).map_err(io)?;
+    std::fs::remove_file(&tmp).map_err(io)
+}
+
+/// Writes `bytes` to a temporary file beside `path`, syncs it and renames it over `path`, so
+/// a reader (or a crash) never sees a half-written file and an old file survives a failure.
+pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
+    let io = |cause| Error::Io {
+        path: path.to_owned(),
+        cause,
+    };
+    let tmp = temporary_beside(path)?;
     let result = (|| {
         let mut f = std::fs::File::create(&tmp)?;
         f.write_all(bytes)?;

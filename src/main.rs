@@ -326,16 +326,12 @@ fn resume(scene: &Scene, path: &Path, job: Job, quiet: bool) -> Result<Progress>
 
 fn cmd_merge(paths: &[PathBuf], output: &Path) -> Result<()> {
     Format::from_path(output)?;
-    let parts = paths
-        .iter()
-        .map(|p| Ok((p.clone(), Part::load(p)?)))
-        .collect::<Result<Vec<_>>>()?;
-    let (film, gamma) = tessera::partial::merge(&parts)?;
+    let (film, gamma) = tessera::partial::merge_files(paths)?;
     film.save(output, gamma)?;
     eprintln!(
         "{}: merged {} parts, {}x{}, {} spp",
         output.display(),
-        parts.len(),
+        paths.len(),
         film.width,
         film.height,
         film.samples_per_pixel

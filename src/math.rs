@@ -58,6 +58,12 @@ impl PixelRect {
                 <= u64::from(self.y0) + u64::from(self.height)
     }
 
+    /// How many tiles `tiles(edge)` makes, counted without making them.
+    pub fn tile_count(&self, edge: u32) -> u64 {
+        let edge = edge.max(1);
+        u64::from(self.width.div_ceil(edge)) * u64::from(self.height.div_ceil(edge))
+    }
+
     /// Tiles of at most `edge × edge` pixels covering the rectangle, row-major.
     pub fn tiles(&self, edge: u32) -> Vec<PixelRect> {
         let edge = edge.max(1);
@@ -126,6 +132,7 @@ mod tests {
                 height: h,
             };
             let mut hits = vec![0u8; (w * h) as usize];
+            assert_eq!(rect.tile_count(e), rect.tiles(e).len() as u64);
             for t in rect.tiles(e) {
                 assert!(rect.contains(&t));
                 for y in t.y0..t.y0 + t.height {

@@ -7,16 +7,25 @@
 //! gives exactly the sums of one uninterrupted render.
 
 use crate::error::{Error, Result};
-use crate::film::{Film, add_sums};
+use crate::film::{Film, add_run, add_sums};
 use crate::math::PixelRect;
 use crate::render::{Job, Progress, SampleRange, percent, samples_done};
 use crate::sampling::mix64;
 use crate::scene::Scene;
 use serde::{Deserialize, Serialize};
+use std::io::{BufReader, Read};
 use std::path::{Path, PathBuf};
 
 const MAGIC: &[u8; 16] = b"TESSERA-PARTIAL\n";
 const VERSION: u32 = 1;
+/// Bytes before the header: the magic and the header's length.
+const PREAMBLE: u64 = 24;
+/// Bytes of the trailing checksum.
+const CHECKSUM: u64 = 8;
+/// Bytes of one pixel's sums.
+const PIXEL: u64 = 24;
+/// Pixels read at a time when a part's sums are streamed.
+const CHUNK_PIXELS: usize = 1 << 14;
 
 /// What a part is a part of, and which part it is.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -46,6 +55,63 @@ pub struct Header {
     pub done: Vec<u32>,
 }
 
+impl Header {
+    pub fn region(&self) -> PixelRect {
+        unrect(self.region)
+    }
+
+    pub fn samples(&self) -> SampleRange {
+        SampleRange {
+            start: self.samples[0],
+            end: self.samples[1],
+        }
+    }
+
+    pub fn is_complete(&self) -> bool {
+        let len = self.samples().len();
+        self.done.iter().all(|&d| d >= len)
+    }
+
+    /// The length in bytes of a file with this header, once it is known to be consistent.
+    fn file_len(&self, header_len: u64) -> u64 {
+        PREAMBLE + header_len + self.region().area() * PIXEL + CHECKSUM
+    }
+
+    /// Checks the header's claims against each other, so nothing sized by them is
+    /// allocated before they are known to be sane.
+    fn check(&self, path: &Path) -> Result<()> {
+        let fail = |message: String| Err(part_error(path, message));
+        if self.version != VERSION {
+            return fail(format!(
+                "has format version {}, this tessera reads {VERSION}",
+                self.version
+            ));
+        }
+        let region = self.region();
+        let window = unrect(self.window);
+        let image = PixelRect::full(self.width, self.height);
+        if image.area() > crate::scene::MAX_PIXELS
+            || !image.contains(&window)
+            || !window.contains(&region)
+            || region.area() == 0
+        {
+            return fail(format!(
+                "has an impossible region {:?} for window {:?} of a {}x{} image",
+                self.region, self.window, self.width, self.height
+            ));
+        }
+        let len = self.samples().len();
+        if self.samples[1] < self.samples[0]
+            || self.tile == 0
+            || self.done.len() as u64 != region.tile_count(self.tile)
+            || self.done.iter().any(|&d| d > len)
+        {
+            return fail("has an inconsistent header (samples, tiles or progress)".to_owned());
+        }
+        Ok(())
+    }
+}
+
 /// A partial render: its header and its sums.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Part {
@@ -66,15 +132,185 @@ fn unrect(r: [u32; 4]) -> PixelRect {
     }
 }
 
-/// Checksum of a byte string, eight bytes at a time through `mix64`.
-fn checksum(bytes: &[u8]) -> u64 {
-    let mut h = mix64(bytes.len() as u64 ^ 0x5eed);
-    for chunk in bytes.chunks(8) {
-        let mut word = [0u8; 8];
-        word[..chunk.len()].copy_from_slice(chunk);
-        h = mix64(h ^ u64::from_le_bytes(word));
+/// Checksum of a byte string of known length, fed in pieces: eight bytes at a time through
+/// `mix64`, the last word padded with zeros.
+struct Checksum {
+    hash: u64,
+    word: [u8; 8],
+    filled: usize,
+}
+
+impl Checksum {
+    fn new(total_len: u64) -> Self {
+        Self {
+            hash: mix64(total_len ^ 0x5eed),
+            word: [0; 8],
+            filled: 0,
+        }
     }
-    h
+
+    fn update(&mut self, mut bytes: &[u8]) {
+        while !bytes.is_empty() {
+            let take = (8 - self.filled).min(bytes.len());
+            self.word[self.filled..self.filled + take].copy_from_slice(&bytes[..take]);
+            self.filled += take;
+            bytes = &bytes[take..];
+            if self.filled == 8 {
+                self.hash = mix64(self.hash ^ u64::from_le_bytes(self.word));
+                self.filled = 0;
+            }
+        }
+    }
+
+    fn finish(mut self) -> u64 {
+        if self.filled > 0 {
+            self.word[self.filled..].fill(0);
+            self.hash = mix64(self.hash ^ u64::from_le_bytes(self.word));
+        }
+        self.hash
+    }
+}
+
+/// A part file opened for reading: its header read and checked against the file's real
+/// length, its sums not yet read. Every size the header claims is checked before anything
+/// of that size is allocated, so a small crafted file cannot make a reader ask for gigabytes.
+pub struct PartReader<R> {
+    path: PathBuf,
+    header: Header,
+    reader: R,
+    checksum: Checksum,
+}
+
+impl PartReader<BufReader<std::fs::File>> {
+    /// Opens the part file at `path` and reads its header.
+    pub fn open(path: &Path) -> Result<Self> {
+        let io = |cause| Error::Io {
+            path: path.to_owned(),
+            cause,
+        };
+        let file = std::fs::File::open(path).map_err(io)?;
+        let len = file.metadata().map_err(io)?.len();
+        PartReader::new(BufReader::new(file), len, path)
+    }
+}
+
+impl<R: Read> PartReader<R> {
+    /// Reads and checks the header of the `len`-byte part that `reader` holds; `path` names
+    /// it in errors.
+    pub fn new(mut reader: R, len: u64, path: &Path) -> Result<Self> {
+        let fail = |message: String| Err(part_error(path, message));
+        let mut preamble = [0u8; PREAMBLE as usize];
+        let got = read_up_to(&mut reader, &mut preamble, path)?;
+        if got < MAGIC.len() || preamble[..MAGIC.len()] != MAGIC[..] {
+            return fail("is not a tessera partial render (no TESSERA-PARTIAL header)".to_owned());
+        }
+        if got < preamble.len() || len < PREAMBLE + CHECKSUM {
+            return fail(format!("is truncated ({len} bytes)"));
+        }
+        let header_len = u64::from_le_bytes(preamble[16..].try_into().expect("8 bytes"));
+        if header_len > len - PREAMBLE - CHECKSUM {
+            return fail(format!(
+                "is truncated ({len} bytes, its header alone claims {header_len})"
+            ));
+        }
+        let mut text = vec![0u8; header_len as usize];
+        if read_up_to(&mut reader, &mut text, path)? < text.len() {
+            return fail(format!("is truncated ({len} bytes)"));
+        }
+        let header: Header = match serde_json::from_slice(&text) {
+            Ok(h) => h,
+            Err(e) => return fail(format!("has a corrupt header: {e}")),
+        };
+        header.check(path)?;
+        let expected = header.file_len(header_len);
+        if len != expected {
+            return fail(format!(
+                "is truncated or padded ({len} bytes, expected {expected})"
+            ));
+        }
+        let mut checksum = Checksum::new(len - CHECKSUM);
+        checksum.update(&preamble);
+        checksum.update(&text);
+        Ok(Self {
+            path: path.to_owned(),
+            header,
+            reader,
+            checksum,
+        })
+    }
+
+    pub fn header(&self) -> &Header {
+        &self.header
+    }
+
+    /// Reads the sums, row-major over the region, handing them to `each` a chunk at a time,
+    /// then checks the checksum. What `each` was given is sound only if this returns `Ok`.
+    pub fn read_sums(mut self, mut each: impl FnMut(&[[u64; 3]])) -> Result<()> {
+        let mut left = self.header.region().area();
+        let mut bytes = vec![0u8; CHUNK_PIXELS.min(left as usize) * PIXEL as usize];
+        let mut sums = Vec::with_capacity(CHUNK_PIXELS.min(left as usize));
+        while left > 0 {
+            let n = CHUNK_PIXELS.min(left as usize);
+            let chunk = &mut bytes[..n * PIXEL as usize];
+            self.read_exact(chunk)?;
+            self.checksum.update(chunk);
+            sums.clear();
+            sums.extend(chunk.chunks_exact(PIXEL as usize).map(|px| {
+                let word = |i: usize| {
+                    u64::from_le_bytes(px[i * 8..i * 8 + 8].try_into().expect("8 bytes"))
+                };
+                [word(0), word(1), word(2)]
+            }));
+            each(&sums);
+            left -= n as u64;
+        }
+        let mut stored = [0u8; CHECKSUM as usize];
+        self.read_exact(&mut stored)?;
+        if self.checksum.finish() != u64::from_le_bytes(stored) {
+            return Err(part_error(
+                &self.path,
+                "is corrupt (checksum mismatch)".to_owned(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The header and all the sums.
+    pub fn read_part(self) -> Result<Part> {
+        let header = self.header.clone();
+        let mut sums = Vec::with_capacity(header.region().area() as usize);
+        self.read_sums(|chunk| sums.extend_from_slice(chunk))?;
+        Ok(Part { header, sums })
+    }
+
+    fn read_exact(&mut self, buf: &mut [u8]) -> Result<()> {
+        if read_up_to(&mut self.reader, buf, &self.path)? < buf.len() {
+            return Err(part_error(
+                &self.path,
+                "is truncated (it changed while being read)".to_owned(),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Fills `buf` from `reader` as far as it goes; returns the bytes read.
+fn read_up_to(reader: &mut impl Read, buf: &mut [u8], path: &Path) -> Result<usize> {
+    let mut filled = 0;
+    while filled < buf.len() {
+        match reader.read(&mut buf[filled..]) {
+            Ok(0) => break,
+            Ok(n) => filled += n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(cause) => {
+                return Err(Error::Io {
+                    path: path.to_owned(),
+                    cause,
+                });
+            }
+        }
+    }
+    Ok(filled)
 }
 
 impl Part {
@@ -103,19 +339,15 @@ impl Part {
     }
 
     pub fn region(&self) -> PixelRect {
-        unrect(self.header.region)
+        self.header.region()
     }
 
     pub fn samples(&self) -> SampleRange {
-        SampleRange {
-            start: self.header.samples[0],
-            end: self.header.samples[1],
-        }
+        self.header.samples()
     }
 
     pub fn is_complete(&self) -> bool {
-        let len = self.samples().len();
-        self.header.done.iter().all(|&d| d >= len)
+        self.header.is_complete()
     }
 
     /// The render state this part records, to resume or extend it.
@@ -183,90 +415,19 @@ impl Part {
                 out.extend_from_slice(&c.to_le_bytes());
             }
         }
-        let sum = checksum(&out);
-        out.extend_from_slice(&sum.to_le_bytes());
+        let mut sum = Checksum::new(out.len() as u64);
+        sum.update(&out);
+        out.extend_from_slice(&sum.finish().to_le_bytes());
         out
     }
 
     /// Parses and checks a part; `path` names it in errors.
     pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<Part> {
-        let fail = |message: String| Err(part_error(path, message));
-        if bytes.len() < 16 || &bytes[..16] != MAGIC {
-            return fail("is not a tessera partial render (no TESSERA-PARTIAL header)".to_owned());
-        }
-        if bytes.len() < 24 + 8 {
-            return fail(format!("is truncated ({} bytes)", bytes.len()));
-        }
-        let header_len = u64::from_le_bytes(bytes[16..24].try_into().expect("8 bytes"));
-        let header_end = 24u64.saturating_add(header_len);
-        if header_end > bytes.len() as u64 {
-            return fail(format!(
-                "is truncated ({} bytes, header alone needs {header_end})",
-                bytes.len()
-            ));
-        }
-        let header_end = header_end as usize;
-        let header: Header = match serde_json::from_slice(&bytes[24..header_end]) {
-            Ok(h) => h,
-            Err(e) => return fail(format!("has a corrupt header: {e}")),
-        };
-        if header.version != VERSION {
-            return fail(format!(
-                "has format version {}, this tessera reads {VERSION}",
-                header.version
-            ));
-        }
-        let region = unrect(header.region);
-        let window = unrect(header.window);
-        let image = PixelRect::full(header.width, header.height);
-        if image.area() > crate::scene::MAX_PIXELS
-            || !image.contains(&window)
-            || !window.contains(&region)
-            || region.area() == 0
-        {
-            return fail(format!(
-                "has an impossible region {:?} for window {:?} of a {}x{} image",
-                header.region, header.window, header.width, header.height
-            ));
-        }
-        let len = header.samples[1].saturating_sub(header.samples[0]);
-        if header.samples[1] < header.samples[0]
-            || header.tile == 0
-            || header.done.len() != region.tiles(header.tile).len()
-            || header.done.iter().any(|&d| d > len)
-        {
-            return fail("has an inconsistent header (samples, tiles or progress)".to_owned());
-        }
-        let expected = (header_end as u64).saturating_add(region.area().saturating_mul(24)) + 8;
-        if bytes.len() as u64 != expected {
-            return fail(format!(
-                "is truncated or padded ({} bytes, expected {expected})",
-                bytes.len()
-            ));
-        }
-        let body_end = bytes.len() - 8;
-        let stored = u64::from_le_bytes(bytes[body_end..].try_into().expect("8 bytes"));
-        if checksum(&bytes[..body_end]) != stored {
-            return fail("is corrupt (checksum mismatch)".to_owned());
-        }
-        let sums = bytes[header_end..body_end]
-            .chunks_exact(24)
-            .map(|px| {
-                let w = |i: usize| {
-                    u64::from_le_bytes(px[i * 8..i * 8 + 8].try_into().expect("8 bytes"))
-                };
-                [w(0), w(1), w(2)]
-            })
-            .collect();
-        Ok(Part { header, sums })
+        PartReader::new(bytes, bytes.len() as u64, path)?.read_part()
     }
 
     pub fn load(path: &Path) -> Result<Part> {
-        let bytes = std::fs::read(path).map_err(|cause| Error::Io {
-            path: path.to_owned(),
-            cause,
-        })?;
-        Part::from_bytes(&bytes, path)
+        PartReader::open(path)?.read_part()
     }
 
     /// Writes the part atomically.
@@ -282,17 +443,21 @@ fn part_error(path: &Path, message: String) -> Error {
     }
 }
 
-/// Adds complete parts of one render into the image they cover together. They must share
-/// scene and settings, be finished, overlap nowhere (no pixel gets a sample index twice) and
-/// cover the whole window over sample indices `0..N` for one `N`. Returns the image (with
-/// `N` samples per pixel) and its gamma.
-pub fn merge(parts: &[(PathBuf, Part)]) -> Result<(Film, f32)> {
-    let Some((first_path, first)) = parts.first() else {
+/// What a set of parts makes once merged: the window, its samples per pixel, its gamma.
+struct Whole {
+    window: PixelRect,
+    samples_per_pixel: u32,
+    gamma: f32,
+}
+
+/// Checks, from their headers alone, that parts add up to one whole render: they share
+/// scene and settings, are finished, overlap nowhere (no pixel gets a sample index twice) and
+/// cover the whole window over sample indices `0..N` for one `N`.
+fn check_set(parts: &[(&Path, &Header)]) -> Result<Whole> {
+    let Some(&(first_path, base)) = parts.first() else {
         return Err(Error::Merge("no partial renders given".to_owned()));
     };
-    let base = &first.header;
-    for (path, part) in parts {
-        let h = &part.header;
+    for &(path, h) in parts {
         let same = h.fingerprint == base.fingerprint
             && h.seed == base.seed
             && (h.width, h.height, h.max_depth) == (base.width, base.height, base.max_depth)
@@ -326,9 +491,9 @@ pub fn merge(parts: &[(PathBuf, Part)]) -> Result<(Film, f32)> {
                 ),
             ));
         }
-        if !part.is_complete() {
-            let (region, len) = (part.region(), part.samples().len());
-            let done = samples_done(region, part.header.tile, &part.header.done, len);
+        if !h.is_complete() {
+            let (region, len) = (h.region(), h.samples().len());
+            let done = samples_done(region, h.tile, &h.done, len);
             let total = region.area() * u64::from(len);
             return Err(part_error(
                 path,
@@ -339,8 +504,8 @@ pub fn merge(parts: &[(PathBuf, Part)]) -> Result<(Film, f32)> {
             ));
         }
     }
-    for (i, (path_a, a)) in parts.iter().enumerate() {
-        for (path_b, b) in &parts[i + 1..] {
+    for (i, &(path_a, a)) in parts.iter().enumerate() {
+        for &(path_b, b) in &parts[i + 1..] {
             let (ra, rb) = (a.region(), b.region());
             let pixels_meet = ra.x0 < rb.x0 + rb.width
                 && rb.x0 < ra.x0 + ra.width
@@ -363,7 +528,7 @@ pub fn merge(parts: &[(PathBuf, Part)]) -> Result<(Film, f32)> {
     }
     let window = unrect(base.window);
     let total = base.target;
-    if let Some((path, p)) = parts.iter().find(|(_, p)| p.samples().end > total) {
+    if let Some(&(path, p)) = parts.iter().find(|(_, p)| p.samples().end > total) {
         return Err(part_error(
             path,
             format!(
@@ -402,11 +567,62 @@ pub fn merge(parts: &[(PathBuf, Part)]) -> Result<(Film, f32)> {
             listing.join("\n  ")
         )));
     }
-    let mut film = Film::new(window.width, window.height, total);
+    Ok(Whole {
+        window,
+        samples_per_pixel: total,
+        gamma: base.gamma,
+    })
+}
+
+/// Adds complete parts of one render, already in memory, into the image they cover together
+/// (see `check_set` for what they must be). Returns the image and its gamma.
+pub fn merge(parts: &[(PathBuf, Part)]) -> Result<(Film, f32)> {
+    let headers: Vec<(&Path, &Header)> = parts
+        .iter()
+        .map(|(path, part)| (path.as_path(), &part.header))
+        .collect();
+    let whole = check_set(&headers)?;
+    let mut film = whole.film();
     for (_, part) in parts {
-        add_sums(&mut film.sums, window, &part.sums, part.region());
+        add_sums(&mut film.sums, whole.window, &part.sums, part.region());
     }
-    Ok((film, base.gamma))
+    Ok((film, whole.gamma))
+}
+
+/// Merges the part files `paths` into the image they cover together (see `check_set`),
+/// reading one part at a time a chunk at a time: memory stays about one image whatever the
+/// number of parts. Every part is checked, by its header, before any sums are read.
+pub fn merge_files(paths: &[PathBuf]) -> Result<(Film, f32)> {
+    let headers = paths
+        .iter()
+        .map(|path| Ok((path.as_path(), PartReader::open(path)?.header)))
+        .collect::<Result<Vec<(&Path, Header)>>>()?;
+    let refs: Vec<(&Path, &Header)> = headers.iter().map(|(p, h)| (*p, h)).collect();
+    let whole = check_set(&refs)?;
+    let mut film = whole.film();
+    for (path, header) in &headers {
+        let reader = PartReader::open(path)?;
+        if reader.header() != header {
+            return Err(part_error(path, "changed while being merged".to_owned()));
+        }
+        let region = header.region();
+        let mut at = 0;
+        reader.read_sums(|run| {
+            add_run(&mut film.sums, whole.window, region, at, run);
+            at += run.len() as u64;
+        })?;
+    }
+    Ok((film, whole.gamma))
+}
+
+impl Whole {
+    fn film(&self) -> Film {
+        Film::new(
+            self.window.width,
+            self.window.height,
+            self.samples_per_pixel,
+        )
+    }
 }
 
 #[cfg(test)]

@@ -422,3 +422,47 @@ fn bad_parts_are_refused_and_nothing_is_damaged() {
     );
     assert_ne!(bytes(&dir, "out.png"), b"precious");
 }
+
+/// A 260-byte part whose header claims a 16384×16384 image, one tile per pixel.
+fn crafted_part() -> Vec<u8> {
+    let header = concat!(
+        r#"{"version":1,"fingerprint":"0","seed":0,"width":16384,"height":16384,"#,
+        r#""max_depth":1,"gamma":2.0,"window":[0,0,16384,16384],"#,
+        r#""region":[0,0,16384,16384],"samples":[0,1],"target":1,"tile":1,"done":[]}"#
+    );
+    let mut bytes = b"TESSERA-PARTIAL\n".to_vec();
+    bytes.extend_from_slice(&(header.len() as u64).to_le_bytes());
+    bytes.extend_from_slice(header.as_bytes());
+    bytes.resize(260, 0);
+    bytes
+}
+
+#[test]
+fn a_part_claiming_a_huge_image_is_refused_before_anything_is_allocated() {
+    let dir = temp_dir("crafted-part");
+    std::fs::write(dir.join("huge.part"), crafted_part()).unwrap();
+    std::fs::write(dir.join("out.png"), b"precious").unwrap();
+    let tessera = env!("CARGO_BIN_EXE_tessera");
+    // Under a 1 GiB address-space limit a reader that believed the header would abort.
+    let limited = |args: &str| {
+        Command::new("sh")
+            .args(["-c", &format!("ulimit -v 1048576; exec {tessera} {args}")])
+            .current_dir(&dir)
+            .output()
+            .unwrap()
+    };
+    let cover = cover();
+    for args in [
+        "merge huge.part -o out.png".to_owned(),
+        format!("render {cover} -q --width 40 --spp 1 --checkpoint huge.part -o out.png"),
+    ] {
+        let o = limited(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args}: {err}");
+        assert!(
+            err.contains("huge.part") && !err.contains("panicked"),
+            "{args}: {err}"
+        );
+    }
+    assert_eq!(bytes(&dir, "out.png"), b"precious");
+}
