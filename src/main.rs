@@ -3,7 +3,7 @@
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use std::io::IsTerminal;
+use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
@@ -126,7 +126,19 @@ struct BenchArgs {
 
 fn main() {
     require_build_features();
-    let cli = Cli::parse();
+    let cli = Cli::try_parse().unwrap_or_else(|e| {
+        // Help and usage errors, written without the panic `Cli::parse` risks on a full disk.
+        match e.print() {
+            Ok(()) => std::process::exit(e.exit_code()),
+            Err(io) if io.kind() == std::io::ErrorKind::BrokenPipe => std::process::exit(0),
+            Err(io) => {
+                note(format_args!(
+                    "tessera: error: could not write the message: {io}"
+                ));
+                std::process::exit(2);
+            }
+        }
+    });
     let result = match cli.command {
         Command::Render(args) => cmd_render(args),
         Command::Bench(args) => cmd_bench(args),
@@ -134,9 +146,39 @@ fn main() {
         Command::Compare { a, b } => cmd_compare(&a, &b),
     };
     if let Err(e) = result {
-        eprintln!("tessera: error: {e:#}");
+        // A reader that went away (`tessera bench | head -1`) ends the program quietly, as
+        // it does any Unix tool.
+        if is_broken_pipe(&e) {
+            std::process::exit(0);
+        }
+        note(format_args!("tessera: error: {e:#}"));
         std::process::exit(2);
     }
+}
+
+/// True when `e` comes from writing to a pipe whose reader has gone.
+fn is_broken_pipe(e: &anyhow::Error) -> bool {
+    e.chain().any(|cause| {
+        cause
+            .downcast_ref::<std::io::Error>()
+            .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+    })
+}
+
+/// Writes `text` to standard output. Unlike `print!`, which panics, a failure (a full disk, a
+/// closed pipe) is an error for the caller to report.
+fn print_out(text: &str) -> Result<()> {
+    let mut out = std::io::stdout().lock();
+    out.write_all(text.as_bytes())
+        .and_then(|()| out.flush())
+        .context("could not write to standard output")
+}
+
+/// Writes a line to standard error. Unlike `eprintln!`, which panics, a failure is ignored:
+/// when standard error cannot be written there is nobody left to tell.
+fn note(line: std::fmt::Arguments) {
+    let mut err = std::io::stderr().lock();
+    let _ = err.write_fmt(line).and_then(|()| err.write_all(b"\n"));
 }
 
 /// A build made for AVX2 (see `.cargo/config.toml`) would die of an illegal instruction on a
@@ -144,10 +186,10 @@ fn main() {
 fn require_build_features() {
     #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
     if !std::is_x86_feature_detected!("avx2") {
-        eprintln!(
+        note(format_args!(
             "tessera: error: this build needs a CPU with AVX2; build a portable one with \
              RUSTFLAGS=\"-C target-cpu=x86-64\" cargo build --release"
-        );
+        ));
         std::process::exit(2);
     }
 }
@@ -181,6 +223,8 @@ fn cmd_render(args: RenderArgs) -> Result<()> {
     if !(args.checkpoint_every >= 0.0 && args.checkpoint_every.is_finite()) {
         bail!("--checkpoint-every must be a number of seconds, 0 or more");
     }
+    // More seconds than a Duration holds (about 585 billion years) means never.
+    let every = Duration::try_from_secs_f64(args.checkpoint_every).unwrap_or(Duration::MAX);
     let scene = load(&args.scene, args.depth, args.seed)?;
     let shard = match &args.shard {
         Some(spec) => Some(Shard::parse(spec, |k| std::env::var(k).ok())?),
@@ -203,14 +247,21 @@ fn cmd_render(args: RenderArgs) -> Result<()> {
             r.end
         );
     }
-    let partial = job != Job::whole(&scene);
+    // A shard or sample range always writes a part, even one that happens to be the whole
+    // render (a Slurm array of one task), so a merge can take it.
+    let partial = shard.is_some() || samples.is_some();
+    // Refuse an output that cannot be written before spending minutes on the render.
     if !partial {
-        // Refuse a bad output name before spending minutes on the render.
         Format::from_path(&output)?;
     }
+    tessera::film::check_writable(&output)?;
     let mut state = match &args.checkpoint {
         Some(path) if path.exists() => resume(&scene, path, job, args.quiet)?,
-        _ => Progress::new(job, args.tile),
+        Some(path) => {
+            tessera::film::check_writable(path)?;
+            Progress::new(job, args.tile)
+        }
+        None => Progress::new(job, args.tile),
     };
     let stop = Arc::new(AtomicBool::new(false));
     if args.checkpoint.is_some() {
@@ -220,14 +271,23 @@ fn cmd_render(args: RenderArgs) -> Result<()> {
         }
     }
     let bar = progress_bar(state.remaining_samples(), args.quiet);
+    // A checkpoint that cannot be saved (a full disk) is reported once, then counted: the
+    // render goes on, and its image is written if the image's own disk has room.
+    let mut failed_saves = 0u32;
     let mut save = |p: &Progress| {
         if let Some(path) = &args.checkpoint
             && let Err(e) = Part::from_progress(&scene, p, target).save(path)
         {
-            bar.suspend(|| eprintln!("tessera: warning: could not save the checkpoint: {e}"));
+            if failed_saves == 0 {
+                bar.suspend(|| {
+                    note(format_args!(
+                        "tessera: warning: could not save the checkpoint: {e}; rendering goes on"
+                    ))
+                });
+            }
+            failed_saves += 1;
         }
     };
-    let every = Duration::from_secs_f64(args.checkpoint_every);
     let control = Control {
         stop: &stop,
         on_samples: &|n| bar.inc(n),
@@ -239,15 +299,29 @@ fn cmd_render(args: RenderArgs) -> Result<()> {
     let stats = render::render_job(&scene, &opts, &mut state, control)
         .context("could not start the thread pool")?;
     bar.finish_and_clear();
+    if failed_saves > 1 {
+        note(format_args!(
+            "tessera: warning: {failed_saves} checkpoint saves failed in all"
+        ));
+    }
     if let Some(path) = &args.checkpoint {
-        Part::from_progress(&scene, &state, target).save(path)?;
+        let saved = Part::from_progress(&scene, &state, target).save(path);
         if !state.is_complete() {
-            eprintln!(
+            saved.context(format!(
+                "interrupted at {:.1}%, and the progress could not be saved",
+                state.percent_done()
+            ))?;
+            note(format_args!(
                 "tessera: interrupted at {:.1}%; progress is saved in {}. Run the same command again to resume.",
                 state.percent_done(),
                 path.display()
-            );
+            ));
             std::process::exit(130);
+        }
+        if let Err(e) = saved {
+            note(format_args!(
+                "tessera: warning: could not save the finished checkpoint ({e}); writing the image"
+            ));
         }
     }
     if partial {
@@ -271,13 +345,13 @@ fn cmd_render(args: RenderArgs) -> Result<()> {
         } else {
             format!("{}x{}, {} spp", s.width, s.height, s.samples_per_pixel)
         };
-        eprintln!(
+        note(format_args!(
             "{}: {what}, depth {}, seed {} | {}",
             output.display(),
             s.max_depth,
             s.seed,
             summary(&stats)
-        );
+        ));
     }
     Ok(())
 }
@@ -315,11 +389,11 @@ fn resume(scene: &Scene, path: &Path, job: Job, quiet: bool) -> Result<Progress>
     }
     progress.extend_to(want.samples.end);
     if !quiet {
-        eprintln!(
+        note(format_args!(
             "tessera: resuming from {} ({:.1}% done)",
             path.display(),
             progress.percent_done()
-        );
+        ));
     }
     Ok(progress)
 }
@@ -328,14 +402,14 @@ fn cmd_merge(paths: &[PathBuf], output: &Path) -> Result<()> {
     Format::from_path(output)?;
     let (film, gamma) = tessera::partial::merge_files(paths)?;
     film.save(output, gamma)?;
-    eprintln!(
+    note(format_args!(
         "{}: merged {} parts, {}x{}, {} spp",
         output.display(),
         paths.len(),
         film.width,
         film.height,
         film.samples_per_pixel
-    );
+    ));
     Ok(())
 }
 
@@ -441,37 +515,36 @@ fn cmd_bench(args: BenchArgs) -> Result<()> {
             "spp": s.samples_per_pixel,
             "scaling": table,
         });
-        println!("{report}");
+        print_out(&format!("{report}\n"))
     } else {
-        println!(
-            "{}: {}x{}, {} spp, depth {}, median of {}",
+        let mut text = format!(
+            "{}: {}x{}, {} spp, depth {}, median of {}\n{}\n",
             scene_args.scene.display(),
             s.width,
             s.height,
             s.samples_per_pixel,
             s.max_depth,
-            args.repeat.max(1)
+            args.repeat.max(1),
+            summary(&stats)
         );
-        println!("{}", summary(&stats));
         if !rows.is_empty() {
-            println!("threads  M samples/s  speedup  efficiency");
+            text.push_str("threads  M samples/s  speedup  efficiency\n");
             for (threads, samples_per_sec, speedup, efficiency) in rows {
-                println!(
-                    "{threads:>7}  {:>11.3}  {speedup:>7.2}  {:>9.0}%",
+                text.push_str(&format!(
+                    "{threads:>7}  {:>11.3}  {speedup:>7.2}  {:>9.0}%\n",
                     samples_per_sec / 1e6,
                     100.0 * efficiency
-                );
+                ));
             }
         }
+        print_out(&text)
     }
-    Ok(())
 }
 
 fn cmd_compare(a: &Path, b: &Path) -> Result<()> {
     let d = tessera::compare::compare_files(a, b)?;
-    println!(
-        "RMSE {:.6}  PSNR {:.2} dB  mean abs error {:.6}",
+    print_out(&format!(
+        "RMSE {:.6}  PSNR {:.2} dB  mean abs error {:.6}\n",
         d.rmse, d.psnr_db, d.mean_abs
-    );
-    Ok(())
+    ))
 }

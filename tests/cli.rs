@@ -5,7 +5,7 @@ mod common;
 
 use common::*;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::{Command, Output, Stdio};
 
 fn tessera(args: &[&str], cwd: &Path) -> Output {
     Command::new(env!("CARGO_BIN_EXE_tessera"))
@@ -554,4 +554,133 @@ fn vup_is_a_direction_whatever_its_length() {
         err.contains("camera.vup") && err.contains("non-zero"),
         "{err}"
     );
+}
+
+#[test]
+fn checkpoint_interval_beyond_any_duration_means_never() {
+    let dir = temp_dir("ckpt-every");
+    std::fs::write(dir.join("scene.toml"), GOOD).unwrap();
+    for every in ["2e19", "1e308"] {
+        let o = tessera(
+            &[
+                "render",
+                "scene.toml",
+                "-o",
+                "out.png",
+                "-q",
+                "--checkpoint",
+                "c.ckpt",
+                "--checkpoint-every",
+                every,
+            ],
+            &dir,
+        );
+        assert!(o.status.success(), "{every}: {}", stderr(&o));
+        assert!(dir.join("c.ckpt").exists());
+        std::fs::remove_file(dir.join("c.ckpt")).unwrap();
+    }
+}
+
+/// Runs tessera with standard output and error sent to `stdout` and `stderr`.
+fn tessera_to(args: &[&str], cwd: &Path, stdout: Stdio, stderr: Stdio) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_tessera"))
+        .args(args)
+        .current_dir(cwd)
+        .stdout(stdout)
+        .stderr(stderr)
+        .output()
+        .expect("run tessera")
+}
+
+fn dev_full() -> Stdio {
+    Stdio::from(std::fs::File::create("/dev/full").expect("/dev/full"))
+}
+
+#[test]
+fn output_that_cannot_be_written_is_an_error_not_a_crash() {
+    let dir = temp_dir("dev-full");
+    std::fs::write(dir.join("scene.toml"), GOOD).unwrap();
+    let o = tessera(&["render", "scene.toml", "-o", "a.png", "-q"], &dir);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // Standard output on a full disk: exit 2 with a message.
+    let tiny_bench = [
+        "bench",
+        "scene.toml",
+        "--json",
+        "--no-scaling",
+        "--repeat",
+        "1",
+    ];
+    for args in [&["compare", "a.png", "a.png"][..], &tiny_bench, &["--help"]] {
+        let o = tessera_to(args, &dir, dev_full(), Stdio::piped());
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains("No space left on device"),
+            "{args:?}: {}",
+            stderr(&o)
+        );
+    }
+    // Standard error on a full disk: the exit status still tells.
+    let refused = tessera_to(
+        &["compare", "a.png", "missing.png"],
+        &dir,
+        Stdio::piped(),
+        dev_full(),
+    );
+    assert_eq!(refused.status.code(), Some(2));
+    let rendered = tessera_to(
+        &["render", "scene.toml", "-o", "b.png"],
+        &dir,
+        Stdio::piped(),
+        dev_full(),
+    );
+    assert_eq!(rendered.status.code(), Some(0));
+    assert_eq!(
+        std::fs::read(dir.join("b.png")).unwrap(),
+        std::fs::read(dir.join("a.png")).unwrap()
+    );
+}
+
+#[test]
+fn a_closed_pipe_ends_quietly() {
+    let dir = temp_dir("closed-pipe");
+    std::fs::write(dir.join("scene.toml"), GOOD).unwrap();
+    let o = tessera(&["render", "scene.toml", "-o", "a.png", "-q"], &dir);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for args in [&["compare", "a.png", "a.png"][..], &["--help"]] {
+        // The reader is gone before tessera writes a byte.
+        let (reader, writer) = std::io::pipe().unwrap();
+        drop(reader);
+        let o = tessera_to(args, &dir, Stdio::from(writer), Stdio::piped());
+        assert_eq!(o.status.code(), Some(0), "{args:?}: {}", stderr(&o));
+        assert!(o.stderr.is_empty(), "{args:?}: {}", stderr(&o));
+    }
+}
+
+#[test]
+fn an_unwritable_checkpoint_is_refused_before_rendering() {
+    let dir = temp_dir("ckpt-missing-dir");
+    std::fs::write(dir.join("scene.toml"), GOOD).unwrap();
+    let o = tessera(
+        &[
+            "render",
+            "scene.toml",
+            "-o",
+            "out.png",
+            "--checkpoint",
+            "no/such/dir/c.ckpt",
+            "--checkpoint-every",
+            "0",
+        ],
+        &dir,
+    );
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("no/such/dir/c.ckpt"), "{err}");
+    // Refused at the start: no save was tried, no summary of a finished render printed.
+    assert!(
+        !err.contains("warning") && !err.contains("samples/s"),
+        "{err}"
+    );
+    assert!(!dir.join("out.png").exists());
 }

@@ -423,6 +423,35 @@ fn bad_parts_are_refused_and_nothing_is_damaged() {
     assert_ne!(bytes(&dir, "out.png"), b"precious");
 }
 
+#[test]
+fn a_render_in_one_part_writes_a_part_that_merges() {
+    let dir = temp_dir("one-part");
+    let scene = cover();
+    ok(&small(&scene, &["-o", "single.png"]), &dir);
+    ok(
+        &small(&scene, &["--shard", "0/1", "-o", "shard.part"]),
+        &dir,
+    );
+    ok(
+        &small(&scene, &["--samples", "0..12", "-o", "samples.part"]),
+        &dir,
+    );
+    // A Slurm array of one task.
+    ok_in_env(
+        &small(&scene, &["--shard", "env", "-o", "array.part"]),
+        &[
+            ("SLURM_ARRAY_TASK_ID", "0"),
+            ("SLURM_ARRAY_TASK_COUNT", "1"),
+        ],
+        &dir,
+    );
+    for part in ["shard.part", "samples.part", "array.part"] {
+        let out = format!("{part}.png");
+        ok(&["merge", part, "-o", &out], &dir);
+        assert_eq!(bytes(&dir, &out), bytes(&dir, "single.png"), "{part}");
+    }
+}
+
 /// A 260-byte part whose header claims a 16384×16384 image, one tile per pixel.
 fn crafted_part() -> Vec<u8> {
     let header = concat!(
@@ -465,4 +494,52 @@ fn a_part_claiming_a_huge_image_is_refused_before_anything_is_allocated() {
         );
     }
     assert_eq!(bytes(&dir, "out.png"), b"precious");
+}
+
+/// Runs `script` with `sh` in `dir`, in a private mount namespace where `dir/small` is a
+/// 16 KiB filesystem, so writing there fills the disk. `None` if this machine cannot make one
+/// (no `unshare`, or user namespaces turned off).
+fn with_a_full_disk(dir: &Path, script: &str) -> Option<Output> {
+    std::fs::create_dir_all(dir.join("small")).unwrap();
+    let mount = format!("mount -t tmpfs -o size=16k none '{}/small'", dir.display());
+    let in_namespace = |script: &str| {
+        Command::new("unshare")
+            .args(["-rm", "sh", "-c", script])
+            .current_dir(dir)
+            .output()
+    };
+    if !in_namespace(&mount).is_ok_and(|o| o.status.success()) {
+        return None;
+    }
+    Some(in_namespace(&format!("{mount} && {script}")).unwrap())
+}
+
+#[test]
+fn a_checkpoint_on_a_full_disk_warns_once_and_the_image_is_still_written() {
+    let dir = temp_dir("full-disk");
+    let tessera = env!("CARGO_BIN_EXE_tessera");
+    let cover = cover();
+    let straight = straight_render(&dir, &cover);
+    let render = format!(
+        "{tessera} render {cover} -q --width 200 --spp 60 --checkpoint small/c.ckpt \
+         --checkpoint-every 0 -o full.png"
+    );
+    let Some(o) = with_a_full_disk(&dir, &render) else {
+        let why = "`unshare -rm` cannot mount a small filesystem on this machine";
+        assert!(
+            std::env::var("CI").as_deref() != Ok("true"),
+            "CI=true, but {why}"
+        );
+        eprintln!("skipped: {why}");
+        return;
+    };
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert_eq!(
+        err.matches("could not save the checkpoint").count(),
+        1,
+        "{err}"
+    );
+    assert!(err.contains("checkpoint saves failed in all"), "{err}");
+    assert_eq!(bytes(&dir, "full.png"), straight);
 }
