@@ -525,12 +525,10 @@ fn a_checkpoint_on_a_full_disk_warns_once_and_the_image_is_still_written() {
          --checkpoint-every 0 -o full.png"
     );
     let Some(o) = with_a_full_disk(&dir, &render) else {
-        let why = "`unshare -rm` cannot mount a small filesystem on this machine";
-        assert!(
-            std::env::var("CI").as_deref() != Ok("true"),
-            "CI=true, but {why}"
+        skip(
+            "the full-disk test",
+            "`unshare -rm` cannot mount a small filesystem on this machine",
         );
-        eprintln!("skipped: {why}");
         return;
     };
     let err = String::from_utf8_lossy(&o.stderr);

@@ -1,11 +1,29 @@
 #!/usr/bin/env bash
 # Queues an N-task render array and a merge that waits for all of it to succeed.
-#   usage: deploy/slurm/submit.sh N [render.sbatch options...]
+#   usage: deploy/slurm/submit.sh N [sbatch options...]
 #   e.g.   SCENE=scenes/cover.toml EXTRA="--spp 4000" IMAGE=cover.exr deploy/slurm/submit.sh 16
+#
+# Each task gets CPUS_PER_TASK CPUs; by default as many as the smallest node has, taken from
+# Slurm (`sinfo`), so a task fills a node whatever its size. sbatch options given after N
+# (e.g. --partition, --cpus-per-task) override these. Prints the two job ids:
+#   render <array job id>
+#   merge <merge job id>
 set -euo pipefail
 here=$(dirname "$0")
-n=${1:?usage: submit.sh N}
+n=${1:?usage: submit.sh N [sbatch options...]}
 shift
-export SCENE=${SCENE:-scenes/cover.toml} OUTDIR=${OUTDIR:-parts} EXTRA=${EXTRA:-} IMAGE=${IMAGE:-render.png}
-array=$(sbatch --parsable --export=ALL --array=0-$((n - 1)) "$@" "$here/render.sbatch")
-sbatch --export=ALL --dependency=afterok:"$array" "$here/merge.sbatch"
+case $n in
+'' | *[!0-9]* | 0) echo "submit.sh: N must be a positive number of tasks, got '$n'" >&2 && exit 2 ;;
+esac
+export SCENE=${SCENE:-scenes/cover.toml} OUTDIR=${OUTDIR:-parts} EXTRA=${EXTRA:-}
+export IMAGE=${IMAGE:-render.png} TESSERA=${TESSERA:-tessera}
+cpus=${CPUS_PER_TASK:-$(sinfo -h -N -o %c | tr -d '+' | sort -n | head -n 1)}
+[ -n "$cpus" ] || { echo "submit.sh: sinfo lists no nodes" >&2 && exit 2; }
+array=$(sbatch --parsable --export=ALL --array=0-$((n - 1)) --cpus-per-task="$cpus" \
+  "$@" "$here/render.sbatch")
+array=${array%%;*}
+# If a task fails for good, the merge is cancelled instead of pending forever.
+merge=$(sbatch --parsable --export=ALL --dependency=afterok:"$array" --kill-on-invalid-dep=yes \
+  "$@" "$here/merge.sbatch")
+echo "render $array"
+echo "merge ${merge%%;*}"

@@ -1,0 +1,175 @@
+#!/usr/bin/env bash
+# A real single-node Slurm cluster on this machine, for trying and testing the scripts beside
+# this one: munged, slurmctld and slurmd, started by hand (no systemd), with every file in
+# one directory and ports of their own, so nothing of a system Slurm is touched.
+#
+#   usage: deploy/slurm/local-cluster.sh start|stop|status
+#
+#   start   installs Debian's slurm-wlm and munge with apt-get when missing (needs root),
+#           writes the configuration (the node line from `slurmd -C`), starts the daemons,
+#           waits until the node takes jobs, and prints the line that points Slurm's
+#           commands at it:  eval "$(deploy/slurm/local-cluster.sh start)"
+#   stop    cancels every job and stops every process it started (the logs stay)
+#   status  says whether the cluster runs, and prints the same line
+#
+#   TESSERA_SLURM_DIR   where it lives (default /tmp/tessera-slurm)
+#   TESSERA_SLURM_PORT  slurmctld's port; slurmd takes the next (default 16817)
+#
+# The daemons run as root, which slurmd needs and Slurm's own user would otherwise be.
+set -euo pipefail
+dir=${TESSERA_SLURM_DIR:-/tmp/tessera-slurm}
+port=${TESSERA_SLURM_PORT:-16817}
+conf=$dir/slurm.conf
+export SLURM_CONF=$conf
+
+say() { echo "local-cluster: $*" >&2; }
+fail() {
+  say "$*"
+  exit 1
+}
+
+# The pid in pid file $1 if that process runs.
+running_pid() {
+  local pid
+  [ -f "$1" ] && pid=$(cat "$1") && [ -n "$pid" ] && kill -0 "$pid" 2>/dev/null && echo "$pid"
+}
+
+is_up() {
+  running_pid "$dir/slurmctld.pid" >/dev/null && running_pid "$dir/slurmd.pid" >/dev/null
+}
+
+install_packages() {
+  local tool missing=
+  for tool in munged slurmctld slurmd sbatch; do
+    command -v "$tool" >/dev/null || missing=1
+  done
+  [ -z "$missing" ] && return 0
+  [ "$(id -u)" = 0 ] || fail "Slurm is not installed and installing it needs root (apt-get install slurm-wlm munge)"
+  command -v apt-get >/dev/null || fail "Slurm is not installed and there is no apt-get to install it"
+  say "installing slurm-wlm and munge"
+  apt-get update -qq >&2
+  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq slurm-wlm munge >&2
+}
+
+write_config() {
+  local host node
+  host=$(hostname -s)
+  # slurmd -C prints this machine's node line (CPUs, sockets, cores, memory) and an uptime.
+  node=$(slurmd -C | grep '^NodeName=')
+  [ -n "$node" ] || fail "slurmd -C printed no node line"
+  cat >"$conf" <<EOF
+# Written by deploy/slurm/local-cluster.sh: a single-node cluster for tests.
+ClusterName=tessera-local
+SlurmctldHost=$host(127.0.0.1)
+SlurmctldPort=$port
+SlurmdPort=$((port + 1))
+SlurmUser=root
+SlurmdUser=root
+AuthType=auth/munge
+CredType=cred/munge
+AuthInfo=socket=$dir/munge/munge.socket
+StateSaveLocation=$dir/state
+SlurmdSpoolDir=$dir/spool
+SlurmctldPidFile=$dir/slurmctld.pid
+SlurmdPidFile=$dir/slurmd.pid
+SlurmctldLogFile=$dir/log/slurmctld.log
+SlurmdLogFile=$dir/log/slurmd.log
+ProctrackType=proctrack/linuxproc
+TaskPlugin=task/none
+SelectType=select/cons_tres
+SelectTypeParameters=CR_CPU
+SchedulerType=sched/backfill
+# Start batch jobs at once rather than up to 3 s later: tests wait on many short jobs.
+SchedulerParameters=batch_sched_delay=0
+MpiDefault=none
+SwitchType=switch/none
+ReturnToService=2
+JobCompType=jobcomp/none
+JobAcctGatherType=jobacct_gather/none
+AccountingStorageType=accounting_storage/none
+$node NodeAddr=127.0.0.1 State=UNKNOWN
+PartitionName=local Nodes=ALL Default=YES MaxTime=INFINITE State=UP
+EOF
+}
+
+start() {
+  [ "$(id -u)" = 0 ] || fail "starting the daemons needs root (slurmd runs jobs as their users)"
+  if is_up; then
+    say "already running in $dir"
+    echo "export SLURM_CONF=$conf"
+    return 0
+  fi
+  install_packages
+  rm -rf "$dir"
+  mkdir -p "$dir/munge" "$dir/state" "$dir/spool" "$dir/log"
+  # munged insists on a private key and a socket directory others may enter.
+  chmod 755 "$dir" "$dir/munge"
+  head -c 1024 /dev/urandom >"$dir/munge/munge.key"
+  chmod 400 "$dir/munge/munge.key"
+  munged --force --key-file="$dir/munge/munge.key" --socket="$dir/munge/munge.socket" \
+    --pid-file="$dir/munge/munged.pid" --log-file="$dir/log/munged.log" \
+    --seed-file="$dir/munge/munged.seed" ||
+    fail "munged did not start; see $dir/log/munged.log"
+  write_config
+  slurmctld -f "$conf" || fail "slurmctld did not start; see $dir/log/slurmctld.log"
+  slurmd -f "$conf" || fail "slurmd did not start; see $dir/log/slurmd.log"
+  local waited=0
+  until [ "$(sinfo -h -o %t 2>/dev/null)" = idle ]; do
+    if [ $waited -ge 60 ]; then
+      tail -n 20 "$dir"/log/*.log >&2 || true
+      stop >/dev/null 2>&1 || true
+      fail "the node did not become idle within 30 s"
+    fi
+    sleep 0.5
+    waited=$((waited + 1))
+  done
+  say "running in $dir: $(sinfo -h -N -o '%N, %c CPUs, %m MB')"
+  echo "export SLURM_CONF=$conf"
+}
+
+# Sends TERM to the process in pid file $1 and waits up to 10 s for it to end, then KILL.
+end_process() {
+  local pid i
+  pid=$(running_pid "$1") || return 0
+  kill "$pid" 2>/dev/null || true
+  for i in $(seq 1 50); do
+    kill -0 "$pid" 2>/dev/null || return 0
+    sleep 0.2
+  done
+  kill -9 "$pid" 2>/dev/null || true
+}
+
+stop() {
+  if [ -f "$conf" ] && is_up; then
+    # Jobs first, so no job step outlives the daemons.
+    squeue -h -o %A 2>/dev/null | sort -u | xargs -r scancel --quiet 2>/dev/null || true
+    local i
+    for i in $(seq 1 50); do
+      [ -z "$(squeue -h -o %A 2>/dev/null)" ] && break
+      sleep 0.2
+    done
+  fi
+  end_process "$dir/slurmd.pid"
+  end_process "$dir/slurmctld.pid"
+  end_process "$dir/munge/munged.pid"
+  # The logs stay for a look after a failure; the next start begins afresh.
+  rm -rf "$dir/state" "$dir/spool"
+  say "stopped"
+}
+
+status() {
+  if is_up; then
+    say "running in $dir: $(sinfo -h -N -o '%N %t, %c CPUs')"
+    echo "export SLURM_CONF=$conf"
+  else
+    say "not running"
+    return 1
+  fi
+}
+
+case "${1:-}" in
+start) start ;;
+stop) stop ;;
+status) status ;;
+*) fail "usage: $0 start|stop|status" ;;
+esac
