@@ -213,6 +213,12 @@ fn temporary_beside(path: &Path) -> Result<PathBuf> {
     Ok(dir.join(tmp_name))
 }
 
+/// True when `path` exists and is neither a file nor a directory: a device such as
+/// `/dev/null`, or a pipe.
+fn is_special(path: &Path) -> bool {
+    std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir())
+}
+
 /// Checks, before any work is spent on it, that `write_atomically` can write `path`: its
 /// directory exists and takes a new file, and `path` is not a directory.
 pub fn check_writable(path: &Path) -> Result<()> {
@@ -226,6 +232,10 @@ pub fn check_writable(path: &Path) -> Result<()> {
             "is a directory, not a file name",
         )));
     }
+    if is_special(path) {
+        // Written in place; opening a pipe now would wait for its reader.
+        return Ok(());
+    }
     let tmp = temporary_beside(path)?;
     std::fs::File::create(&tmp).map_err(io)?;
     std::fs::remove_file(&tmp).map_err(io)
@@ -233,11 +243,20 @@ pub fn check_writable(path: &Path) -> Result<()> {
 
 /// Writes `bytes` to a temporary file beside `path`, syncs it and renames it over `path`, so
 /// a reader (or a crash) never sees a half-written file and an old file survives a failure.
+/// A device or a pipe (`-o /dev/null`) is written in place: renaming a file over it would
+/// replace the device itself.
 pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
     let io = |cause| Error::Io {
         path: path.to_owned(),
         cause,
     };
+    if is_special(path) {
+        let mut f = std::fs::OpenOptions::new()
+            .write(true)
+            .open(path)
+            .map_err(io)?;
+        return f.write_all(bytes).map_err(io);
+    }
     let tmp = temporary_beside(path)?;
     let result = (|| {
         let mut f = std::fs::File::create(&tmp)?;
@@ -286,6 +305,19 @@ mod tests {
         assert_eq!(Format::from_path(Path::new("a.exr")).unwrap(), Format::Exr);
         assert!(Format::from_path(Path::new("a.jpg")).is_err());
         assert!(Format::from_path(Path::new("a")).is_err());
+    }
+
+    #[test]
+    fn devices_are_written_in_place_not_replaced() {
+        let null = Path::new("/dev/null");
+        if !is_special(null) {
+            return; // not a Unix machine
+        }
+        check_writable(null).unwrap();
+        write_atomically(null, b"into the void").unwrap();
+        assert!(is_special(null), "/dev/null was replaced by a file");
+        let full = write_atomically(Path::new("/dev/full"), b"x");
+        assert!(full.is_err_and(|e| e.to_string().contains("/dev/full")));
     }
 
     #[test]
