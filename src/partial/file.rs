@@ -1,0 +1,296 @@
+//! The partial file's bytes: the 16-byte magic `TESSERA-PARTIAL\n`, the header length (u64,
+//! little endian), the header as JSON, the region's sums (three u64 per pixel, row-major,
+//! little endian), and a checksum (u64) of everything before it. Reading checks every size
+//! the header claims before allocating anything of that size.
+
+use super::{Header, Part, part_error};
+use crate::error::{Error, Result};
+use crate::sampling::mix64;
+use std::io::{BufReader, Read};
+use std::path::{Path, PathBuf};
+
+const MAGIC: &[u8; 16] = b"TESSERA-PARTIAL\n";
+/// Bytes before the header: the magic and the header's length.
+const PREAMBLE: u64 = 24;
+/// Bytes of the trailing checksum.
+const CHECKSUM: u64 = 8;
+/// Bytes of one pixel's sums.
+const PIXEL: u64 = 24;
+/// Pixels read at a time when a part's sums are streamed.
+const CHUNK_PIXELS: usize = 1 << 14;
+
+impl Header {
+    /// The length in bytes of a file with this header, once it is known to be consistent.
+    fn file_len(&self, header_len: u64) -> u64 {
+        PREAMBLE + header_len + self.region().area() * PIXEL + CHECKSUM
+    }
+}
+
+/// Checksum of a byte string of known length, fed in pieces: eight bytes at a time through
+/// `mix64`, the last word padded with zeros.
+struct Checksum {
+    hash: u64,
+    word: [u8; 8],
+    filled: usize,
+}
+
+impl Checksum {
+    fn new(total_len: u64) -> Self {
+        Self {
+            hash: mix64(total_len ^ 0x5eed),
+            word: [0; 8],
+            filled: 0,
+        }
+    }
+
+    fn update(&mut self, mut bytes: &[u8]) {
+        while !bytes.is_empty() {
+            let take = (8 - self.filled).min(bytes.len());
+            self.word[self.filled..self.filled + take].copy_from_slice(&bytes[..take]);
+            self.filled += take;
+            bytes = &bytes[take..];
+            if self.filled == 8 {
+                self.hash = mix64(self.hash ^ u64::from_le_bytes(self.word));
+                self.filled = 0;
+            }
+        }
+    }
+
+    fn finish(mut self) -> u64 {
+        if self.filled > 0 {
+            self.word[self.filled..].fill(0);
+            self.hash = mix64(self.hash ^ u64::from_le_bytes(self.word));
+        }
+        self.hash
+    }
+}
+
+/// A part file opened for reading: its header read and checked against the file's real
+/// length, its sums not yet read. Every size the header claims is checked before anything
+/// of that size is allocated, so a small crafted file cannot make a reader ask for gigabytes.
+pub struct PartReader<R> {
+    path: PathBuf,
+    header: Header,
+    reader: R,
+    checksum: Checksum,
+}
+
+impl PartReader<BufReader<std::fs::File>> {
+    /// Opens the part file at `path` and reads its header.
+    pub fn open(path: &Path) -> Result<Self> {
+        let io = |cause| Error::Io {
+            path: path.to_owned(),
+            cause,
+        };
+        let file = std::fs::File::open(path).map_err(io)?;
+        let len = file.metadata().map_err(io)?.len();
+        PartReader::new(BufReader::new(file), len, path)
+    }
+}
+
+impl<R: Read> PartReader<R> {
+    /// Reads and checks the header of the `len`-byte part that `reader` holds; `path` names
+    /// it in errors.
+    pub fn new(mut reader: R, len: u64, path: &Path) -> Result<Self> {
+        let fail = |message: String| Err(part_error(path, message));
+        let mut preamble = [0u8; PREAMBLE as usize];
+        let got = read_up_to(&mut reader, &mut preamble, path)?;
+        if got < MAGIC.len() || preamble[..MAGIC.len()] != MAGIC[..] {
+            return fail("is not a tessera partial render (no TESSERA-PARTIAL header)".to_owned());
+        }
+        if got < preamble.len() || len < PREAMBLE + CHECKSUM {
+            return fail(format!("is truncated ({len} bytes)"));
+        }
+        let header_len = u64::from_le_bytes(preamble[16..].try_into().expect("8 bytes"));
+        if header_len > len - PREAMBLE - CHECKSUM {
+            return fail(format!(
+                "is truncated ({len} bytes, its header alone claims {header_len})"
+            ));
+        }
+        let mut text = vec![0u8; header_len as usize];
+        if read_up_to(&mut reader, &mut text, path)? < text.len() {
+            return fail(format!("is truncated ({len} bytes)"));
+        }
+        let header: Header = match serde_json::from_slice(&text) {
+            Ok(h) => h,
+            Err(e) => return fail(format!("has a corrupt header: {e}")),
+        };
+        header.check(path)?;
+        let expected = header.file_len(header_len);
+        if len != expected {
+            return fail(format!(
+                "is truncated or padded ({len} bytes, expected {expected})"
+            ));
+        }
+        let mut checksum = Checksum::new(len - CHECKSUM);
+        checksum.update(&preamble);
+        checksum.update(&text);
+        Ok(Self {
+            path: path.to_owned(),
+            header,
+            reader,
+            checksum,
+        })
+    }
+
+    pub fn header(&self) -> &Header {
+        &self.header
+    }
+
+    /// The header, the sums left unread.
+    pub fn into_header(self) -> Header {
+        self.header
+    }
+
+    /// Reads the sums, row-major over the region, handing them to `each` a chunk at a time,
+    /// then checks the checksum. What `each` was given is sound only if this returns `Ok`.
+    pub fn read_sums(mut self, mut each: impl FnMut(&[[u64; 3]])) -> Result<()> {
+        let mut left = self.header.region().area();
+        let mut bytes = vec![0u8; CHUNK_PIXELS.min(left as usize) * PIXEL as usize];
+        let mut sums = Vec::with_capacity(CHUNK_PIXELS.min(left as usize));
+        while left > 0 {
+            let n = CHUNK_PIXELS.min(left as usize);
+            let chunk = &mut bytes[..n * PIXEL as usize];
+            self.read_exact(chunk)?;
+            self.checksum.update(chunk);
+            sums.clear();
+            sums.extend(chunk.chunks_exact(PIXEL as usize).map(|px| {
+                let word = |i: usize| {
+                    u64::from_le_bytes(px[i * 8..i * 8 + 8].try_into().expect("8 bytes"))
+                };
+                [word(0), word(1), word(2)]
+            }));
+            each(&sums);
+            left -= n as u64;
+        }
+        let mut stored = [0u8; CHECKSUM as usize];
+        self.read_exact(&mut stored)?;
+        if self.checksum.finish() != u64::from_le_bytes(stored) {
+            return Err(part_error(
+                &self.path,
+                "is corrupt (checksum mismatch)".to_owned(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The header and all the sums.
+    pub fn read_part(self) -> Result<Part> {
+        let header = self.header.clone();
+        let mut sums = Vec::with_capacity(header.region().area() as usize);
+        self.read_sums(|chunk| sums.extend_from_slice(chunk))?;
+        Ok(Part { header, sums })
+    }
+
+    fn read_exact(&mut self, buf: &mut [u8]) -> Result<()> {
+        if read_up_to(&mut self.reader, buf, &self.path)? < buf.len() {
+            return Err(part_error(
+                &self.path,
+                "is truncated (it changed while being read)".to_owned(),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Fills `buf` from `reader` as far as it goes; returns the bytes read.
+fn read_up_to(reader: &mut impl Read, buf: &mut [u8], path: &Path) -> Result<usize> {
+    let mut filled = 0;
+    while filled < buf.len() {
+        match reader.read(&mut buf[filled..]) {
+            Ok(0) => break,
+            Ok(n) => filled += n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(cause) => {
+                return Err(Error::Io {
+                    path: path.to_owned(),
+                    cause,
+                });
+            }
+        }
+    }
+    Ok(filled)
+}
+
+impl Part {
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let header = serde_json::to_vec(&self.header).expect("header serialises");
+        let mut out = Vec::with_capacity(16 + 8 + header.len() + self.sums.len() * 24 + 8);
+        out.extend_from_slice(MAGIC);
+        out.extend_from_slice(&(header.len() as u64).to_le_bytes());
+        out.extend_from_slice(&header);
+        for px in &self.sums {
+            for c in px {
+                out.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+        let mut sum = Checksum::new(out.len() as u64);
+        sum.update(&out);
+        out.extend_from_slice(&sum.finish().to_le_bytes());
+        out
+    }
+
+    /// Parses and checks a part; `path` names it in errors.
+    pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<Part> {
+        PartReader::new(bytes, bytes.len() as u64, path)?.read_part()
+    }
+
+    pub fn load(path: &Path) -> Result<Part> {
+        PartReader::open(path)?.read_part()
+    }
+
+    /// Writes the part atomically.
+    pub fn save(&self, path: &Path) -> Result<()> {
+        crate::film::write_atomically(path, &self.to_bytes())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::tests::part;
+    use super::*;
+    use crate::math::PixelRect;
+
+    #[test]
+    fn bytes_round_trip() {
+        let p = part(
+            PixelRect {
+                x0: 2,
+                y0: 1,
+                width: 5,
+                height: 4,
+            },
+            [3, 9],
+        );
+        let bytes = p.to_bytes();
+        assert_eq!(Part::from_bytes(&bytes, Path::new("p")).unwrap(), p);
+    }
+
+    #[test]
+    fn every_truncation_and_every_flipped_byte_is_caught() {
+        let bytes = part(
+            PixelRect {
+                x0: 0,
+                y0: 0,
+                width: 3,
+                height: 2,
+            },
+            [0, 4],
+        )
+        .to_bytes();
+        for len in 0..bytes.len() {
+            assert!(
+                Part::from_bytes(&bytes[..len], Path::new("p")).is_err(),
+                "truncated to {len}"
+            );
+        }
+        for i in 0..bytes.len() {
+            let mut bad = bytes.clone();
+            bad[i] ^= 0x10;
+            assert!(
+                Part::from_bytes(&bad, Path::new("p")).is_err(),
+                "byte {i} flipped"
+            );
+        }
+    }
+}
