@@ -1,10 +1,11 @@
 //! Turns a parsed scene description into a validated runtime `Scene`, reporting the file,
 //! line, column and field of the first unacceptable value.
 
-use super::desc::{self, SceneDesc, Vec3Desc};
+use super::check::Checker;
+use super::desc::{self, SceneDesc};
 use super::{Background, RenderSettings, Scene, Shading, cover};
 use crate::camera::{Camera, CameraSettings};
-use crate::error::{Error, Location, Result};
+use crate::error::{Error, Result};
 use crate::geometry::{MaterialId, Sphere};
 use crate::material::{DiffuseModel, Material, Refraction};
 use crate::math::{Color, PixelRect, Vec3};
@@ -16,13 +17,6 @@ use toml::Spanned;
 /// The most pixels an image may have (2²⁸: 6 GiB of sums), so a typo cannot exhaust memory.
 pub const MAX_PIXELS: u64 = 1 << 28;
 
-/// The largest magnitude of a coordinate, radius or distance. Ray-sphere tests square
-/// differences of points and sum three of them: within ±10¹⁸ that stays far inside f32's
-/// range (3.4·10³⁸); a sphere of radius 10²⁰ would square to infinity and vanish.
-pub const MAX_LENGTH: f32 = 1e18;
-/// The smallest magnitude of a sphere's radius, whose square stays a normal f32 number.
-pub const MIN_RADIUS: f32 = 1e-18;
-
 /// Settings given on the command line that replace the file's.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Overrides {
@@ -31,178 +25,6 @@ pub struct Overrides {
     pub samples_per_pixel: Option<u32>,
     pub max_depth: Option<u32>,
     pub seed: Option<u64>,
-}
-
-/// A number as a scene author would write it: `1e20` rather than a digit per power of ten.
-fn plain(x: f64) -> String {
-    if x != 0.0 && !(1e-4..1e7).contains(&x.abs()) {
-        format!("{x:e}")
-    } else {
-        x.to_string()
-    }
-}
-
-/// Where validation errors point: the source text and its path.
-pub(super) struct Checker<'a> {
-    text: &'a str,
-    path: &'a Path,
-}
-
-impl Checker<'_> {
-    pub(super) fn error(
-        &self,
-        span: Range<usize>,
-        field: &str,
-        message: impl Into<String>,
-    ) -> Error {
-        Error::SceneValue {
-            path: self.path.to_owned(),
-            at: Location::of_offset(self.text, span.start),
-            field: field.to_owned(),
-            message: message.into(),
-        }
-    }
-
-    fn positive_int(&self, v: &Spanned<i64>, field: &str) -> Result<u32> {
-        let n = *v.get_ref();
-        if n <= 0 {
-            return Err(self.error(v.span(), field, format!("must be positive, got {n}")));
-        }
-        u32::try_from(n).map_err(|_| self.error(v.span(), field, format!("{n} is too large")))
-    }
-
-    pub(super) fn finite(&self, v: &Spanned<f64>, field: &str) -> Result<f32> {
-        let x = *v.get_ref();
-        if !x.is_finite() || !(x as f32).is_finite() {
-            let x = plain(x);
-            return Err(self.error(v.span(), field, format!("must be a finite number, got {x}")));
-        }
-        Ok(x as f32)
-    }
-
-    pub(super) fn in_range(
-        &self,
-        v: &Spanned<f64>,
-        field: &str,
-        ok: impl Fn(f64) -> bool,
-        what: &str,
-    ) -> Result<f32> {
-        let x = self.finite(v, field)?;
-        if !ok(f64::from(x)) {
-            let written = plain(*v.get_ref());
-            return Err(self.error(v.span(), field, format!("must be {what}, got {written}")));
-        }
-        Ok(x)
-    }
-
-    pub(super) fn vec3(&self, v: &Vec3Desc, field: &str) -> Result<Vec3> {
-        let [x, y, z] = v.get_ref().0;
-        if ![x, y, z]
-            .iter()
-            .all(|c| c.is_finite() && (*c as f32).is_finite())
-        {
-            return Err(self.error(
-                v.span(),
-                field,
-                format!(
-                    "must have three finite numbers, got [{}, {}, {}]",
-                    plain(x),
-                    plain(y),
-                    plain(z)
-                ),
-            ));
-        }
-        Ok(Vec3::new(x as f32, y as f32, z as f32))
-    }
-
-    /// A point of the scene's geometry: three numbers within `±MAX_LENGTH`.
-    pub(super) fn point(&self, v: &Vec3Desc, field: &str) -> Result<Vec3> {
-        let p = self.vec3(v, field)?;
-        if p.abs().max_element() > MAX_LENGTH {
-            return Err(self.error(
-                v.span(),
-                field,
-                format!(
-                    "coordinates must lie within ±{MAX_LENGTH:e} (beyond, f32 arithmetic \
-                     overflows), got [{}, {}, {}]",
-                    plain(p.x.into()),
-                    plain(p.y.into()),
-                    plain(p.z.into())
-                ),
-            ));
-        }
-        Ok(p)
-    }
-
-    /// A length or distance: `ok` (described by `what`), and at most `MAX_LENGTH`.
-    pub(super) fn length(
-        &self,
-        v: &Spanned<f64>,
-        field: &str,
-        ok: impl Fn(f64) -> bool,
-        what: &str,
-    ) -> Result<f32> {
-        let limited = |x: f64| ok(x) && x.abs() <= f64::from(MAX_LENGTH);
-        self.in_range(
-            v,
-            field,
-            limited,
-            &format!("{what}, at most {MAX_LENGTH:e}"),
-        )
-    }
-
-    /// A sphere radius: `positive_only` or either sign, of magnitude within
-    /// `[MIN_RADIUS, MAX_LENGTH]`.
-    pub(super) fn radius(&self, v: &Spanned<f64>, field: &str, positive_only: bool) -> Result<f32> {
-        let sign_ok = |r: f64| if positive_only { r > 0.0 } else { r != 0.0 };
-        let ok = |r: f64| sign_ok(r) && r.abs() >= f64::from(MIN_RADIUS);
-        let what = if positive_only {
-            "positive"
-        } else {
-            "non-zero"
-        };
-        self.length(
-            v,
-            field,
-            ok,
-            &format!("{what} and at least {MIN_RADIUS:e} in size"),
-        )
-    }
-
-    /// A direction, scaled to unit length in f64 so any non-zero length works: `vup` means
-    /// the same at `[0, 1e-18, 0]` and `[0, 1e20, 0]`.
-    pub(super) fn direction(&self, v: &Vec3Desc, field: &str) -> Result<Vec3> {
-        let [x, y, z] = v.get_ref().0;
-        let largest = x.abs().max(y.abs()).max(z.abs());
-        if !largest.is_finite() || largest == 0.0 {
-            return Err(self.error(
-                v.span(),
-                field,
-                format!(
-                    "must be a non-zero direction of finite numbers, got [{}, {}, {}]",
-                    plain(x),
-                    plain(y),
-                    plain(z)
-                ),
-            ));
-        }
-        // Dividing by the largest component first keeps the squares finite.
-        let (x, y, z) = (x / largest, y / largest, z / largest);
-        let len = (x * x + y * y + z * z).sqrt();
-        Ok(Vec3::new(
-            (x / len) as f32,
-            (y / len) as f32,
-            (z / len) as f32,
-        ))
-    }
-
-    pub(super) fn color(&self, v: &Vec3Desc, field: &str) -> Result<Color> {
-        let c = self.vec3(v, field)?;
-        if c.min_element() < 0.0 {
-            return Err(self.error(v.span(), field, format!("must not be negative, got {c}")));
-        }
-        Ok(c)
-    }
 }
 
 pub(super) fn build(

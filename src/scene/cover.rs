@@ -1,7 +1,7 @@
 //! The book's `random_scene()` (§13.1): a grid of small random spheres, driven by a seeded
 //! PCG generator so the same seed always gives the same cover.
 
-use super::build::Checker;
+use super::check::Checker;
 use super::desc::RandomSpheresDesc;
 use crate::error::Result;
 use crate::geometry::{MaterialId, Sphere};

@@ -1,10 +1,12 @@
 //! Scenes: loading a TOML scene file, validating it, and the runtime scene the renderer reads.
 
 mod build;
+mod check;
 mod cover;
 pub mod desc;
 
 pub use build::{MAX_PIXELS, Overrides};
+pub use check::{MAX_LENGTH, MIN_RADIUS};
 
 use crate::bvh::{Bvh, Candidates, RayHints, TraversalStack};
 use crate::camera::{Camera, CameraSettings};
