@@ -174,23 +174,6 @@ fn bench_prints_json() {
     assert!((2.0..3.5).contains(&rps), "rays per sample {rps}");
 }
 
-/// A valid small scene to break one line at a time.
-const GOOD: &str = r#"[image]
-width = 16
-height = 9
-samples_per_pixel = 1
-max_depth = 5
-
-[materials.red]
-type = "lambertian"
-albedo = [0.9, 0.1, 0.1]
-
-[[spheres]]
-center = [0.0, 0.0, -1.0]
-radius = 0.5
-material = "red"
-"#;
-
 /// Writes `text` as a scene, renders it over an existing output, and checks the failure:
 /// exit status 2, every expected fragment in the message, no panic, the old output intact.
 fn assert_rejected(name: &str, text: &str, expected: &[&str]) {

@@ -105,6 +105,11 @@ impl SlurmRender {
         std::fs::read(self.dir.join("single.png")).unwrap()
     }
 
+    /// Checks that the merged image has the single render's bytes.
+    fn assert_merged_equals_single(&self) {
+        assert!(self.merged() == self.single(), "merged != single render");
+    }
+
     fn merged(&self) -> Vec<u8> {
         std::fs::read(self.dir.join("merged.png")).unwrap_or_else(|e| {
             panic!("no merged image ({e}); logs:\n{}", self.logs());
@@ -186,10 +191,7 @@ fn an_array_of_shards_merges_to_the_single_render() {
     let render = SlurmRender::new("four", "--width 120 --spp 16");
     let (_, merge) = render.submit(4, &mut jobs);
     wait_for(&render, &merge);
-    assert!(
-        render.merged() == render.single(),
-        "merged != single render"
-    );
+    render.assert_merged_equals_single();
     let parts = render.dir.join("parts");
     for task in 0..4 {
         assert!(parts.join(format!("shard-{task}.part")).exists());
@@ -209,10 +211,7 @@ fn an_array_of_one_task_works() {
     let render = SlurmRender::new("one", "--width 90 --spp 6");
     let (_, merge) = render.submit(1, &mut jobs);
     wait_for(&render, &merge);
-    assert!(
-        render.merged() == render.single(),
-        "merged != single render"
-    );
+    render.assert_merged_equals_single();
 }
 
 /// Waits until job `job` is `what`, as `test` tells from its fields.
@@ -271,8 +270,5 @@ fn a_task_requeued_while_running_still_gives_the_same_bytes() {
         .first()
         .map(|j| field(j, "Restarts").to_owned());
     assert_eq!(restarts.as_deref(), Some("1"), "task 0 was not requeued");
-    assert!(
-        render.merged() == render.single(),
-        "merged != single render"
-    );
+    render.assert_merged_equals_single();
 }

@@ -24,6 +24,11 @@ fn plain(x: f64) -> String {
     }
 }
 
+/// Three numbers as written, `[x, y, z]`.
+fn plain3([x, y, z]: [f64; 3]) -> String {
+    format!("[{}, {}, {}]", plain(x), plain(y), plain(z))
+}
+
 /// Where validation errors point: the source text and its path.
 pub(super) struct Checker<'a> {
     pub(super) text: &'a str,
@@ -83,15 +88,11 @@ impl Checker<'_> {
             .iter()
             .all(|c| c.is_finite() && (*c as f32).is_finite())
         {
+            let written = plain3(v.get_ref().0);
             return Err(self.error(
                 v.span(),
                 field,
-                format!(
-                    "must have three finite numbers, got [{}, {}, {}]",
-                    plain(x),
-                    plain(y),
-                    plain(z)
-                ),
+                format!("must have three finite numbers, got {written}"),
             ));
         }
         Ok(Vec3::new(x as f32, y as f32, z as f32))
@@ -106,10 +107,8 @@ impl Checker<'_> {
                 field,
                 format!(
                     "coordinates must lie within ±{MAX_LENGTH:e} (beyond, f32 arithmetic \
-                     overflows), got [{}, {}, {}]",
-                    plain(p.x.into()),
-                    plain(p.y.into()),
-                    plain(p.z.into())
+                     overflows), got {}",
+                    plain3(v.get_ref().0)
                 ),
             ));
         }
@@ -161,10 +160,8 @@ impl Checker<'_> {
                 v.span(),
                 field,
                 format!(
-                    "must be a non-zero direction of finite numbers, got [{}, {}, {}]",
-                    plain(x),
-                    plain(y),
-                    plain(z)
+                    "must be a non-zero direction of finite numbers, got {}",
+                    plain3(v.get_ref().0)
                 ),
             ));
         }

@@ -59,3 +59,20 @@ pub fn skip(test: &str, why: &str) {
     );
     let _ = writeln!(std::io::stderr(), "skipped {test}: {why}");
 }
+
+/// A valid small scene (16×9, one red sphere), for tests to break one line at a time.
+pub const GOOD: &str = r#"[image]
+width = 16
+height = 9
+samples_per_pixel = 1
+max_depth = 5
+
+[materials.red]
+type = "lambertian"
+albedo = [0.9, 0.1, 0.1]
+
+[[spheres]]
+center = [0.0, 0.0, -1.0]
+radius = 0.5
+material = "red"
+"#;

@@ -2,16 +2,13 @@
 
 use super::common::*;
 use super::harness::*;
-use super::parts::PART_SCENE;
+use super::parts::part_scene;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 use tessera::scene::{Overrides, Scene};
 use tessera::shard::{self, Shard};
-
-// ---------------------------------------------------------------------------------------
-// Command lines, through the binary.
 
 /// Flags, values that make sense with them, and values that do not. None makes a valid render
 /// longer than a moment.
@@ -58,7 +55,7 @@ const POSITIONALS: &[&str] = &[
 fn cli_workspace() -> PathBuf {
     let dir = temp_dir("fuzz-cli");
     let write = |name: &str, bytes: &[u8]| std::fs::write(dir.join(name), bytes).unwrap();
-    write("good.toml", PART_SCENE.as_bytes());
+    write("good.toml", part_scene().as_bytes());
     let cover = std::fs::read_to_string(scene_path("cover.toml")).unwrap();
     let tiny = cover
         .replace("width = 1200", "width = 24")
@@ -250,7 +247,7 @@ fn shard_and_sample_specs_never_panic() {
         "x",
         "18446744073709551615",
     ];
-    let scene = Scene::parse(PART_SCENE, Path::new("part.toml"), &Overrides::default()).unwrap();
+    let scene = Scene::parse(&part_scene(), Path::new("part.toml"), &Overrides::default()).unwrap();
     for i in cases("spec", count(20_000)) {
         let mut g = Gen::for_case("spec", i);
         let spec: String = (0..1 + g.below(4)).map(|_| g.pick(&pieces)).collect();

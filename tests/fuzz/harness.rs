@@ -11,9 +11,6 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-// ---------------------------------------------------------------------------------------
-// An allocation ceiling, per thread, while a case runs.
-
 /// The system allocator, refusing on the threads that armed it any single allocation above
 /// their ceiling. A refusal aborts the test binary (Rust's answer to a failed allocation),
 /// after naming the case: an input made tessera believe a size it had not checked.
@@ -83,9 +80,6 @@ fn capped<T>(ceiling: usize, f: impl FnOnce() -> T) -> std::thread::Result<T> {
     CEILING.with(|c| c.set(usize::MAX));
     result
 }
-
-// ---------------------------------------------------------------------------------------
-// Cases: seeds, names, replay, a watchdog.
 
 /// A generator of one case's choices.
 pub(crate) struct Gen(Pcg32);

@@ -1,5 +1,6 @@
 //! Mutated partial files: refused by name, never believed past their real length.
 
+use super::common::GOOD;
 use super::harness::*;
 use super::scenes::{NUMBERS, number_spans};
 use std::path::{Path, PathBuf};
@@ -9,27 +10,12 @@ use tessera::render::{self, Job, Progress, RenderOptions, SampleRange};
 use tessera::scene::{Overrides, Scene};
 use tessera::shard::{self, Shard};
 
-// ---------------------------------------------------------------------------------------
-// Partial files.
-
 /// A small scene whose parts the partial-file cases start from.
-pub(crate) const PART_SCENE: &str = r#"[image]
-width = 12
-height = 8
-samples_per_pixel = 4
-max_depth = 3
+pub(crate) fn part_scene() -> String {
+    GOOD.replace("samples_per_pixel = 1", "samples_per_pixel = 4")
+}
 
-[materials.red]
-type = "lambertian"
-albedo = [0.9, 0.1, 0.1]
-
-[[spheres]]
-center = [0.0, 0.0, -1.0]
-radius = 0.5
-material = "red"
-"#;
-
-/// Real parts of `PART_SCENE`: the whole render, a sample range, a band of rows, and an
+/// Real parts of `part_scene()`: the whole render, a sample range, a band of rows, and an
 /// unfinished checkpoint.
 fn seed_parts(scene: &Scene) -> Vec<Part> {
     let options = RenderOptions {
@@ -198,7 +184,7 @@ fn check_part_case(scene: &Scene, bytes: &[u8]) -> Result<Outcome, String> {
 
 #[test]
 fn mutated_partial_files_are_refused_cleanly_and_never_believed() {
-    let scene = Scene::parse(PART_SCENE, Path::new("part.toml"), &Overrides::default()).unwrap();
+    let scene = Scene::parse(&part_scene(), Path::new("part.toml"), &Overrides::default()).unwrap();
     let parts = seed_parts(&scene);
     run_family(
         "part",

@@ -6,9 +6,6 @@ use std::path::{Path, PathBuf};
 use tessera::render::{self, RenderOptions};
 use tessera::scene::{Overrides, Scene};
 
-// ---------------------------------------------------------------------------------------
-// Scene files.
-
 /// Numbers chosen to sit on every edge: zero, signs, f32 and integer limits, NaN.
 pub(crate) const NUMBERS: &[&str] = &[
     "0",
