@@ -1,0 +1,278 @@
+//! Building the hierarchy: a binary tree by the binned surface area heuristic, collapsed
+//! into wide nodes of up to `WIDTH` children, with leaves of one sphere pack each.
+
+use super::pack::SpherePack;
+use super::{BINS, Bvh, EMPTY, LEAF, Lanes, MAX_LEAF, TRAVERSAL_COST, WIDTH, WideNode};
+use crate::geometry::{Aabb, Sphere};
+use crate::math::Vec3;
+
+/// A node of the binary build tree: either two children (`count == 0`, at `first` and
+/// `first + 1`) or a leaf of `count` primitives starting at `first` of the build order.
+#[derive(Clone, Copy, Debug)]
+struct Node {
+    bounds: Aabb,
+    first: u32,
+    count: u32,
+}
+
+struct BuildItem {
+    bounds: Aabb,
+    centroid: Vec3,
+    id: u32,
+}
+
+/// Builds the hierarchy over `spheres`: a binned-SAH binary tree, collapsed into wide nodes.
+pub(super) fn build(spheres: &[Sphere]) -> Bvh {
+    let all = spheres.iter().fold(Aabb::EMPTY, |b, s| b.union(s.bounds()));
+    let mut areas: Vec<f32> = spheres.iter().map(|s| s.bounds().area()).collect();
+    areas.sort_by(f32::total_cmp);
+    let median = areas.get(areas.len() / 2).copied().unwrap_or(0.0);
+    // A giant's box is a large share of the whole scene's and far above a typical one.
+    let giant = |s: &Sphere| {
+        let area = s.bounds().area();
+        spheres.len() > 8 && area > 0.25 * all.area() && area > 100.0 * median
+    };
+    let mut items: Vec<BuildItem> = spheres
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| !giant(s))
+        .map(|(i, s)| {
+            let bounds = s.bounds();
+            BuildItem {
+                bounds,
+                centroid: bounds.centroid(),
+                id: i as u32,
+            }
+        })
+        .collect();
+    let mut bvh = Bvh {
+        giants: (spheres.iter().enumerate())
+            .filter(|(_, s)| giant(s))
+            .map(|(i, s)| (*s, i as u32))
+            .collect(),
+        ..Bvh::default()
+    };
+    if items.is_empty() {
+        return bvh;
+    }
+    let mut binary = vec![Node {
+        bounds: Aabb::EMPTY,
+        first: 0,
+        count: 0,
+    }];
+    let len = items.len();
+    build_node(&mut binary, 0, &mut items, 0, len);
+    let order: Vec<u32> = items.iter().map(|it| it.id).collect();
+    let root_kids = if binary[0].count > 0 { vec![0] } else { vec![] };
+    bvh.collapse(&binary, &order, spheres, 0, root_kids, 0);
+    bvh
+}
+
+impl Bvh {
+    /// Appends the wide node for binary node `at` (or, for a leaf root, for `kids`), and
+    /// returns its index.
+    fn collapse(
+        &mut self,
+        binary: &[Node],
+        order: &[u32],
+        spheres: &[Sphere],
+        at: usize,
+        mut kids: Vec<usize>,
+        level: usize,
+    ) -> u32 {
+        self.max_level = self.max_level.max(level);
+        if kids.is_empty() {
+            let first = binary[at].first as usize;
+            kids = vec![first, first + 1];
+        }
+        // Open the largest inner child until the node is full.
+        while kids.len() < WIDTH {
+            let widest = kids
+                .iter()
+                .enumerate()
+                .filter(|(_, k)| binary[**k].count == 0)
+                .max_by(|a, b| {
+                    binary[*a.1]
+                        .bounds
+                        .area()
+                        .total_cmp(&binary[*b.1].bounds.area())
+                });
+            let Some((slot, &k)) = widest else { break };
+            let first = binary[k].first as usize;
+            kids[slot] = first;
+            kids.push(first + 1);
+        }
+        let index = self.nodes.len();
+        // Empty lanes keep an inverted box; the masks leave them out anyway.
+        let mut planes = [[f32::INFINITY; WIDTH]; 6];
+        planes[3..].fill([f32::NEG_INFINITY; WIDTH]);
+        let mut node_out = WideNode {
+            planes: [Lanes::ZERO; 6],
+            child: [EMPTY; WIDTH],
+            leaf_mask: 0,
+            inner_mask: 0,
+        };
+        // Reserve the slot so the node comes before its children.
+        self.nodes.push(node_out);
+        for (lane, &k) in kids.iter().enumerate() {
+            let node = binary[k];
+            let child = if node.count > 0 {
+                let first = node.first as usize;
+                let ids = &order[first..first + node.count as usize];
+                self.packs.push(SpherePack::new(spheres, ids));
+                LEAF | (self.packs.len() - 1) as u32
+            } else {
+                self.collapse(binary, order, spheres, k, Vec::new(), level + 1)
+            };
+            for axis in 0..3 {
+                planes[axis][lane] = node.bounds.min[axis];
+                planes[axis + 3][lane] = node.bounds.max[axis];
+            }
+            node_out.child[lane] = child;
+            if child & LEAF != 0 {
+                node_out.leaf_mask |= 1 << lane;
+            } else {
+                node_out.inner_mask |= 1 << lane;
+            }
+        }
+        for (out, plane) in node_out.planes.iter_mut().zip(planes) {
+            *out = Lanes::from(plane);
+        }
+        self.nodes[index] = node_out;
+        index as u32
+    }
+}
+
+fn build_node(nodes: &mut Vec<Node>, at: usize, items: &mut [BuildItem], start: usize, end: usize) {
+    let slice = &mut items[start..end];
+    let bounds = slice.iter().fold(Aabb::EMPTY, |b, it| b.union(it.bounds));
+    let centroids = slice.iter().fold(Aabb::EMPTY, |b, it| b.grow(it.centroid));
+    let count = slice.len();
+    let leaf = Node {
+        bounds,
+        first: start as u32,
+        count: count as u32,
+    };
+    // A pack tests `WIDTH` spheres for the price of one, so never split what fits in one.
+    if count <= MAX_LEAF {
+        nodes[at] = leaf;
+        return;
+    }
+    let Some((axis, split)) = best_split(slice, &centroids, bounds) else {
+        // No useful SAH split (e.g. coincident centroids): split at the median of the
+        // widest axis so the leaf size bound still holds.
+        let axis = widest_axis(&centroids);
+        slice.sort_by(|a, b| a.centroid[axis].total_cmp(&b.centroid[axis]));
+        push_children(nodes, at, items, start, start + count / 2, end, bounds);
+        return;
+    };
+    let mut mid = partition(slice, |it| {
+        bin_of(it.centroid[axis], &centroids, axis) < split
+    });
+    if mid == 0 || mid == count {
+        mid = count / 2;
+    }
+    push_children(nodes, at, items, start, start + mid, end, bounds);
+}
+
+fn push_children(
+    nodes: &mut Vec<Node>,
+    at: usize,
+    items: &mut [BuildItem],
+    start: usize,
+    mid: usize,
+    end: usize,
+    bounds: Aabb,
+) {
+    let left = nodes.len();
+    let placeholder = Node {
+        bounds: Aabb::EMPTY,
+        first: 0,
+        count: 0,
+    };
+    nodes.push(placeholder);
+    nodes.push(placeholder);
+    nodes[at] = Node {
+        bounds,
+        first: left as u32,
+        count: 0,
+    };
+    build_node(nodes, left, items, start, mid);
+    build_node(nodes, left + 1, items, mid, end);
+}
+
+fn widest_axis(b: &Aabb) -> usize {
+    let e = b.max - b.min;
+    if e.x >= e.y && e.x >= e.z {
+        0
+    } else if e.y >= e.z {
+        1
+    } else {
+        2
+    }
+}
+
+fn bin_of(c: f32, centroids: &Aabb, axis: usize) -> usize {
+    let lo = centroids.min[axis];
+    let extent = centroids.max[axis] - lo;
+    let b = ((c - lo) / extent * BINS as f32) as usize;
+    b.min(BINS - 1)
+}
+
+/// The SAH's cheapest (axis, first bin of the right side), for items too many for one leaf;
+/// `None` when no bin boundary separates their centroids.
+fn best_split(items: &[BuildItem], centroids: &Aabb, bounds: Aabb) -> Option<(usize, usize)> {
+    let parent_area = bounds.area();
+    let mut best: Option<(f32, usize, usize)> = None;
+    for axis in 0..3 {
+        if centroids.max[axis] - centroids.min[axis] <= 0.0 {
+            continue;
+        }
+        let mut bin_bounds = [Aabb::EMPTY; BINS];
+        let mut bin_counts = [0usize; BINS];
+        for it in items {
+            let b = bin_of(it.centroid[axis], centroids, axis);
+            bin_bounds[b] = bin_bounds[b].union(it.bounds);
+            bin_counts[b] += 1;
+        }
+        let mut right_area = [0.0f32; BINS];
+        let mut right_count = [0usize; BINS];
+        let (mut acc, mut n) = (Aabb::EMPTY, 0);
+        for b in (1..BINS).rev() {
+            acc = acc.union(bin_bounds[b]);
+            n += bin_counts[b];
+            right_area[b] = acc.area();
+            right_count[b] = n;
+        }
+        let (mut acc, mut n) = (Aabb::EMPTY, 0);
+        for split in 1..BINS {
+            acc = acc.union(bin_bounds[split - 1]);
+            n += bin_counts[split - 1];
+            if n == 0 || right_count[split] == 0 {
+                continue;
+            }
+            // Traversal cost 1 relative to one primitive test per unit probability.
+            // Spheres are tested a pack at a time, so a side costs its packs.
+            let packs = |n: usize| n.div_ceil(WIDTH) as f32;
+            let cost = TRAVERSAL_COST
+                + (acc.area() * packs(n) + right_area[split] * packs(right_count[split]))
+                    / parent_area.max(f32::MIN_POSITIVE);
+            if best.is_none_or(|(c, _, _)| cost < c) {
+                best = Some((cost, axis, split));
+            }
+        }
+    }
+    best.map(|(_, axis, split)| (axis, split))
+}
+
+/// Moves the items satisfying `pred` to the front; returns how many there are.
+fn partition(items: &mut [BuildItem], pred: impl Fn(&BuildItem) -> bool) -> usize {
+    let mut mid = 0;
+    for i in 0..items.len() {
+        if pred(&items[i]) {
+            items.swap(i, mid);
+            mid += 1;
+        }
+    }
+    mid
+}

@@ -1,0 +1,135 @@
+//! A bounding volume hierarchy over spheres: built as a binary tree with the binned surface
+//! area heuristic, then collapsed into a flat array of eight-wide nodes whose child boxes, and
+//! whose leaf spheres, are stored as structure-of-arrays and tested eight at a time with SIMD.
+//!
+//! The public surface is this file: build, intersect (with optional hints), and per-tile
+//! candidate lists. `build` makes the tree, `traverse` walks it, `pack` tests eight spheres
+//! at once, `candidates` picks the spheres a bundle of rays can reach.
+
+mod build;
+mod candidates;
+mod pack;
+#[cfg(test)]
+mod tests;
+mod traverse;
+
+pub use candidates::Candidates;
+
+use crate::geometry::{PrimitiveId, Sphere};
+use crate::math::{Interval, Vec3};
+use crate::ray::Ray;
+use pack::SpherePack;
+use traverse::Traversal;
+use wide::f32x8;
+
+/// Children per node and spheres per pack: one SIMD lane each (AVX where the build has it,
+/// two SSE halves otherwise).
+const WIDTH: usize = 8;
+type Lanes = f32x8;
+
+/// Leaves hold at most this many primitives: one SIMD pack.
+const MAX_LEAF: usize = WIDTH;
+const _: () = assert!(MAX_LEAF <= WIDTH, "a leaf must fit in one pack");
+/// Cost of visiting a node relative to testing one pack, for the SAH.
+const TRAVERSAL_COST: f32 = 1.0;
+/// Number of SAH bins per axis.
+const BINS: usize = 12;
+/// Child reference flags: a leaf (its pack's index in the low bits), or no child at all.
+const LEAF: u32 = 1 << 31;
+const EMPTY: u32 = u32::MAX;
+/// The primitive id of no hit, during traversal.
+const NO_HIT: u32 = u32::MAX;
+/// The id in an unused lane of a sphere pack.
+const NO_SPHERE: u32 = u32::MAX;
+
+/// A wide node: the boxes of up to `WIDTH` children, one SIMD lane each. `planes` holds
+/// min x, y, z then max x, y, z.
+#[derive(Clone, Copy, Debug)]
+struct WideNode {
+    planes: [Lanes; 6],
+    child: [u32; WIDTH],
+    /// Bit `i` is set when child `i` is a leaf.
+    leaf_mask: u32,
+    /// Bit `i` is set when child `i` is an inner node.
+    inner_mask: u32,
+}
+
+/// The hierarchy, ready to trace.
+#[derive(Clone, Debug, Default)]
+pub struct Bvh {
+    nodes: Vec<WideNode>,
+    packs: Vec<SpherePack>,
+    /// Spheres so large (the book's ground) that any box holding them holds everything:
+    /// tested on their own before the tree, which then stays tight around the rest.
+    giants: Vec<(Sphere, u32)>,
+    /// Deepest level of inner nodes below the root (the root is level 0).
+    max_level: usize,
+}
+
+/// Scratch space for traversal, reused from ray to ray so no ray pays to clear or allocate
+/// it. One per thread of work (e.g. per tile).
+#[derive(Clone, Debug, Default)]
+pub struct TraversalStack(Vec<(u32, f32)>);
+
+impl Bvh {
+    /// Builds the hierarchy over `spheres`.
+    pub fn build(spheres: &[Sphere]) -> Self {
+        build::build(spheres)
+    }
+
+    /// A stack deep enough for this hierarchy: each inner level pushes at most `WIDTH - 1`
+    /// siblings beyond the node it descends into.
+    pub fn new_stack(&self) -> TraversalStack {
+        TraversalStack(vec![(0, 0.0); self.stack_need()])
+    }
+
+    fn stack_need(&self) -> usize {
+        (WIDTH - 1) * (self.max_level + 1) + 1
+    }
+
+    /// The closest hit in `interval`: its parameter and primitive id.
+    #[inline(always)]
+    pub fn intersect(
+        &self,
+        ray: &Ray,
+        interval: Interval,
+        stack: &mut TraversalStack,
+    ) -> Option<(f32, PrimitiveId)> {
+        self.intersect_with(ray, interval, stack, RayHints::default())
+    }
+
+    /// `intersect` helped by what the caller knows of the ray (see `RayHints`).
+    #[inline(always)]
+    pub fn intersect_with(
+        &self,
+        ray: &Ray,
+        interval: Interval,
+        stack: &mut TraversalStack,
+        hints: RayHints,
+    ) -> Option<(f32, PrimitiveId)> {
+        let need = self.stack_need();
+        if stack.0.len() < need {
+            *stack = self.new_stack();
+        }
+        let mut walk = Traversal::new(self, ray, interval, hints);
+        if !self.nodes.is_empty() {
+            while !walk.step(self, &mut stack.0[..need]) {}
+        }
+        walk.result()
+    }
+}
+
+/// What a caller may know of a ray that lets `Bvh::intersect_with` do less or start sooner.
+/// The default knows nothing.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct RayHints {
+    /// A sphere the ray starts just outside of (off its surface) and heads away from, so
+    /// cannot meet again (convex): its test is left out. Most bounce rays leave the sphere
+    /// they bounced off this way, and its pack would otherwise pass the cheap first check
+    /// for every one of them.
+    pub leaving: Option<PrimitiveId>,
+    /// `1 / dir` (up to rounding), for a caller that has it before `dir` itself: a bounce
+    /// ray's `len × (1 / raw)` is ready a division sooner than `1 / (raw / len)`, and the
+    /// first box test waits for it.
+    pub inv_dir: Option<Vec3>,
+}

@@ -1,0 +1,213 @@
+//! The hierarchy against brute force, bit for bit: random rays, rays leaving a sphere,
+//! every-hit-is-a-tie scenes, candidate lists, coincident spheres.
+
+use super::pack::SpherePack;
+use super::*;
+use crate::geometry::MaterialId;
+use crate::sampling::Sampler;
+
+/// The closest hit by testing every sphere: the reference the hierarchy is tested against.
+fn intersect_brute_force(
+    spheres: &[Sphere],
+    ray: &Ray,
+    interval: Interval,
+) -> Option<(f32, PrimitiveId)> {
+    let mut closest = interval.max;
+    let mut found = None;
+    for (i, s) in spheres.iter().enumerate() {
+        if let Some(t) = s.intersect(ray, Interval::new(interval.min, closest)) {
+            closest = t;
+            found = Some((t, PrimitiveId(i as u32)));
+        }
+    }
+    found
+}
+
+fn random_spheres(n: usize, rng: &mut Sampler) -> Vec<Sphere> {
+    let mut v: Vec<Sphere> = (0..n)
+        .map(|i| {
+            let c = Vec3::new(
+                rng.range(-10.0, 10.0),
+                rng.range(-2.0, 2.0),
+                rng.range(-10.0, 10.0),
+            );
+            Sphere::new(c, rng.range(0.05, 1.0), MaterialId(i as u32))
+        })
+        .collect();
+    v.push(Sphere::new(
+        Vec3::new(0.0, -1000.0, 0.0),
+        1000.0,
+        MaterialId(0),
+    ));
+    v
+}
+
+#[test]
+fn matches_brute_force_on_random_rays() {
+    let mut rng = Sampler::from_seed(5);
+    for n in [0, 1, 2, 7, 64, 500] {
+        let spheres = random_spheres(n, &mut rng);
+        let bvh = Bvh::build(&spheres);
+        let mut stack = TraversalStack::default();
+        for _ in 0..4000 {
+            let o = Vec3::new(
+                rng.range(-15.0, 15.0),
+                rng.range(0.0, 6.0),
+                rng.range(-15.0, 15.0),
+            );
+            let ray = Ray::new(o, rng.unit_vector());
+            let iv = Interval::new(1e-4, f32::INFINITY);
+            let a = bvh.intersect(&ray, iv, &mut stack);
+            let b = intersect_brute_force(&spheres, &ray, iv);
+            match (a, b) {
+                (None, None) => {}
+                (Some((ta, ia)), Some((tb, ib))) => {
+                    assert_eq!(ta.to_bits(), tb.to_bits(), "t for {ray:?}");
+                    assert_eq!(ia, ib, "primitive for {ray:?}");
+                }
+                other => panic!("bvh and brute force disagree: {other:?} for {ray:?}"),
+            }
+        }
+    }
+}
+
+#[test]
+fn rays_leaving_a_sphere_find_what_brute_force_finds_without_testing_it() {
+    // Crowded spheres, so a bounce ray often meets a neighbour of its own pack.
+    let mut rng = Sampler::from_seed(21);
+    let spheres: Vec<Sphere> = (0..300)
+        .map(|i| {
+            let c = Vec3::new(
+                rng.range(-4.0, 4.0),
+                rng.range(0.0, 1.0),
+                rng.range(-4.0, 4.0),
+            );
+            Sphere::new(c, rng.range(0.1, 0.5), MaterialId(i))
+        })
+        .collect();
+    let bvh = Bvh::build(&spheres);
+    let mut stack = TraversalStack::default();
+    let iv = Interval::new(0.0, f32::INFINITY);
+    let mut neighbours = 0;
+    for _ in 0..20_000 {
+        let id = (rng.uniform() * spheres.len() as f32) as usize % spheres.len();
+        let s = &spheres[id];
+        // Off the surface by the renderer's default t_min, heading outwards.
+        let n = rng.unit_vector();
+        let mut d = rng.unit_vector();
+        if d.dot(n) < 0.0 {
+            d = -d;
+        }
+        let ray = Ray::new(s.center + s.radius * n + 1e-3 * n, d);
+        // As the path tracer hints it: the sphere left, and 1/dir from the raw direction.
+        let raw = 3.0 * d;
+        let hints = RayHints {
+            leaving: Some(PrimitiveId(id as u32)),
+            inv_dir: Some(raw.length() * (Vec3::ONE / raw)),
+        };
+        let fast = bvh.intersect_with(&ray, iv, &mut stack, hints);
+        let full = bvh.intersect(&ray, iv, &mut stack);
+        let brute = intersect_brute_force(&spheres, &ray, iv);
+        assert_eq!(fast, brute, "{ray:?} leaving {id}");
+        assert_eq!(full, brute, "{ray:?} leaving {id}");
+        neighbours += usize::from(brute.is_some());
+    }
+    assert!(
+        neighbours > 5_000,
+        "too few rays meet another sphere: {neighbours}"
+    );
+}
+
+#[test]
+fn ties_go_to_the_lower_id_whatever_the_traversal_order() {
+    // Every sphere twelve times over, more than a leaf holds: each hit is a tie between
+    // spheres of different leaves and packs.
+    let mut rng = Sampler::from_seed(9);
+    let base = random_spheres(20, &mut rng);
+    let spheres: Vec<Sphere> = (0..12).flat_map(|_| base.iter().copied()).collect();
+    let bvh = Bvh::build(&spheres);
+    let mut stack = TraversalStack::default();
+    let iv = Interval::new(1e-4, f32::INFINITY);
+    let mut hits = 0;
+    for _ in 0..2000 {
+        let o = Vec3::new(rng.range(-15.0, 15.0), rng.range(0.0, 6.0), 15.0);
+        let ray = Ray::new(o, rng.unit_vector());
+        let a = bvh.intersect(&ray, iv, &mut stack);
+        let b = intersect_brute_force(&spheres, &ray, iv);
+        assert_eq!(a, b, "for {ray:?}");
+        if let Some((_, id)) = a {
+            assert!((id.0 as usize) < base.len(), "tie lost to a later copy");
+            hits += 1;
+        }
+    }
+    assert!(hits > 200, "only {hits} hits");
+}
+
+/// Picking candidates through the tree, skipping subtrees whose boxes the bundle misses,
+/// must pick exactly the spheres a scan of every sphere picks.
+#[test]
+fn candidates_through_the_tree_equal_a_scan_of_every_sphere() {
+    use crate::camera::{Camera, CameraSettings};
+    let mut rng = Sampler::from_seed(21);
+    let spheres = random_spheres(500, &mut rng);
+    let bvh = Bvh::build(&spheres);
+    let camera = Camera::new(&CameraSettings {
+        lookfrom: Vec3::new(13.0, 2.0, 3.0),
+        lookat: Vec3::ZERO,
+        vup: Vec3::Y,
+        vfov_deg: 20.0,
+        aspect_ratio: 1.5,
+        aperture: 0.3,
+        focus_dist: 10.0,
+    });
+    let (mut listed, mut refused) = (0, 0);
+    for _ in 0..300 {
+        let (s0, t0) = (rng.uniform(), rng.uniform());
+        let size = rng.range(0.002, 0.3);
+        let bundle = camera.bundle((s0, s0 + size), (t0, t0 + size));
+        let keep = |s: &Sphere| bundle.may_hit(s.center, s.radius);
+        // Every sphere is a giant or in the tree.
+        let scan: Vec<u32> = (0..spheres.len() as u32)
+            .filter(|&id| keep(&spheres[id as usize]))
+            .collect();
+        let picked = bvh.candidates(&spheres, |lo, hi| bundle.may_hit_box(lo, hi), keep);
+        match picked {
+            Some(c) => {
+                let ids: Vec<u32> = c.packs.iter().flat_map(SpherePack::ids).collect();
+                assert_eq!(ids, scan);
+                listed += 1;
+            }
+            None => {
+                assert!(scan.len() > Candidates::MAX);
+                refused += 1;
+            }
+        }
+    }
+    assert!(
+        listed > 30 && refused > 30,
+        "{listed} listed, {refused} refused"
+    );
+}
+
+#[test]
+fn leaves_stay_small_even_for_coincident_spheres() {
+    let spheres = vec![Sphere::new(Vec3::ZERO, 1.0, MaterialId(0)); 40];
+    let bvh = Bvh::build(&spheres);
+    // Coincident centroids leave the SAH nothing to split: the median split still cuts
+    // them into packs, none empty, holding every sphere exactly once.
+    let mut ids: Vec<u32> = bvh.packs.iter().flat_map(SpherePack::ids).collect();
+    assert!(bvh.packs.iter().all(|p| p.ids().count() > 0));
+    ids.sort_unstable();
+    assert_eq!(ids, (0..40).collect::<Vec<u32>>());
+    let ray = Ray::new(Vec3::new(0.0, 0.0, -5.0), Vec3::Z);
+    assert_eq!(
+        bvh.intersect(
+            &ray,
+            Interval::new(0.0, 100.0),
+            &mut TraversalStack::default()
+        )
+        .unwrap()
+        .0,
+        4.0
+    );
+}
