@@ -4,9 +4,12 @@
 use crate::geometry::Hit;
 use crate::math::{Color, Vec3, near_zero, reflect, reflectance, refract};
 use crate::sampling::Sampler;
+use serde::Deserialize;
 
-/// How a diffuse surface picks its bounce direction: the book's three variants.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+/// How a diffuse surface picks its bounce direction: the book's three variants. Scene files
+/// name them in snake case (`unit_sphere`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum DiffuseModel {
     /// `normal + random_in_unit_sphere()`: the book's first, biased approximation (§8.2).
     UnitSphere,
@@ -18,7 +21,8 @@ pub enum DiffuseModel {
 }
 
 /// Which of the book's stages of glass a dielectric follows.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Refraction {
     /// Always refract, even past the critical angle (§10.2, image 14).
     Always,

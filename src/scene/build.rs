@@ -3,11 +3,12 @@
 
 use super::check::Checker;
 use super::desc::{self, SceneDesc};
-use super::{Background, RenderSettings, Scene, Shading, cover};
+use super::settings::{Background, RenderSettings};
+use super::{Scene, cover};
 use crate::camera::{Camera, CameraSettings};
 use crate::error::{Error, Result};
 use crate::geometry::{MaterialId, Sphere};
-use crate::material::{DiffuseModel, Material, Refraction};
+use crate::material::{Material, Refraction};
 use crate::math::{Color, PixelRect, Vec3};
 use std::collections::BTreeMap;
 use std::ops::Range;
@@ -165,18 +166,8 @@ fn render_settings(desc: &SceneDesc, ck: &Checker, ov: &Overrides) -> Result<Ren
         samples_per_pixel,
         max_depth,
         seed: ov.seed.unwrap_or(img.seed),
-        shading: match r.shading {
-            desc::ShadingDesc::Uv => Shading::Uv,
-            desc::ShadingDesc::Gradient => Shading::Gradient,
-            desc::ShadingDesc::Flat => Shading::Flat,
-            desc::ShadingDesc::Normals => Shading::Normals,
-            desc::ShadingDesc::Path => Shading::Path,
-        },
-        diffuse: match r.diffuse {
-            desc::DiffuseDesc::UnitSphere => DiffuseModel::UnitSphere,
-            desc::DiffuseDesc::Lambertian => DiffuseModel::Lambertian,
-            desc::DiffuseDesc::Hemisphere => DiffuseModel::Hemisphere,
-        },
+        shading: r.shading,
+        diffuse: r.diffuse,
         gamma: ck.in_range(&r.gamma, "render.gamma", |g| g > 0.0, "positive")?,
         t_min: ck.in_range(&r.t_min, "render.t_min", |t| t >= 0.0, "zero or positive")?,
         jitter: r.jitter,
@@ -375,12 +366,10 @@ fn material(name: &str, m: &Spanned<desc::MaterialDesc>, ck: &Checker) -> Result
             let ir = required(ck, d.ir.as_ref(), m.span(), &field("ir"), kind)?;
             Material::Dielectric {
                 ir: ck.in_range(ir, &field("ir"), |i| i > 0.0, "positive")?,
-                refraction: match d.refraction.as_ref().map(|r| *r.get_ref()) {
-                    Some(desc::RefractionDesc::Always) => Refraction::Always,
-                    Some(desc::RefractionDesc::Snell) => Refraction::Snell,
-                    Some(desc::RefractionDesc::Inverted) => Refraction::Inverted,
-                    Some(desc::RefractionDesc::Schlick) | None => Refraction::Schlick,
-                },
+                refraction: d
+                    .refraction
+                    .as_ref()
+                    .map_or_else(Refraction::default, |r| *r.get_ref()),
             }
         }
         other => {

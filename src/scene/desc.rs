@@ -8,6 +8,9 @@ use std::fmt;
 use std::marker::PhantomData;
 use toml::Spanned;
 
+use super::settings::Shading;
+use crate::material::{DiffuseModel, Refraction};
+
 pub type Vec3Desc = Spanned<Exactly<f64, 3>>;
 
 /// An array of exactly `N` values. Serde's own `[T; N]` stops reading after `N` elements
@@ -81,43 +84,13 @@ pub struct ImageDesc {
     pub crop: Option<Spanned<Exactly<i64, 4>>>,
 }
 
-#[derive(Debug, Default, Deserialize, Clone, Copy, PartialEq, Eq)]
-#[serde(rename_all = "snake_case")]
-pub enum ShadingDesc {
-    Uv,
-    Gradient,
-    Flat,
-    Normals,
-    #[default]
-    Path,
-}
-
-#[derive(Debug, Default, Deserialize, Clone, Copy, PartialEq, Eq)]
-#[serde(rename_all = "snake_case")]
-pub enum DiffuseDesc {
-    UnitSphere,
-    #[default]
-    Lambertian,
-    Hemisphere,
-}
-
-#[derive(Debug, Default, Deserialize, Clone, Copy, PartialEq, Eq)]
-#[serde(rename_all = "snake_case")]
-pub enum RefractionDesc {
-    Always,
-    Snell,
-    #[default]
-    Schlick,
-    Inverted,
-}
-
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RenderDesc {
     #[serde(default)]
-    pub shading: ShadingDesc,
+    pub shading: Shading,
     #[serde(default)]
-    pub diffuse: DiffuseDesc,
+    pub diffuse: DiffuseModel,
     #[serde(default = "default_gamma")]
     pub gamma: Spanned<f64>,
     #[serde(default = "default_t_min")]
@@ -129,8 +102,8 @@ pub struct RenderDesc {
 impl Default for RenderDesc {
     fn default() -> Self {
         Self {
-            shading: ShadingDesc::default(),
-            diffuse: DiffuseDesc::default(),
+            shading: Shading::default(),
+            diffuse: DiffuseModel::default(),
             gamma: default_gamma(),
             t_min: default_t_min(),
             jitter: true,
@@ -187,7 +160,7 @@ pub struct MaterialDesc {
     pub albedo: Option<Vec3Desc>,
     pub fuzz: Option<Spanned<f64>>,
     pub ir: Option<Spanned<f64>>,
-    pub refraction: Option<Spanned<RefractionDesc>>,
+    pub refraction: Option<Spanned<Refraction>>,
 }
 
 #[derive(Debug, Deserialize)]

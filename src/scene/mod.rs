@@ -4,75 +4,20 @@ mod build;
 mod check;
 mod cover;
 pub mod desc;
+mod settings;
 
 pub use build::{MAX_PIXELS, Overrides};
 pub use check::{MAX_LENGTH, MIN_RADIUS};
+pub use settings::{Background, RenderSettings, Shading};
 
 use crate::bvh::{Bvh, Candidates, RayHints, TraversalStack};
 use crate::camera::{Camera, CameraSettings};
 use crate::error::{Error, Location, Result};
 use crate::geometry::{Hit, PrimitiveId, Sphere};
-use crate::material::{DiffuseModel, Material};
-use crate::math::{Color, Interval, PixelRect, Vec3};
+use crate::material::Material;
+use crate::math::{Interval, PixelRect, Vec3};
 use crate::ray::Ray;
 use std::path::Path;
-
-/// What each camera sample computes: the book's stages before path tracing, then the path
-/// tracer.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Shading {
-    /// Pixel coordinates as red and green (image 1); no rays.
-    Uv,
-    /// The background seen through the camera, ignoring objects (image 2).
-    Gradient,
-    /// The surface's albedo where a ray hits, the background elsewhere (image 3).
-    Flat,
-    /// `(n + 1) / 2` of the front-facing normal (images 4–6).
-    Normals,
-    /// Full path tracing with materials (images 7 onwards).
-    Path,
-}
-
-/// The colour of rays that escape the scene.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Background {
-    Gradient { bottom: Color, top: Color },
-    Uniform(Color),
-}
-
-impl Background {
-    #[inline]
-    pub fn radiance(&self, unit_dir: Vec3) -> Color {
-        match *self {
-            Background::Gradient { bottom, top } => {
-                let t = 0.5 * (unit_dir.y + 1.0);
-                (1.0 - t) * bottom + t * top
-            }
-            Background::Uniform(c) => c,
-        }
-    }
-}
-
-/// Image size, sampling and the integrator's knobs.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct RenderSettings {
-    pub width: u32,
-    pub height: u32,
-    /// The pixels to render and write (the whole image unless the scene crops it).
-    pub window: PixelRect,
-    pub samples_per_pixel: u32,
-    pub max_depth: u32,
-    pub seed: u64,
-    pub shading: Shading,
-    pub diffuse: DiffuseModel,
-    /// Display gamma of 8-bit outputs (the book: 1 until §8.3, then 2).
-    pub gamma: f32,
-    /// Shadow-acne guard (§8.4): scattered rays start this far off the surface along the
-    /// normal. Zero reproduces the book's acne.
-    pub t_min: f32,
-    /// Jitter samples within the pixel (anti-aliasing, §7); off for the first figures.
-    pub jitter: bool,
-}
 
 /// A validated, ready-to-render scene.
 #[derive(Clone, Debug)]
