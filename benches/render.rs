@@ -7,6 +7,8 @@ use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;
 use std::path::Path;
 use tessera::bvh::{Bvh, TraversalStack};
+use tessera::integrator::tile_candidates;
+use tessera::job::SampleRange;
 use tessera::math::{Interval, PixelRect};
 use tessera::ray::Ray;
 use tessera::render::render_tile;
@@ -37,7 +39,8 @@ fn tile(c: &mut Criterion) {
     let mut g = c.benchmark_group("cover");
     g.throughput(Throughput::Elements(tile.area() * 4));
     g.bench_function("tile_32x32_4spp", |b| {
-        b.iter(|| render_tile(black_box(&scene), &tile))
+        let all = SampleRange { start: 0, end: 4 };
+        b.iter(|| render_tile(black_box(&scene), &tile, all))
     });
     g.finish();
 }
@@ -103,7 +106,7 @@ fn bvh(c: &mut Criterion) {
             scene.camera.ray(x / w, (h - y) / h, &mut rng)
         })
         .collect();
-    let candidates = scene.camera_candidates(&tile).expect("a short list");
+    let candidates = tile_candidates(&scene, &tile).expect("a short list");
     g.throughput(Throughput::Elements(camera_rays.len() as u64));
     g.bench_function("tile_camera_rays_candidates", |b| {
         b.iter(|| {

@@ -16,6 +16,7 @@ pub mod error;
 pub mod film;
 pub mod geometry;
 pub mod integrator;
+pub mod job;
 pub mod material;
 pub mod math;
 pub mod partial;

@@ -25,7 +25,8 @@ impl Interval {
 }
 
 /// A rectangle of pixels: `x0..x0 + width` by `y0..y0 + height`, top row `y = 0`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct PixelRect {
     pub x0: u32,
     pub y0: u32,

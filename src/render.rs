@@ -1,13 +1,12 @@
-//! Rendering an image: cutting it into tiles, spreading them over a rayon pool, and taking
-//! every sample's random numbers from its own seed. The only module that knows threads.
+//! Running a job: cutting its region into tiles, spreading them over a rayon pool, folding
+//! finished tiles into the job's state in batches, and handing out snapshots to save. The only
+//! module that knows threads; what a sample is, is the integrator's business.
 
-use crate::bvh::{Candidates, TraversalStack};
-use crate::film::{Film, add_sums, to_fixed};
-use crate::integrator;
+use crate::film::{Film, to_fixed};
+use crate::integrator::PixelEvaluator;
+use crate::job::{Job, JobState, SampleRange};
 use crate::math::{Color, PixelRect};
-use crate::ray::Ray;
-use crate::sampling::{PixelSeed, Sampler};
-use crate::scene::{Scene, Shading};
+use crate::scene::Scene;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -54,137 +53,8 @@ impl RenderStats {
     }
 }
 
-/// A range of sample indices `start..end`, rendered for every pixel of a region.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub struct SampleRange {
-    pub start: u32,
-    pub end: u32,
-}
-
-impl SampleRange {
-    pub fn len(&self) -> u32 {
-        self.end.saturating_sub(self.start)
-    }
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-}
-
-/// A unit of rendering: the pixels of `region` (inside the scene's window) over the sample
-/// indices `samples`. A whole render is the window over `0..samples_per_pixel`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Job {
-    pub region: PixelRect,
-    pub samples: SampleRange,
-}
-
-impl Job {
-    /// The whole image the scene describes.
-    pub fn whole(scene: &Scene) -> Self {
-        Job {
-            region: scene.settings.window,
-            samples: SampleRange {
-                start: 0,
-                end: scene.settings.samples_per_pixel,
-            },
-        }
-    }
-}
-
-/// A job's accumulated state: the sums so far and how many samples of the job's range each
-/// tile has finished. Tiles finish whole, so the state is exact at every point, and adding the
-/// rest of the samples later gives the same integers as rendering them in one go.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct Progress {
-    pub job: Job,
-    /// Tile edge in pixels; `done` follows `job.region.tiles(tile)`.
-    pub tile: u32,
-    /// Samples finished per tile, counted from `job.samples.start`.
-    pub done: Vec<u32>,
-    /// Fixed-point sums over the region, row-major.
-    pub sums: Vec<[u64; 3]>,
-}
-
-impl Progress {
-    pub fn new(job: Job, tile: u32) -> Self {
-        let tile = tile.max(1);
-        Progress {
-            done: vec![0; job.region.tiles(tile).len()],
-            sums: vec![[0; 3]; job.region.area() as usize],
-            job,
-            tile,
-        }
-    }
-
-    pub fn is_complete(&self) -> bool {
-        self.done.iter().all(|&d| d >= self.job.samples.len())
-    }
-
-    /// Samples of the whole job, over all pixels.
-    pub fn total_samples(&self) -> u64 {
-        self.job.region.area() * u64::from(self.job.samples.len())
-    }
-
-    /// Samples finished, over all pixels.
-    pub fn finished_samples(&self) -> u64 {
-        samples_done(
-            self.job.region,
-            self.tile,
-            &self.done,
-            self.job.samples.len(),
-        )
-    }
-
-    /// Samples still to render.
-    pub fn remaining_samples(&self) -> u64 {
-        self.total_samples() - self.finished_samples()
-    }
-
-    /// How much of the job is done, in percent.
-    pub fn percent_done(&self) -> f64 {
-        percent(self.finished_samples(), self.total_samples())
-    }
-
-    /// Extends the job to more samples (progressive rendering): finished tiles keep their sums.
-    pub fn extend_to(&mut self, end: u32) {
-        self.job.samples.end = self.job.samples.end.max(end);
-    }
-
-    fn add_tile(&mut self, index: usize, tile: &PixelRect, sums: &[[u64; 3]]) {
-        add_sums(&mut self.sums, self.job.region, sums, *tile);
-        self.done[index] = self.job.samples.len();
-    }
-
-    /// The finished image of the region. Panics if the job is not complete.
-    pub fn film(&self) -> Film {
-        assert!(self.is_complete(), "film of an unfinished job");
-        Film {
-            width: self.job.region.width,
-            height: self.job.region.height,
-            samples_per_pixel: self.job.samples.len(),
-            sums: self.sums.clone(),
-        }
-    }
-}
-
-/// Samples finished over `region` when its tiles of edge `tile` have each done `done[i]` of
-/// `len` samples.
-pub fn samples_done(region: PixelRect, tile: u32, done: &[u32], len: u32) -> u64 {
-    region
-        .tiles(tile)
-        .iter()
-        .zip(done)
-        .map(|(t, &d)| t.area() * u64::from(d.min(len)))
-        .sum()
-}
-
-/// `done` of `total`, in percent (0 of nothing is 0%).
-pub fn percent(done: u64, total: u64) -> f64 {
-    100.0 * done as f64 / total.max(1) as f64
-}
-
 /// A callback that sees the job's state, e.g. to save a checkpoint.
-pub type Snapshot<'a> = &'a mut dyn FnMut(&Progress);
+pub type Snapshot<'a> = &'a mut dyn FnMut(&JobState);
 
 /// What a running job reports to and hears from its caller.
 pub struct Control<'a> {
@@ -203,7 +73,7 @@ pub fn render(
     options: &RenderOptions,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<(Film, RenderStats), rayon::ThreadPoolBuildError> {
-    let mut state = Progress::new(Job::whole(scene), options.tile);
+    let mut state = JobState::new(Job::whole(scene), options.tile);
     let stop = AtomicBool::new(false);
     let control = Control {
         stop: &stop,
@@ -211,7 +81,7 @@ pub fn render(
         on_snapshot: None,
     };
     let stats = render_job(scene, options, &mut state, control)?;
-    Ok((state.film(), stats))
+    Ok((state.into_film(), stats))
 }
 
 /// Renders what `state` still lacks, tile by tile over a rayon pool, until it is complete or
@@ -220,7 +90,7 @@ pub fn render(
 pub fn render_job(
     scene: &Scene,
     options: &RenderOptions,
-    state: &mut Progress,
+    state: &mut JobState,
     mut control: Control,
 ) -> Result<RenderStats, rayon::ThreadPoolBuildError> {
     let start = Instant::now();
@@ -232,22 +102,7 @@ pub fn render_job(
         .as_ref()
         .map_or_else(rayon::current_num_threads, |p| p.current_num_threads());
     let tiles = state.job.region.tiles(state.tile);
-    let todo: Vec<(usize, PixelRect, SampleRange)> = tiles
-        .iter()
-        .enumerate()
-        .filter(|(i, _)| state.done[*i] < state.job.samples.len())
-        .map(|(i, t)| {
-            let from = state.job.samples.start + state.done[i];
-            (
-                i,
-                *t,
-                SampleRange {
-                    start: from,
-                    end: state.job.samples.end,
-                },
-            )
-        })
-        .collect();
+    let todo = state.unfinished_tiles();
     let (sender, receiver) = std::sync::mpsc::channel::<Vec<(usize, TileResult)>>();
     let (stop, on_samples) = (control.stop, control.on_samples);
     let mut samples = 0u64;
@@ -260,7 +115,7 @@ pub fn render_job(
                     if stop.load(Ordering::Relaxed) {
                         return;
                     }
-                    let result = render_tile_samples(scene, tile, *range);
+                    let result = render_tile(scene, tile, *range);
                     on_samples(tile.area() * u64::from(range.len()));
                     batch.push(*i, result);
                 },
@@ -343,134 +198,22 @@ pub struct TileResult {
     pub rays: u64,
 }
 
-/// Renders all the scene's samples of one tile.
-pub fn render_tile(scene: &Scene, tile: &PixelRect) -> TileResult {
-    let all = SampleRange {
-        start: 0,
-        end: scene.settings.samples_per_pixel,
-    };
-    render_tile_samples(scene, tile, all)
-}
-
 /// Renders the samples `range` of every pixel of one tile.
-pub fn render_tile_samples(scene: &Scene, tile: &PixelRect, range: SampleRange) -> TileResult {
+pub fn render_tile(scene: &Scene, tile: &PixelRect, range: SampleRange) -> TileResult {
+    let mut pixels = PixelEvaluator::for_tile(scene, tile);
     let mut sums = Vec::with_capacity(tile.area() as usize);
     let mut rays = 0u64;
-    let mut stack = scene.new_stack();
-    let path = scene.settings.shading == Shading::Path && scene.settings.max_depth > 0;
-    // Camera rays of one tile can reach only a few spheres: path tracing tests those alone.
-    let primary = path.then(|| scene.camera_candidates(tile)).flatten();
     for y in tile.y0..tile.y0 + tile.height {
         for x in tile.x0..tile.x0 + tile.width {
-            let seed = PixelSeed::new(scene.settings.seed, x, y);
             let mut acc = [0u64; 3];
-            let mut add = |c: Color, r: u32| {
+            pixels.evaluate(x, y, range, |c: Color, r: u32| {
                 acc[0] += to_fixed(c.x);
                 acc[1] += to_fixed(c.y);
                 acc[2] += to_fixed(c.z);
                 rays += u64::from(r);
-            };
-            if path {
-                trace_pixel_paths(scene, x, y, seed, range, primary.as_ref(), &mut stack, add);
-            } else {
-                for sample in range.start..range.end {
-                    let (c, r) = trace_sample(scene, x, y, seed.sample(sample), &mut stack);
-                    add(c, r);
-                }
-            }
+            });
             sums.push(acc);
         }
     }
     TileResult { sums, rays }
-}
-
-/// Path traces samples `range` of pixel `(x, y)`, handing each one's radiance and ray count
-/// to `add` in sample order. Software pipelining: the next sample's camera ray is made
-/// before this sample's path is traced. It depends on nothing the path computes and has no
-/// branch of its own, so the processor works it out while the path waits on its long chains
-/// of arithmetic, and no mispredicted branch of the path can undo it. It comes after this
-/// sample's camera hit, not before: made first, it reached the head of the reorder window
-/// before its own chain was done and held up what followed (measured 2–4% slower). Each
-/// sample's own arithmetic is exactly `trace_sample`'s.
-#[allow(clippy::too_many_arguments)]
-#[inline(always)]
-fn trace_pixel_paths(
-    scene: &Scene,
-    x: u32,
-    y: u32,
-    seed: PixelSeed,
-    range: SampleRange,
-    primary: Option<&Candidates>,
-    stack: &mut TraversalStack,
-    mut add: impl FnMut(Color, u32),
-) {
-    if range.start >= range.end {
-        return;
-    }
-    let mut next = camera_sample(scene, x, y, seed.sample(range.start));
-    for sample in range.start..range.end {
-        let (ray, mut rng) = next.clone();
-        let hit = integrator::camera_hit(scene, &ray, primary, stack);
-        if sample + 1 < range.end {
-            next = camera_sample(scene, x, y, seed.sample(sample + 1));
-        }
-        let r = integrator::path_trace_from(scene, ray, hit, &mut rng, stack);
-        add(r.color, r.rays);
-    }
-}
-
-/// The camera ray of one sample of pixel `(x, y)`, drawn with the sample's generator `rng`,
-/// and the generator after those draws.
-#[inline(always)]
-fn camera_sample(scene: &Scene, x: u32, y: u32, mut rng: Sampler) -> (Ray, Sampler) {
-    let (u, v) = film_coordinates(scene, x, y, &mut rng);
-    (scene.camera.ray(u, v, &mut rng), rng)
-}
-
-/// One camera sample of pixel `(x, y)` (top row is `y = 0`): its radiance and ray count,
-/// traced on its own through the hierarchy. Everything random in it is drawn from the
-/// sample's own generator.
-pub fn sample_pixel(
-    scene: &Scene,
-    x: u32,
-    y: u32,
-    sample: u32,
-    stack: &mut TraversalStack,
-) -> (Color, u32) {
-    let rng = Sampler::for_sample(scene.settings.seed, x, y, sample);
-    trace_sample(scene, x, y, rng, stack)
-}
-
-/// One camera sample of pixel `(x, y)` drawn with the sample's generator `rng`, traced
-/// through the hierarchy.
-#[inline]
-fn trace_sample(
-    scene: &Scene,
-    x: u32,
-    y: u32,
-    mut rng: Sampler,
-    stack: &mut TraversalStack,
-) -> (Color, u32) {
-    if scene.settings.shading == Shading::Uv {
-        let (u, v) = film_coordinates(scene, x, y, &mut rng);
-        return (Color::new(u, v, 0.25), 0);
-    }
-    let (ray, mut rng) = camera_sample(scene, x, y, rng);
-    let r = integrator::radiance(scene, ray, &mut rng, stack);
-    (r.color, r.rays)
-}
-
-/// Where one sample of pixel `(x, y)` falls on the film, in the book's coordinates, drawing
-/// its jitter from `rng`.
-#[inline]
-fn film_coordinates(scene: &Scene, x: u32, y: u32, rng: &mut Sampler) -> (f32, f32) {
-    let s = &scene.settings;
-    let (du, dv) = if s.jitter {
-        (rng.uniform(), rng.uniform())
-    } else {
-        (0.0, 0.0)
-    };
-    // The book's mapping, v counted up from the bottom row.
-    let j = s.height - 1 - y;
-    scene.film_point(x as f32 + du, j as f32 + dv)
 }

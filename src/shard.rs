@@ -2,8 +2,8 @@
 //! system's environment), explicit sample ranges, and the job they make.
 
 use crate::error::{Error, Result};
+use crate::job::{Job, SampleRange};
 use crate::math::PixelRect;
-use crate::render::{Job, SampleRange};
 use crate::scene::Scene;
 
 /// How shards divide a render.

@@ -82,13 +82,16 @@ fn cropped_regions_equal_the_same_pixels_of_the_whole_image() {
     }
 }
 
-/// The renderer traces paths two at a time and tests camera rays against the few spheres
-/// picked for their tile (`Scene::camera_candidates`). Tracing each sample alone through the
-/// whole hierarchy, the simple reference, must give the very same sums and ray counts.
+/// The renderer tests a tile's camera rays against the few spheres picked for it
+/// (`integrator::tile_candidates`) and makes each sample's camera ray while the one before is
+/// traced. Tracing each sample alone (a range of one) through the whole hierarchy, the simple
+/// reference, must give the very same sums and ray counts.
 #[test]
 fn fast_tile_tracer_equals_tracing_each_sample_alone() {
     use tessera::film::to_fixed;
-    use tessera::render::{SampleRange, render_tile_samples, sample_pixel};
+    use tessera::integrator::{PixelEvaluator, tile_candidates};
+    use tessera::job::SampleRange;
+    use tessera::render::render_tile;
     let scene = load(
         &scene_path("cover.toml"),
         Overrides {
@@ -113,21 +116,26 @@ fn fast_tile_tracer_equals_tracing_each_sample_alone() {
         rect(37, 101, 9, 13),
         rect(0, 100, 300, 8),
     ];
-    let mut stack = scene.new_stack();
+    let mut alone = PixelEvaluator::with_candidates(&scene, None);
     let mut listed = 0;
     for tile in &tiles {
-        listed += usize::from(scene.camera_candidates(tile).is_some());
-        let fast = render_tile_samples(&scene, tile, range);
+        listed += usize::from(tile_candidates(&scene, tile).is_some());
+        let fast = render_tile(&scene, tile, range);
         let mut rays = 0u64;
         for (i, y) in (tile.y0..tile.y0 + tile.height).enumerate() {
             for (j, x) in (tile.x0..tile.x0 + tile.width).enumerate() {
                 let mut sum = [0u64; 3];
-                for sample in range.start..range.end {
-                    let (c, r) = sample_pixel(&scene, x, y, sample, &mut stack);
-                    sum[0] += to_fixed(c.x);
-                    sum[1] += to_fixed(c.y);
-                    sum[2] += to_fixed(c.z);
-                    rays += u64::from(r);
+                for start in range.start..range.end {
+                    let one = SampleRange {
+                        start,
+                        end: start + 1,
+                    };
+                    alone.evaluate(x, y, one, |c, r| {
+                        sum[0] += to_fixed(c.x);
+                        sum[1] += to_fixed(c.y);
+                        sum[2] += to_fixed(c.z);
+                        rays += u64::from(r);
+                    });
                 }
                 let pixel = i * tile.width as usize + j;
                 assert_eq!(fast.sums[pixel], sum, "pixel ({x}, {y}) of {tile:?}");
@@ -136,5 +144,5 @@ fn fast_tile_tracer_equals_tracing_each_sample_alone() {
         assert_eq!(fast.rays, rays, "{tile:?}");
     }
     assert!(listed >= 4, "only {listed} tiles had candidate lists");
-    assert!(scene.camera_candidates(&tiles[5]).is_none());
+    assert!(tile_candidates(&scene, &tiles[5]).is_none());
 }

@@ -3,9 +3,11 @@
 //! little endian), and a checksum (u64) of everything before it. Reading checks every size
 //! the header claims before allocating anything of that size.
 
-use super::{Header, Part, part_error};
+use super::{Part, RenderId, VERSION, part_error};
 use crate::error::{Error, Result};
+use crate::job::JobState;
 use crate::sampling::mix64;
+use serde::Serialize;
 use std::io::{BufReader, Read};
 use std::path::{Path, PathBuf};
 
@@ -19,10 +21,10 @@ const PIXEL: u64 = 24;
 /// Pixels read at a time when a part's sums are streamed.
 const CHUNK_PIXELS: usize = 1 << 14;
 
-impl Header {
+impl Part {
     /// The length in bytes of a file with this header, once it is known to be consistent.
     fn file_len(&self, header_len: u64) -> u64 {
-        PREAMBLE + header_len + self.region().area() * PIXEL + CHECKSUM
+        PREAMBLE + header_len + self.state.job.region.area() * PIXEL + CHECKSUM
     }
 }
 
@@ -70,7 +72,8 @@ impl Checksum {
 /// of that size is allocated, so a small crafted file cannot make a reader ask for gigabytes.
 pub struct PartReader<R> {
     path: PathBuf,
-    header: Header,
+    /// The header: the part without its sums.
+    header: Part,
     reader: R,
     checksum: Checksum,
 }
@@ -111,11 +114,11 @@ impl<R: Read> PartReader<R> {
         if read_up_to(&mut reader, &mut text, path)? < text.len() {
             return fail(format!("is truncated ({len} bytes)"));
         }
-        let header: Header = match serde_json::from_slice(&text) {
+        let header: Part = match serde_json::from_slice(&text) {
             Ok(h) => h,
             Err(e) => return fail(format!("has a corrupt header: {e}")),
         };
-        header.check(path)?;
+        header.check_claims(path)?;
         let expected = header.file_len(header_len);
         if len != expected {
             return fail(format!(
@@ -133,19 +136,20 @@ impl<R: Read> PartReader<R> {
         })
     }
 
-    pub fn header(&self) -> &Header {
+    /// The part as its header describes it, without its sums.
+    pub fn header(&self) -> &Part {
         &self.header
     }
 
     /// The header, the sums left unread.
-    pub fn into_header(self) -> Header {
+    pub fn into_header(self) -> Part {
         self.header
     }
 
     /// Reads the sums, row-major over the region, handing them to `each` a chunk at a time,
     /// then checks the checksum. What `each` was given is sound only if this returns `Ok`.
     pub fn read_sums(mut self, mut each: impl FnMut(&[[u64; 3]])) -> Result<()> {
-        let mut left = self.header.region().area();
+        let mut left = self.header.state.job.region.area();
         let mut bytes = vec![0u8; CHUNK_PIXELS.min(left as usize) * PIXEL as usize];
         let mut sums = Vec::with_capacity(CHUNK_PIXELS.min(left as usize));
         while left > 0 {
@@ -174,12 +178,13 @@ impl<R: Read> PartReader<R> {
         Ok(())
     }
 
-    /// The header and all the sums.
+    /// The whole part, sums and all.
     pub fn read_part(self) -> Result<Part> {
-        let header = self.header.clone();
-        let mut sums = Vec::with_capacity(header.region().area() as usize);
+        let mut part = self.header.clone();
+        let mut sums = Vec::with_capacity(part.state.job.region.area() as usize);
         self.read_sums(|chunk| sums.extend_from_slice(chunk))?;
-        Ok(Part { header, sums })
+        part.state.sums = sums;
+        Ok(part)
     }
 
     fn read_exact(&mut self, buf: &mut [u8]) -> Result<()> {
@@ -212,22 +217,47 @@ fn read_up_to(reader: &mut impl Read, buf: &mut [u8], path: &Path) -> Result<usi
     Ok(filled)
 }
 
+/// The JSON header as written: a `Part` without its sums, borrowed.
+#[derive(Serialize)]
+struct HeaderOut<'a> {
+    version: u32,
+    render: &'a RenderId,
+    state: &'a JobState,
+}
+
+/// The bytes of a part file holding `state` of the render `render`.
+pub fn encode(render: &RenderId, state: &JobState) -> Vec<u8> {
+    let header = HeaderOut {
+        version: VERSION,
+        render,
+        state,
+    };
+    let header = serde_json::to_vec(&header).expect("a header serialises");
+    let mut out = Vec::with_capacity(
+        PREAMBLE as usize + header.len() + state.sums.len() * PIXEL as usize + CHECKSUM as usize,
+    );
+    out.extend_from_slice(MAGIC);
+    out.extend_from_slice(&(header.len() as u64).to_le_bytes());
+    out.extend_from_slice(&header);
+    for px in &state.sums {
+        for c in px {
+            out.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    let mut sum = Checksum::new(out.len() as u64);
+    sum.update(&out);
+    out.extend_from_slice(&sum.finish().to_le_bytes());
+    out
+}
+
+/// Writes `state` of the render `render` to `path` as a part file, atomically.
+pub fn save(path: &Path, render: &RenderId, state: &JobState) -> Result<()> {
+    crate::film::write_atomically(path, &encode(render, state))
+}
+
 impl Part {
     pub fn to_bytes(&self) -> Vec<u8> {
-        let header = serde_json::to_vec(&self.header).expect("header serialises");
-        let mut out = Vec::with_capacity(16 + 8 + header.len() + self.sums.len() * 24 + 8);
-        out.extend_from_slice(MAGIC);
-        out.extend_from_slice(&(header.len() as u64).to_le_bytes());
-        out.extend_from_slice(&header);
-        for px in &self.sums {
-            for c in px {
-                out.extend_from_slice(&c.to_le_bytes());
-            }
-        }
-        let mut sum = Checksum::new(out.len() as u64);
-        sum.update(&out);
-        out.extend_from_slice(&sum.finish().to_le_bytes());
-        out
+        encode(&self.render, &self.state)
     }
 
     /// Parses and checks a part; `path` names it in errors.
@@ -241,7 +271,7 @@ impl Part {
 
     /// Writes the part atomically.
     pub fn save(&self, path: &Path) -> Result<()> {
-        crate::film::write_atomically(path, &self.to_bytes())
+        save(path, &self.render, &self.state)
     }
 }
 

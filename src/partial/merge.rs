@@ -1,11 +1,10 @@
 //! Adding complete parts of one render into the image they cover, after checking, from
 //! their headers alone, that they make exactly that image.
 
-use super::{Header, Part, PartReader, part_error, unrect};
+use super::{Part, PartReader, part_error};
 use crate::error::{Error, Result};
 use crate::film::{Film, add_run, add_sums};
 use crate::math::PixelRect;
-use crate::render::{percent, samples_done};
 use std::path::{Path, PathBuf};
 
 /// What a set of parts makes once merged: the window, its samples per pixel, its gamma.
@@ -18,65 +17,48 @@ struct Whole {
 /// Checks, from their headers alone, that parts add up to one whole render: they share
 /// scene and settings, are finished, overlap nowhere (no pixel gets a sample index twice) and
 /// cover the whole window over sample indices `0..N` for one `N`.
-fn check_set(parts: &[(&Path, &Header)]) -> Result<Whole> {
-    let Some(&(first_path, base)) = parts.first() else {
+fn check_set(parts: &[(&Path, &Part)]) -> Result<Whole> {
+    let Some(&(first_path, first)) = parts.first() else {
         return Err(Error::Merge("no partial renders given".to_owned()));
     };
-    for &(path, h) in parts {
-        let same = h.fingerprint == base.fingerprint
-            && h.seed == base.seed
-            && (h.width, h.height, h.max_depth) == (base.width, base.height, base.max_depth)
-            && h.gamma.to_bits() == base.gamma.to_bits()
-            && h.window == base.window
-            && h.target == base.target;
-        if !same {
-            let what = if h.seed != base.seed {
-                format!("seed {} (vs {})", h.seed, base.seed)
-            } else if h.target != base.target {
-                format!(
-                    "sample count: an image of {} spp (vs {})",
-                    h.target, base.target
-                )
-            } else if (h.width, h.height) != (base.width, base.height) {
-                format!(
-                    "size {}x{} (vs {}x{})",
-                    h.width, h.height, base.width, base.height
-                )
-            } else {
-                format!(
-                    "scene or settings (fingerprint {} vs {})",
-                    h.fingerprint, base.fingerprint
-                )
-            };
+    let base = &first.render;
+    for &(path, part) in parts {
+        let r = &part.render;
+        let mismatch = match r.mismatch(base) {
+            None if r.target != base.target => Some((
+                "sample count",
+                format!("an image of {} spp", r.target),
+                base.target.to_string(),
+            )),
+            other => other,
+        };
+        if let Some((what, theirs, ours)) = mismatch {
             return Err(part_error(
                 path,
                 format!(
-                    "belongs to another render than {}: different {what}",
+                    "belongs to another render than {}: different {what} ({theirs} vs {ours})",
                     first_path.display()
                 ),
             ));
         }
-        if !h.is_complete() {
-            let (region, len) = (h.region(), h.samples().len());
-            let done = samples_done(region, h.tile, &h.done, len);
-            let total = region.area() * u64::from(len);
+        if !part.is_complete() {
             return Err(part_error(
                 path,
                 format!(
                     "is an unfinished render ({:.1}% done); finish it by running its render command again",
-                    percent(done, total)
+                    part.state.percent_done()
                 ),
             ));
         }
     }
     for (i, &(path_a, a)) in parts.iter().enumerate() {
         for &(path_b, b) in &parts[i + 1..] {
-            let (ra, rb) = (a.region(), b.region());
+            let (ra, rb) = (a.state.job.region, b.state.job.region);
             let pixels_meet = ra.x0 < rb.x0 + rb.width
                 && rb.x0 < ra.x0 + ra.width
                 && ra.y0 < rb.y0 + rb.height
                 && rb.y0 < ra.y0 + ra.height;
-            let (sa, sb) = (a.samples(), b.samples());
+            let (sa, sb) = (a.state.job.samples, b.state.job.samples);
             let samples_meet = sa.start < sb.end && sb.start < sa.end;
             if pixels_meet && samples_meet {
                 return Err(part_error(
@@ -91,27 +73,30 @@ fn check_set(parts: &[(&Path, &Header)]) -> Result<Whole> {
             }
         }
     }
-    let window = unrect(base.window);
+    let window = base.window;
     let total = base.target;
-    if let Some(&(path, p)) = parts.iter().find(|(_, p)| p.samples().end > total) {
+    if let Some(&(path, p)) = parts.iter().find(|(_, p)| p.state.job.samples.end > total) {
         return Err(part_error(
             path,
             format!(
                 "holds samples up to {}, past the {total} of the image",
-                p.samples().end
+                p.state.job.samples.end
             ),
         ));
     }
     let covered: u128 = parts
         .iter()
-        .map(|(_, p)| u128::from(p.region().area()) * u128::from(p.samples().len()))
+        .map(|(_, p)| {
+            let job = p.state.job;
+            u128::from(job.region.area()) * u128::from(job.samples.len())
+        })
         .sum();
     let needed = u128::from(window.area()) * u128::from(total);
     if covered != needed {
         let listing: Vec<String> = parts
             .iter()
             .map(|(path, p)| {
-                let (r, s) = (p.region(), p.samples());
+                let (r, s) = (p.state.job.region, p.state.job.samples);
                 format!(
                     "{}: pixels {}x{} at ({}, {}), samples {}..{}",
                     path.display(),
@@ -142,14 +127,12 @@ fn check_set(parts: &[(&Path, &Header)]) -> Result<Whole> {
 /// Adds complete parts of one render, already in memory, into the image they cover together
 /// (see `check_set` for what they must be). Returns the image and its gamma.
 pub fn merge(parts: &[(PathBuf, Part)]) -> Result<(Film, f32)> {
-    let headers: Vec<(&Path, &Header)> = parts
-        .iter()
-        .map(|(path, part)| (path.as_path(), &part.header))
-        .collect();
-    let whole = check_set(&headers)?;
+    let named: Vec<(&Path, &Part)> = parts.iter().map(|(p, part)| (p.as_path(), part)).collect();
+    let whole = check_set(&named)?;
     let mut film = whole.film();
     for (_, part) in parts {
-        add_sums(&mut film.sums, whole.window, &part.sums, part.region());
+        let state = &part.state;
+        add_sums(&mut film.sums, whole.window, &state.sums, state.job.region);
     }
     Ok((film, whole.gamma))
 }
@@ -161,16 +144,16 @@ pub fn merge_files(paths: &[PathBuf]) -> Result<(Film, f32)> {
     let headers = paths
         .iter()
         .map(|path| Ok((path.as_path(), PartReader::open(path)?.into_header())))
-        .collect::<Result<Vec<(&Path, Header)>>>()?;
-    let refs: Vec<(&Path, &Header)> = headers.iter().map(|(p, h)| (*p, h)).collect();
-    let whole = check_set(&refs)?;
+        .collect::<Result<Vec<(&Path, Part)>>>()?;
+    let named: Vec<(&Path, &Part)> = headers.iter().map(|(p, h)| (*p, h)).collect();
+    let whole = check_set(&named)?;
     let mut film = whole.film();
     for (path, header) in &headers {
         let reader = PartReader::open(path)?;
         if reader.header() != header {
             return Err(part_error(path, "changed while being merged".to_owned()));
         }
-        let region = header.region();
+        let region = header.state.job.region;
         let mut at = 0;
         reader.read_sums(|run| {
             add_run(&mut film.sums, whole.window, region, at, run);

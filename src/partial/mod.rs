@@ -1,29 +1,28 @@
-//! Partial renders on disk — shards and checkpoints — and merging them: a self-describing
-//! binary file of exact fixed-point sums, so merged parts give the bytes of a single render.
-//! Sums are integers, so adding parts in any order gives exactly the sums of one
-//! uninterrupted render. `file` owns the byte layout and reading it safely; `merge` owns
-//! adding parts up.
+//! Partial renders on disk — shards and checkpoints — and merging them. A part is the render
+//! it belongs to (`RenderId`) and its job's state (`JobState`), sums included; sums are
+//! integers, so adding parts in any order gives exactly the sums of one uninterrupted render.
+//! `file` owns the byte layout and reading it safely; `merge` owns adding parts up.
 
 mod file;
 mod merge;
 
-pub use file::PartReader;
+pub use file::{PartReader, save};
 pub use merge::{merge, merge_files};
 
 use crate::error::{Error, Result};
+use crate::job::{Job, JobState};
 use crate::math::PixelRect;
-use crate::render::{Job, Progress, SampleRange};
 use crate::scene::Scene;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
-const VERSION: u32 = 1;
+/// The version of the file layout this build writes and reads.
+const VERSION: u32 = 2;
 
-/// What a part is a part of, and which part it is.
+/// Which render a part belongs to: parts merge, and checkpoints resume, only within one.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct Header {
-    pub version: u32,
+pub struct RenderId {
     /// `Scene::fingerprint` in hex: scene contents and every setting but spp and crop.
     pub fingerprint: String,
     pub seed: u64,
@@ -31,42 +30,85 @@ pub struct Header {
     pub height: u32,
     pub max_depth: u32,
     pub gamma: f32,
-    /// The scene's window `[x, y, width, height]`: what a merge must cover.
-    pub window: [u32; 4],
-    /// The pixels this part holds, `[x, y, width, height]`.
-    pub region: [u32; 4],
-    /// The sample indices this part is for, `[start, end)`.
-    pub samples: [u32; 2],
+    /// The scene's window: what a merge must cover.
+    pub window: PixelRect,
     /// Samples per pixel of the finished image: a merge must cover sample indices
     /// `0..target` of every pixel of `window`.
     pub target: u32,
-    /// Tile edge; `done` has one entry per tile of `region`.
-    pub tile: u32,
-    /// Samples finished per tile, from `samples[0]`; all equal to the range length once the
-    /// part is complete.
-    pub done: Vec<u32>,
 }
 
-impl Header {
-    pub fn region(&self) -> PixelRect {
-        unrect(self.region)
+impl RenderId {
+    /// The render of `scene` with `target` samples per pixel.
+    pub fn of(scene: &Scene, target: u32) -> Self {
+        let s = &scene.settings;
+        RenderId {
+            fingerprint: format!("{:016x}", scene.fingerprint()),
+            seed: s.seed,
+            width: s.width,
+            height: s.height,
+            max_depth: s.max_depth,
+            gamma: s.gamma,
+            window: s.window,
+            target,
+        }
     }
 
-    pub fn samples(&self) -> SampleRange {
-        SampleRange {
-            start: self.samples[0],
-            end: self.samples[1],
+    /// The first thing, by name, in which `self` is another render than `other` (the
+    /// target sample count aside): the setting, `self`'s value and `other`'s.
+    fn mismatch(&self, other: &RenderId) -> Option<(&'static str, String, String)> {
+        let pair =
+            |what, a: &dyn ToString, b: &dyn ToString| Some((what, a.to_string(), b.to_string()));
+        let size = |r: &RenderId| format!("{}x{}", r.width, r.height);
+        let window = |r: &RenderId| {
+            let w = r.window;
+            format!("[{}, {}, {}, {}]", w.x0, w.y0, w.width, w.height)
+        };
+        if self.seed != other.seed {
+            pair("seed", &self.seed, &other.seed)
+        } else if (self.width, self.height) != (other.width, other.height) {
+            pair("image size", &size(self), &size(other))
+        } else if self.max_depth != other.max_depth {
+            pair("depth", &self.max_depth, &other.max_depth)
+        } else if self.window != other.window {
+            pair("crop window", &window(self), &window(other))
+        } else if self.fingerprint != other.fingerprint
+            || self.gamma.to_bits() != other.gamma.to_bits()
+        {
+            pair("scene or settings", &self.fingerprint, &other.fingerprint)
+        } else {
+            None
+        }
+    }
+}
+
+/// A partial render: the render it belongs to and how far its job has come. Its JSON header
+/// is this struct; the state's sums follow it as the file's body.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Part {
+    pub version: u32,
+    pub render: RenderId,
+    pub state: JobState,
+}
+
+impl Part {
+    /// The part holding `state` of `scene`, one piece of an image of `target` samples per
+    /// pixel.
+    pub fn of(scene: &Scene, state: JobState, target: u32) -> Part {
+        Part {
+            version: VERSION,
+            render: RenderId::of(scene, target),
+            state,
         }
     }
 
     pub fn is_complete(&self) -> bool {
-        let len = self.samples().len();
-        self.done.iter().all(|&d| d >= len)
+        self.state.is_complete()
     }
 
     /// Checks the header's claims against each other, so nothing sized by them is
     /// allocated before they are known to be sane.
-    fn check(&self, path: &Path) -> Result<()> {
+    fn check_claims(&self, path: &Path) -> Result<()> {
         let fail = |message: String| Err(part_error(path, message));
         if self.version != VERSION {
             return fail(format!(
@@ -74,140 +116,78 @@ impl Header {
                 self.version
             ));
         }
-        let region = self.region();
-        let window = unrect(self.window);
-        let image = PixelRect::full(self.width, self.height);
+        let (r, job) = (&self.render, &self.state.job);
+        let image = PixelRect::full(r.width, r.height);
         if image.area() > crate::scene::MAX_PIXELS
-            || !image.contains(&window)
-            || !window.contains(&region)
-            || region.area() == 0
+            || !image.contains(&r.window)
+            || !r.window.contains(&job.region)
+            || job.region.area() == 0
         {
             return fail(format!(
                 "has an impossible region {:?} for window {:?} of a {}x{} image",
-                self.region, self.window, self.width, self.height
+                job.region, r.window, r.width, r.height
             ));
         }
-        let len = self.samples().len();
-        if self.samples[1] < self.samples[0]
-            || self.tile == 0
-            || self.done.len() as u64 != region.tile_count(self.tile)
-            || self.done.iter().any(|&d| d > len)
+        let s = &self.state;
+        let len = job.samples.len();
+        if job.samples.end < job.samples.start
+            || s.tile == 0
+            || s.done.len() as u64 != job.region.tile_count(s.tile)
+            || s.done.iter().any(|&d| d > len)
         {
             return fail("has an inconsistent header (samples, tiles or progress)".to_owned());
         }
         Ok(())
     }
-}
-
-/// A partial render: its header and its sums.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Part {
-    pub header: Header,
-    pub sums: Vec<[u64; 3]>,
-}
-
-fn rect(r: PixelRect) -> [u32; 4] {
-    [r.x0, r.y0, r.width, r.height]
-}
-
-fn unrect(r: [u32; 4]) -> PixelRect {
-    PixelRect {
-        x0: r[0],
-        y0: r[1],
-        width: r[2],
-        height: r[3],
-    }
-}
-
-impl Part {
-    /// The part holding `progress` of `scene`, one piece of an image of `target` samples
-    /// per pixel.
-    pub fn from_progress(scene: &Scene, progress: &Progress, target: u32) -> Part {
-        let s = &scene.settings;
-        Part {
-            header: Header {
-                version: VERSION,
-                fingerprint: format!("{:016x}", scene.fingerprint()),
-                seed: s.seed,
-                width: s.width,
-                height: s.height,
-                max_depth: s.max_depth,
-                gamma: s.gamma,
-                window: rect(s.window),
-                region: rect(progress.job.region),
-                samples: [progress.job.samples.start, progress.job.samples.end],
-                target,
-                tile: progress.tile,
-                done: progress.done.clone(),
-            },
-            sums: progress.sums.clone(),
-        }
-    }
-
-    pub fn region(&self) -> PixelRect {
-        self.header.region()
-    }
-
-    pub fn samples(&self) -> SampleRange {
-        self.header.samples()
-    }
-
-    pub fn is_complete(&self) -> bool {
-        self.header.is_complete()
-    }
-
-    /// The render state this part records, to resume or extend it.
-    pub fn progress(&self) -> Progress {
-        Progress {
-            job: Job {
-                region: self.region(),
-                samples: self.samples(),
-            },
-            tile: self.header.tile,
-            done: self.header.done.clone(),
-            sums: self.sums.clone(),
-        }
-    }
 
     /// Refuses a part made from another scene or other settings than `scene`'s.
     pub fn check_scene(&self, scene: &Scene, path: &Path) -> Result<()> {
-        let expected = &scene.settings;
-        let fingerprint = format!("{:016x}", scene.fingerprint());
-        let h = &self.header;
-        let mismatch = |what: &str, theirs: String, ours: String| {
-            Err(part_error(
+        let ours = RenderId::of(scene, self.render.target);
+        match self.render.mismatch(&ours) {
+            Some((what, theirs, ours)) => Err(part_error(
                 path,
                 format!("was rendered with a different {what} ({theirs}, this render has {ours})"),
-            ))
+            )),
+            None => Ok(()),
+        }
+    }
+
+    /// The state to go on rendering `job` of `scene` from, this part being its checkpoint:
+    /// the same scene and settings, the same pixels from the same first sample, and no more
+    /// samples than `job` asks for (which may be more than the part has: progressive
+    /// rendering).
+    pub fn resume(self, scene: &Scene, job: Job, path: &Path) -> Result<JobState> {
+        self.check_scene(scene, path)?;
+        let mut state = self.state;
+        let had = state.job;
+        let describe = |j: Job| {
+            let r = j.region;
+            format!(
+                "pixels {}x{} at ({}, {}) from sample {}",
+                r.width, r.height, r.x0, r.y0, j.samples.start
+            )
         };
-        if h.fingerprint != fingerprint {
-            if (h.width, h.height) != (expected.width, expected.height) {
-                return mismatch(
-                    "image size",
-                    format!("{}x{}", h.width, h.height),
-                    format!("{}x{}", expected.width, expected.height),
-                );
-            }
-            if h.seed != expected.seed {
-                return mismatch("seed", h.seed.to_string(), expected.seed.to_string());
-            }
-            if h.max_depth != expected.max_depth {
-                return mismatch(
-                    "depth",
-                    h.max_depth.to_string(),
-                    expected.max_depth.to_string(),
-                );
-            }
-            return mismatch("scene", h.fingerprint.clone(), fingerprint);
+        if had.region != job.region || had.samples.start != job.samples.start {
+            return Err(part_error(
+                path,
+                format!(
+                    "the checkpoint holds {}, but this render is {}; use another checkpoint file",
+                    describe(had),
+                    describe(job)
+                ),
+            ));
         }
-        if h.window != rect(expected.window) {
-            return mismatch(
-                "crop window",
-                format!("{:?}", h.window),
-                format!("{:?}", rect(expected.window)),
-            );
+        if had.samples.end > job.samples.end {
+            return Err(part_error(
+                path,
+                format!(
+                    "the checkpoint already goes to sample {}, past the {} this render asks for",
+                    had.samples.end, job.samples.end
+                ),
+            ));
         }
-        Ok(())
+        state.extend_to(job.samples.end);
+        Ok(state)
     }
 }
 
@@ -221,6 +201,7 @@ fn part_error(path: &Path, message: String) -> Error {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
+    use crate::job::SampleRange;
 
     /// A complete part of an 8×6 image of 9 samples per pixel: `region` over `samples`.
     pub(crate) fn part(region: PixelRect, samples: [u32; 2]) -> Part {
@@ -231,33 +212,22 @@ pub(crate) mod tests {
                 end: samples[1],
             },
         };
-        let mut progress = Progress::new(job, 4);
-        progress
-            .done
-            .iter_mut()
-            .for_each(|d| *d = job.samples.len());
-        progress
-            .sums
-            .iter_mut()
-            .enumerate()
-            .for_each(|(i, s)| *s = [i as u64, 1, 2]);
+        let mut state = JobState::new(job, 4);
+        state.done.iter_mut().for_each(|d| *d = job.samples.len());
+        (state.sums.iter_mut().enumerate()).for_each(|(i, s)| *s = [i as u64, 1, 2]);
         Part {
-            header: Header {
-                version: VERSION,
+            version: VERSION,
+            render: RenderId {
                 fingerprint: "00".to_owned(),
                 seed: 1,
                 width: 8,
                 height: 6,
                 max_depth: 5,
                 gamma: 2.0,
-                window: [0, 0, 8, 6],
-                region: rect(region),
-                samples,
+                window: PixelRect::full(8, 6),
                 target: 9,
-                tile: 4,
-                done: progress.done.clone(),
             },
-            sums: progress.sums,
+            state,
         }
     }
 }

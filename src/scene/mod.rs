@@ -15,7 +15,7 @@ use crate::camera::{Camera, CameraSettings};
 use crate::error::{Error, Location, Result};
 use crate::geometry::{Hit, PrimitiveId, Sphere};
 use crate::material::Material;
-use crate::math::{Interval, PixelRect, Vec3};
+use crate::math::{Interval, Vec3};
 use crate::ray::Ray;
 use std::path::Path;
 
@@ -107,34 +107,15 @@ impl Scene {
             .map(|(t, id)| self.surface(ray, t, id))
     }
 
-    /// The book's film coordinates `(u, v)` of the point `i` pixels from the left and `j`
-    /// rows up from the bottom row: `u = i / (width - 1)`, `v = j / (height - 1)`.
-    #[inline]
-    pub fn film_point(&self, i: f32, j: f32) -> (f32, f32) {
-        let s = &self.settings;
-        // Multiplying by the reciprocal keeps the division (a constant of the scene) off
-        // each sample's chain of dependent arithmetic.
-        (
-            i * (1.0 / (s.width.max(2) - 1) as f32),
-            j * (1.0 / (s.height.max(2) - 1) as f32),
-        )
-    }
-
-    /// The spheres, giants included, that any camera ray through film rectangle `rect`
-    /// might hit, when they are few enough to test without the hierarchy.
-    pub fn camera_candidates(&self, rect: &PixelRect) -> Option<Candidates> {
-        // Jitter included, pixel (x, y) covers [x, x + 1) × [j, j + 1) of `film_point`, with
-        // j = height - 1 - y counted from the bottom row.
-        let height = self.settings.height;
-        let below = height.saturating_sub(rect.y0 + rect.height);
-        let (u0, v0) = self.film_point(rect.x0 as f32, below as f32);
-        let (u1, v1) = self.film_point((rect.x0 + rect.width) as f32, (height - rect.y0) as f32);
-        let bundle = self.camera.bundle((u0, u1), (v0, v1));
-        self.bvh.candidates(
-            &self.spheres,
-            |min, max| bundle.may_hit_box(min, max),
-            |sphere| bundle.may_hit(sphere.center, sphere.radius),
-        )
+    /// The spheres, giants included, that `keep` accepts, when they are few enough to test
+    /// without the hierarchy (see `Bvh::candidates`; `keep_box` must accept every box
+    /// holding a sphere `keep` would).
+    pub fn candidates(
+        &self,
+        keep_box: impl Fn(Vec3, Vec3) -> bool,
+        keep: impl Fn(&Sphere) -> bool,
+    ) -> Option<Candidates> {
+        self.bvh.candidates(&self.spheres, keep_box, keep)
     }
 
     /// The closest hit along a camera ray among the `candidates` picked for it: the same as

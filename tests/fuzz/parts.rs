@@ -5,8 +5,10 @@ use super::harness::*;
 use super::scenes::{NUMBERS, number_spans};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
+use tessera::job::{Job, JobState, SampleRange};
+use tessera::math::PixelRect;
 use tessera::partial::Part;
-use tessera::render::{self, Job, Progress, RenderOptions, SampleRange};
+use tessera::render::{self, RenderOptions};
 use tessera::scene::{Overrides, Scene};
 use tessera::shard::{self, Shard};
 
@@ -36,18 +38,18 @@ fn seed_parts(scene: &Scene) -> Vec<Part> {
     };
     let mut parts = Vec::new();
     for job in [whole, rows, range] {
-        let mut progress = Progress::new(job, 4);
+        let mut state = JobState::new(job, 4);
         let stop = AtomicBool::new(false);
         let control = render::Control {
             stop: &stop,
             on_samples: &|_| {},
             on_snapshot: None,
         };
-        render::render_job(scene, &options, &mut progress, control).unwrap();
-        parts.push(Part::from_progress(scene, &progress, 4));
+        render::render_job(scene, &options, &mut state, control).unwrap();
+        parts.push(Part::of(scene, state, 4));
     }
     let mut unfinished = parts[0].clone();
-    unfinished.header.done[1] = 1;
+    unfinished.state.done[1] = 1;
     parts.push(unfinished);
     parts
 }
@@ -100,49 +102,60 @@ fn mutate_part(g: &mut Gen, part: &mut Part, bytes: &mut Option<Vec<u8>>) {
         }
         return;
     }
-    let h = &mut part.header;
+    let (render, state) = (&mut part.render, &mut part.state);
     match g.below(13) {
         // A coherent claim of a huge image, which only the file's length belies.
         11 | 12 => {
-            let (w, ht) = g.pick(&[
+            let (w, h) = g.pick(&[
                 (16384, 16384),
                 (65536, 4096),
                 (1, 1 << 28),
                 (1 << 14, 1 << 13),
             ]);
-            (h.width, h.height) = (w, ht);
-            h.window = [0, 0, w, ht];
-            h.region = [0, 0, w, ht];
+            (render.width, render.height) = (w, h);
+            render.window = PixelRect::full(w, h);
+            state.job.region = PixelRect::full(w, h);
             if g.chance(50) {
-                h.tile = 1;
+                state.tile = 1;
             }
         }
-        0 => h.width = n(g),
-        1 => h.height = n(g),
-        2 => h.window[g.below(4)] = n(g),
-        3 => h.region[g.below(4)] = n(g),
-        4 => h.samples[g.below(2)] = n(g),
-        5 => h.target = n(g),
-        6 => h.tile = n(g),
+        0 => render.width = n(g),
+        1 => render.height = n(g),
+        2 => *corner(&mut render.window, g.below(4)) = n(g),
+        3 => *corner(&mut state.job.region, g.below(4)) = n(g),
+        4 if g.chance(50) => state.job.samples.start = n(g),
+        4 => state.job.samples.end = n(g),
+        5 => render.target = n(g),
+        6 => state.tile = n(g),
         7 => match g.below(3) {
-            0 => h.done.clear(),
-            1 => h.done.push(n(g)),
+            0 => state.done.clear(),
+            1 => state.done.push(n(g)),
             _ => {
-                if let Some(d) = h.done.first_mut() {
+                if let Some(d) = state.done.first_mut() {
                     *d = n(g);
                 }
             }
         },
-        8 => h.version = n(g),
+        8 => part.version = n(g),
         9 => {
-            let keep = g.below(part.sums.len() + 2);
-            part.sums.resize(keep, [u64::MAX, 0, 1 << 40]);
+            let keep = g.below(state.sums.len() + 2);
+            state.sums.resize(keep, [u64::MAX, 0, 1 << 40]);
         }
         _ => {
-            for s in part.sums.iter_mut() {
+            for s in state.sums.iter_mut() {
                 *s = [u64::MAX; 3];
             }
         }
+    }
+}
+
+/// One of a rectangle's four numbers: x, y, width, height.
+fn corner(r: &mut PixelRect, i: usize) -> &mut u32 {
+    match i {
+        0 => &mut r.x0,
+        1 => &mut r.y0,
+        2 => &mut r.width,
+        _ => &mut r.height,
     }
 }
 
@@ -161,11 +174,12 @@ fn check_part_case(scene: &Scene, bytes: &[u8]) -> Result<Outcome, String> {
             };
         }
     };
-    if part.sums.len() as u64 != part.region().area() {
+    let state = &part.state;
+    if state.sums.len() as u64 != state.job.region.area() {
         return Err(format!(
             "accepted {} sums for region {:?}",
-            part.sums.len(),
-            part.region()
+            state.sums.len(),
+            state.job.region
         ));
     }
     let named = vec![(PathBuf::from("fuzz.part"), part.clone())];
@@ -174,10 +188,10 @@ fn check_part_case(scene: &Scene, bytes: &[u8]) -> Result<Outcome, String> {
     {
         return Err("merged into a film of the wrong size".to_owned());
     }
-    if part.check_scene(scene, path).is_ok() {
-        let mut progress = part.progress();
-        progress.extend_to(part.samples().end.saturating_add(1));
-        let _ = progress.percent_done();
+    let mut job = state.job;
+    job.samples.end = job.samples.end.saturating_add(1);
+    if let Ok(resumed) = part.resume(scene, job, path) {
+        let _ = (resumed.percent_done(), resumed.unfinished_tiles());
     }
     Ok(Outcome::Accepted)
 }

@@ -1,13 +1,18 @@
-//! What one camera ray brings back: the book's `ray_color`, as a bounce loop carrying
-//! throughput, plus the simpler shading modes of the book's first chapters. No threads, no I/O.
+//! What a pixel's samples bring back. `pixel` makes each camera sample (film position, lens,
+//! ray) and shades it by the scene's shading mode, the book's early stages or path tracing;
+//! this file traces a path: the book's `ray_color`, as a bounce loop carrying throughput.
+//! No threads, no I/O.
 
-use crate::bvh::{Candidates, RayHints, TraversalStack};
+mod pixel;
+
+pub use pixel::{CameraSample, PixelEvaluator, tile_candidates};
+
+use crate::bvh::{RayHints, TraversalStack};
 use crate::geometry::Hit;
-use crate::material::Material;
 use crate::math::{Color, Interval, Vec3};
 use crate::ray::Ray;
 use crate::sampling::Sampler;
-use crate::scene::{Scene, Shading};
+use crate::scene::Scene;
 
 /// Radiance along a camera ray and the number of ray segments traced to find it.
 #[derive(Clone, Copy, Debug)]
@@ -18,79 +23,10 @@ pub struct Radiance {
 
 const ANY_DISTANCE: Interval = Interval::new(0.0, f32::INFINITY);
 
-/// Radiance arriving along camera ray `ray` under the scene's shading mode. `Shading::Uv`
-/// has no rays; the renderer handles it before calling here.
-#[inline]
-pub fn radiance(
-    scene: &Scene,
-    ray: Ray,
-    rng: &mut Sampler,
-    stack: &mut TraversalStack,
-) -> Radiance {
-    match scene.settings.shading {
-        Shading::Uv | Shading::Gradient => Radiance {
-            color: scene.background.radiance(ray.dir),
-            rays: u32::from(scene.settings.shading == Shading::Gradient),
-        },
-        Shading::Flat => Radiance {
-            color: match scene.hit(&ray, ANY_DISTANCE, stack) {
-                Some(hit) => match *scene.material(&hit) {
-                    Material::Lambertian { albedo } | Material::Metal { albedo, .. } => albedo,
-                    Material::Dielectric { .. } => Color::ONE,
-                },
-                None => scene.background.radiance(ray.dir),
-            },
-            rays: 1,
-        },
-        Shading::Normals => Radiance {
-            color: match scene.hit(&ray, ANY_DISTANCE, stack) {
-                Some(hit) => 0.5 * (hit.normal + Color::ONE),
-                None => scene.background.radiance(ray.dir),
-            },
-            rays: 1,
-        },
-        Shading::Path => path_trace(scene, ray, rng, stack),
-    }
-}
-
-/// The book's recursive `ray_color` unrolled: at most `max_depth` segments, each hit
-/// multiplying the throughput by the material's attenuation, escape rays picking up the
-/// background.
-#[inline]
-pub fn path_trace(
-    scene: &Scene,
-    ray: Ray,
-    rng: &mut Sampler,
-    stack: &mut TraversalStack,
-) -> Radiance {
-    if scene.settings.max_depth == 0 {
-        return Radiance {
-            color: Color::ZERO,
-            rays: 0,
-        };
-    }
-    let hit = scene.hit(&ray, ANY_DISTANCE, stack);
-    path_trace_from(scene, ray, hit, rng, stack)
-}
-
-/// What camera ray `ray` hits first: among `primary` when given (the spheres
-/// `Scene::camera_candidates` picked for its tile, which give the same answer as the tree),
-/// else through the tree.
-#[inline(always)]
-pub fn camera_hit(
-    scene: &Scene,
-    ray: &Ray,
-    primary: Option<&Candidates>,
-    stack: &mut TraversalStack,
-) -> Option<Hit> {
-    match primary {
-        Some(candidates) => scene.hit_candidates(candidates, ray, ANY_DISTANCE),
-        None => scene.hit(ray, ANY_DISTANCE, stack),
-    }
-}
-
-/// `path_trace` after its first segment: camera ray `ray` has been traced and met `first`
-/// (`None`: it escaped). The caller checks that `max_depth` allows one segment.
+/// The radiance a path brings back, the book's recursive `ray_color` unrolled: at most
+/// `max_depth` segments, each hit multiplying the throughput by the material's attenuation,
+/// escape rays picking up the background. Its first segment, camera ray `ray`, has been traced
+/// and met `first` (`None`: it escaped); the caller checks that `max_depth` allows one segment.
 #[inline(always)]
 pub fn path_trace_from(
     scene: &Scene,

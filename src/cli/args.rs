@@ -1,0 +1,116 @@
+//! The command line as typed: clap's view of commands, flags and their values, before any of
+//! them is checked against the others (that is `settings`).
+
+use clap::{Args, Parser, Subcommand};
+use std::path::PathBuf;
+use tessera::render;
+
+pub const DEFAULT_SCENE: &str = "scenes/cover.toml";
+
+#[derive(Parser)]
+#[command(
+    name = "tessera",
+    version,
+    about = "A deterministic multicore path tracer of Ray Tracing in One Weekend"
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand)]
+pub enum Command {
+    /// Render a scene file to an image (.png, .ppm or .exr).
+    Render(RenderArgs),
+    /// Measure rendering speed: samples/s, Mrays/s and rays per sample.
+    Bench(BenchArgs),
+    /// Combine partial renders (shards, sample ranges) into one image, byte-identical to a
+    /// single render of the same scene and settings.
+    Merge {
+        /// Partial render files written by `render --shard` or `--samples`.
+        #[arg(required = true)]
+        parts: Vec<PathBuf>,
+        /// Output image (.png, .ppm or .exr).
+        #[arg(short, long)]
+        output: PathBuf,
+    },
+    /// Print the RMSE and PSNR between two images of equal size.
+    Compare { a: PathBuf, b: PathBuf },
+}
+
+#[derive(Args)]
+pub struct SceneArgs {
+    /// Scene file (TOML).
+    #[arg(default_value = DEFAULT_SCENE)]
+    pub scene: PathBuf,
+    /// Image width in pixels; the height keeps the scene's aspect ratio.
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Samples per pixel.
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Worker threads (default: one per core).
+    #[arg(long)]
+    pub threads: Option<usize>,
+}
+
+#[derive(Args)]
+pub struct RenderArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    /// Output image; its extension picks the format (default: the scene's name with .png).
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    /// Maximum ray segments per path.
+    #[arg(long)]
+    pub depth: Option<u32>,
+    /// Seed of every random number of the render.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Tile edge in pixels (scheduling only; the image does not change).
+    #[arg(long, default_value_t = render::DEFAULT_TILE)]
+    pub tile: u32,
+    /// Render only shard I of N (`I/N`, 0-based), or take I from a job system: `env`
+    /// (Slurm array: SLURM_ARRAY_TASK_ID, SLURM_ARRAY_TASK_COUNT) or `env/N` (Kubernetes
+    /// Indexed Job: JOB_COMPLETION_INDEX). Writes a partial file for `tessera merge`.
+    #[arg(long, value_name = "I/N")]
+    pub shard: Option<String>,
+    /// How shards divide the render: `samples` (each renders every pixel over a slice of
+    /// the samples; even work) or `rows` (each renders a band of rows).
+    #[arg(long, value_enum, default_value = "samples")]
+    pub split: SplitArg,
+    /// Render only sample indices A..B of every pixel; writes a partial file.
+    #[arg(long, value_name = "A..B")]
+    pub samples: Option<String>,
+    /// Save progress to this file now and then and on Ctrl-C / SIGTERM; running the same
+    /// command again resumes from it, and a larger --spp continues a finished render.
+    #[arg(long, value_name = "FILE")]
+    pub checkpoint: Option<PathBuf>,
+    /// Seconds between checkpoint saves (0: after every tile).
+    #[arg(long, default_value_t = 10.0, value_name = "SECS")]
+    pub checkpoint_every: f64,
+    /// No progress bar and no summary line.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum SplitArg {
+    Samples,
+    Rows,
+}
+
+#[derive(Args)]
+pub struct BenchArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    /// Renders per measurement; the median is reported.
+    #[arg(long, default_value_t = 3)]
+    pub repeat: u32,
+    /// Skip the thread-scaling table.
+    #[arg(long)]
+    pub no_scaling: bool,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    pub json: bool,
+}

@@ -1,0 +1,122 @@
+//! The command line: `args` is what was typed, `settings` checks it into what runs, and each
+//! command runs from its settings. Output goes through `print_out` and `note`, which never
+//! panic on a full disk or a closed pipe.
+
+mod args;
+mod bench;
+mod render;
+mod settings;
+
+use anyhow::{Context, Result};
+use args::{Cli, Command};
+use clap::Parser;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use settings::{BenchSettings, RenderSettings};
+use std::io::{IsTerminal, Write};
+use std::path::{Path, PathBuf};
+use tessera::film::Format;
+use tessera::render::RenderStats;
+
+/// Parses the command line, or prints help or a usage error and exits.
+pub fn parse() -> Command {
+    let cli = Cli::try_parse().unwrap_or_else(|e| {
+        // Written without the panic `Cli::parse` risks on a full disk.
+        match e.print() {
+            Ok(()) => std::process::exit(e.exit_code()),
+            Err(io) if io.kind() == std::io::ErrorKind::BrokenPipe => std::process::exit(0),
+            Err(io) => {
+                note(format_args!(
+                    "tessera: error: could not write the message: {io}"
+                ));
+                std::process::exit(2);
+            }
+        }
+    });
+    cli.command
+}
+
+/// Runs `command`.
+pub fn run(command: Command) -> Result<()> {
+    match command {
+        Command::Render(args) => render::run(RenderSettings::new(args)?),
+        Command::Bench(args) => bench::run(BenchSettings::new(args)?),
+        Command::Merge { parts, output } => merge(&parts, &output),
+        Command::Compare { a, b } => compare(&a, &b),
+    }
+}
+
+fn merge(paths: &[PathBuf], output: &Path) -> Result<()> {
+    Format::from_path(output)?;
+    let (film, gamma) = tessera::partial::merge_files(paths)?;
+    film.save(output, gamma)?;
+    note(format_args!(
+        "{}: merged {} parts, {}x{}, {} spp",
+        output.display(),
+        paths.len(),
+        film.width,
+        film.height,
+        film.samples_per_pixel
+    ));
+    Ok(())
+}
+
+fn compare(a: &Path, b: &Path) -> Result<()> {
+    let d = tessera::compare::compare_files(a, b)?;
+    print_out(&format!(
+        "RMSE {:.6}  PSNR {:.2} dB  mean abs error {:.6}\n",
+        d.rmse, d.psnr_db, d.mean_abs
+    ))
+}
+
+/// True when `e` comes from writing to a pipe whose reader has gone.
+pub fn is_broken_pipe(e: &anyhow::Error) -> bool {
+    e.chain().any(|cause| {
+        cause
+            .downcast_ref::<std::io::Error>()
+            .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+    })
+}
+
+/// Writes `text` to standard output. Unlike `print!`, which panics, a failure (a full disk, a
+/// closed pipe) is an error for the caller to report.
+fn print_out(text: &str) -> Result<()> {
+    let mut out = std::io::stdout().lock();
+    out.write_all(text.as_bytes())
+        .and_then(|()| out.flush())
+        .context("could not write to standard output")
+}
+
+/// Writes a line to standard error. Unlike `eprintln!`, which panics, a failure is ignored:
+/// when standard error cannot be written there is nobody left to tell.
+pub fn note(line: std::fmt::Arguments) {
+    let mut err = std::io::stderr().lock();
+    let _ = err.write_fmt(line).and_then(|()| err.write_all(b"\n"));
+}
+
+/// A progress bar with ETA on standard error when it is a terminal, else a hidden one.
+fn progress_bar(total: u64, quiet: bool) -> ProgressBar {
+    if quiet || !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr());
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{elapsed_precise} [{wide_bar}] {percent:>3}% of {human_len} samples, ETA {eta_precise}",
+        )
+        .expect("progress template is valid")
+        .progress_chars("=> "),
+    );
+    bar
+}
+
+/// Wall time, samples/s, Mrays/s, rays per sample and threads of a render.
+fn summary(stats: &RenderStats) -> String {
+    format!(
+        "{:.2} s wall, {:.3} M samples/s, {:.2} Mrays/s, {:.3} rays/sample, {} threads",
+        stats.wall.as_secs_f64(),
+        stats.samples_per_sec() / 1e6,
+        stats.mrays_per_sec(),
+        stats.rays_per_sample(),
+        stats.threads
+    )
+}

@@ -1,0 +1,178 @@
+//! The command line checked and turned into what runs: each command's arguments validated
+//! against each other and against the scene, and every output checked writable, before any
+//! work starts.
+
+use super::args::{BenchArgs, RenderArgs, SceneArgs, SplitArg};
+use anyhow::{Result, bail};
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+use tessera::film::{Format, check_writable};
+use tessera::job::Job;
+use tessera::partial::RenderId;
+use tessera::render::{self, RenderOptions};
+use tessera::scene::{Overrides, Scene};
+use tessera::shard::{self, Shard, Split, parse_samples};
+
+/// Where a render's result goes.
+pub enum Output {
+    /// The finished image, in the format its extension names.
+    Image(PathBuf),
+    /// A part file for `tessera merge`: the render is one part (a shard or a sample range).
+    Part(PathBuf),
+}
+
+impl Output {
+    pub fn path(&self) -> &Path {
+        match self {
+            Output::Image(p) | Output::Part(p) => p,
+        }
+    }
+}
+
+/// Where and how often a render saves its progress.
+pub struct CheckpointSettings {
+    pub path: PathBuf,
+    /// The longest time between saves; zero saves after every tile.
+    pub every: Duration,
+}
+
+/// A render, ready to run.
+pub struct RenderSettings {
+    pub scene: Scene,
+    pub options: RenderOptions,
+    /// What this process renders: the scene's window over all its samples, or one part.
+    pub job: Job,
+    /// The render the job belongs to (the whole image's samples per pixel included).
+    pub render: RenderId,
+    pub output: Output,
+    pub checkpoint: Option<CheckpointSettings>,
+    pub quiet: bool,
+}
+
+impl RenderSettings {
+    pub fn new(args: RenderArgs) -> Result<Self> {
+        let options = render_options(args.scene.threads, args.tile)?;
+        if !(args.checkpoint_every >= 0.0 && args.checkpoint_every.is_finite()) {
+            bail!("--checkpoint-every must be a number of seconds, 0 or more");
+        }
+        // More seconds than a Duration holds (about 585 billion years) means never.
+        let every = Duration::try_from_secs_f64(args.checkpoint_every).unwrap_or(Duration::MAX);
+        let scene = load(&args.scene, args.depth, args.seed)?;
+        let shard = match &args.shard {
+            Some(spec) => Some(Shard::parse(spec, |k| std::env::var(k).ok())?),
+            None => None,
+        };
+        let samples = args.samples.as_deref().map(parse_samples).transpose()?;
+        let split = match args.split {
+            SplitArg::Samples => Split::Samples,
+            SplitArg::Rows => Split::Rows,
+        };
+        let job = shard::job(&scene, shard, split, samples)?;
+        // Every part is a piece of the image of the scene's samples per pixel.
+        let target = scene.settings.samples_per_pixel;
+        if let Some(r) = samples
+            && r.end > target
+        {
+            bail!(
+                "--samples {}..{} goes past the {target} samples per pixel of the image; raise --spp",
+                r.start,
+                r.end
+            );
+        }
+        let path = args
+            .output
+            .unwrap_or_else(|| default_output(&args.scene.scene));
+        // A shard or sample range always writes a part, even one that happens to be the
+        // whole render (a Slurm array of one task), so a merge can take it.
+        let output = if shard.is_some() || samples.is_some() {
+            Output::Part(path)
+        } else {
+            Format::from_path(&path)?;
+            Output::Image(path)
+        };
+        // Refuse an output that cannot be written before spending minutes on the render.
+        check_writable(output.path())?;
+        let checkpoint = args
+            .checkpoint
+            .map(|path| CheckpointSettings { path, every });
+        if let Some(c) = &checkpoint
+            && !c.path.exists()
+        {
+            check_writable(&c.path)?;
+        }
+        Ok(Self {
+            render: RenderId::of(&scene, target),
+            scene,
+            options,
+            job,
+            output,
+            checkpoint,
+            quiet: args.quiet,
+        })
+    }
+}
+
+/// A benchmark, ready to run.
+pub struct BenchSettings {
+    pub scene: Scene,
+    pub scene_path: PathBuf,
+    /// Threads of the headline measurement.
+    pub threads: usize,
+    /// The thread counts of the scaling table: 1 … every core; empty for none.
+    pub scaling: Vec<usize>,
+    /// Renders per measurement; the median is reported.
+    pub repeat: u32,
+    pub json: bool,
+}
+
+impl BenchSettings {
+    pub fn new(args: BenchArgs) -> Result<Self> {
+        let mut scene_args = args.scene;
+        scene_args.width = scene_args.width.or(Some(300));
+        scene_args.spp = scene_args.spp.or(Some(8));
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let threads = scene_args.threads.unwrap_or(cores);
+        render_options(Some(threads), render::DEFAULT_TILE)?;
+        Ok(Self {
+            scene: load(&scene_args, None, None)?,
+            scene_path: scene_args.scene,
+            threads,
+            scaling: if args.no_scaling {
+                Vec::new()
+            } else {
+                (1..=cores).collect()
+            },
+            repeat: args.repeat.max(1),
+            json: args.json,
+        })
+    }
+}
+
+fn load(args: &SceneArgs, depth: Option<u32>, seed: Option<u64>) -> Result<Scene> {
+    let overrides = Overrides {
+        width: args.width,
+        samples_per_pixel: args.spp,
+        max_depth: depth,
+        seed,
+    };
+    Ok(Scene::load(&args.scene, &overrides)?)
+}
+
+/// Scheduling options, checked.
+pub fn render_options(threads: Option<usize>, tile: u32) -> Result<RenderOptions> {
+    if threads == Some(0) {
+        bail!("--threads must be at least 1");
+    }
+    if tile == 0 {
+        bail!("--tile must be at least 1 pixel");
+    }
+    Ok(RenderOptions { threads, tile })
+}
+
+/// The scene's file name with `.png`.
+fn default_output(scene: &Path) -> PathBuf {
+    let stem = scene.file_stem().map_or("render".into(), |s| s.to_owned());
+    let mut name = stem;
+    name.push(".png");
+    PathBuf::from(name)
+}

@@ -1,0 +1,206 @@
+//! Evaluating a pixel's samples, pbrt's `EvaluatePixelSample`: where each sample falls on the
+//! film, its camera ray, and the radiance the scene's shading mode gives it. The one place a
+//! sample is made, and the only code that knows shading modes.
+
+use super::{ANY_DISTANCE, Radiance, path_trace_from};
+use crate::bvh::{Candidates, TraversalStack};
+use crate::geometry::Hit;
+use crate::job::SampleRange;
+use crate::material::Material;
+use crate::math::{Color, PixelRect};
+use crate::ray::Ray;
+use crate::sampling::{PixelSeed, Sampler};
+use crate::scene::{Scene, Shading};
+
+/// One camera sample: where it falls on the film (the book's `u`, `v`), its camera ray, and
+/// its generator after the draws that made them.
+#[derive(Clone, Debug)]
+pub struct CameraSample {
+    pub u: f32,
+    pub v: f32,
+    pub ray: Ray,
+    pub rng: Sampler,
+}
+
+impl CameraSample {
+    /// The sample of pixel `(x, y)` (top row `y = 0`) drawn from the sample's own generator
+    /// `rng`: jitter within the pixel, then the lens.
+    #[inline(always)]
+    pub fn new(scene: &Scene, x: u32, y: u32, mut rng: Sampler) -> Self {
+        let s = &scene.settings;
+        let (du, dv) = if s.jitter {
+            (rng.uniform(), rng.uniform())
+        } else {
+            (0.0, 0.0)
+        };
+        // The book's mapping, v counted up from the bottom row.
+        let j = s.height - 1 - y;
+        let (u, v) = film_point(scene, x as f32 + du, j as f32 + dv);
+        let ray = scene.camera.ray(u, v, &mut rng);
+        CameraSample { u, v, ray, rng }
+    }
+}
+
+/// The book's film coordinates `(u, v)` of the point `i` pixels from the left and `j` rows up
+/// from the bottom row: `u = i / (width - 1)`, `v = j / (height - 1)`.
+#[inline]
+fn film_point(scene: &Scene, i: f32, j: f32) -> (f32, f32) {
+    let s = &scene.settings;
+    // Multiplying by the reciprocal keeps the division (a constant of the scene) off each
+    // sample's chain of dependent arithmetic.
+    (
+        i * (1.0 / (s.width.max(2) - 1) as f32),
+        j * (1.0 / (s.height.max(2) - 1) as f32),
+    )
+}
+
+/// The spheres, giants included, that any camera ray through the pixels `tile` might hit,
+/// when they are few enough to test without the hierarchy: `Camera::bundle` bounds those rays,
+/// the tree is walked skipping the boxes the bound misses.
+pub fn tile_candidates(scene: &Scene, tile: &PixelRect) -> Option<Candidates> {
+    // Jitter included, pixel (x, y) covers [x, x + 1) × [j, j + 1) of `film_point`, with
+    // j = height - 1 - y counted from the bottom row.
+    let height = scene.settings.height;
+    let below = height.saturating_sub(tile.y0 + tile.height);
+    let (u0, v0) = film_point(scene, tile.x0 as f32, below as f32);
+    let (u1, v1) = film_point(
+        scene,
+        (tile.x0 + tile.width) as f32,
+        (height - tile.y0) as f32,
+    );
+    let bundle = scene.camera.bundle((u0, u1), (v0, v1));
+    scene.candidates(
+        |min, max| bundle.may_hit_box(min, max),
+        |sphere| bundle.may_hit(sphere.center, sphere.radius),
+    )
+}
+
+/// Evaluates the samples of pixels: one per worker and tile, reused from pixel to pixel, so
+/// nothing is allocated per sample.
+pub struct PixelEvaluator<'a> {
+    scene: &'a Scene,
+    /// The spheres every camera ray may hit (see `tile_candidates`); `None`: the tree.
+    candidates: Option<Candidates>,
+    stack: TraversalStack,
+}
+
+impl<'a> PixelEvaluator<'a> {
+    /// For the pixels of `tile`: camera rays are tested against the tile's candidates when
+    /// the shading mode traces them and the candidates are few.
+    pub fn for_tile(scene: &'a Scene, tile: &PixelRect) -> Self {
+        let traces = match scene.settings.shading {
+            Shading::Uv | Shading::Gradient => false,
+            Shading::Flat | Shading::Normals => true,
+            Shading::Path => scene.settings.max_depth > 0,
+        };
+        let candidates = traces.then(|| tile_candidates(scene, tile)).flatten();
+        Self::with_candidates(scene, candidates)
+    }
+
+    /// With camera rays tested against `candidates`, which must hold every sphere they can
+    /// hit; `None` traces them through the tree. Either gives the same hits.
+    pub fn with_candidates(scene: &'a Scene, candidates: Option<Candidates>) -> Self {
+        Self {
+            scene,
+            candidates,
+            stack: scene.new_stack(),
+        }
+    }
+
+    /// Evaluates samples `range` of pixel `(x, y)`, handing each one's radiance and the ray
+    /// segments it traced to `add`, in sample order.
+    #[inline]
+    pub fn evaluate(&mut self, x: u32, y: u32, range: SampleRange, add: impl FnMut(Color, u32)) {
+        let scene = self.scene;
+        let background = |ray: &Ray| scene.background.radiance(ray.dir);
+        match scene.settings.shading {
+            // Pixel coordinates as red and green (image 1); no rays.
+            Shading::Uv => self.each_sample(x, y, range, false, add, |s, _, _| Radiance {
+                color: Color::new(s.u, s.v, 0.25),
+                rays: 0,
+            }),
+            // The background seen through the camera (image 2).
+            Shading::Gradient => self.each_sample(x, y, range, false, add, |s, _, _| Radiance {
+                color: background(&s.ray),
+                rays: 1,
+            }),
+            // The surface's albedo where a ray hits (image 3).
+            Shading::Flat => self.each_sample(x, y, range, true, add, |s, first, _| {
+                let color = match first {
+                    Some(hit) => match *scene.material(&hit) {
+                        Material::Lambertian { albedo } | Material::Metal { albedo, .. } => albedo,
+                        Material::Dielectric { .. } => Color::ONE,
+                    },
+                    None => background(&s.ray),
+                };
+                Radiance { color, rays: 1 }
+            }),
+            // `(n + 1) / 2` of the front-facing normal (images 4–6).
+            Shading::Normals => self.each_sample(x, y, range, true, add, |s, first, _| {
+                let color = match first {
+                    Some(hit) => 0.5 * (hit.normal + Color::ONE),
+                    None => background(&s.ray),
+                };
+                Radiance { color, rays: 1 }
+            }),
+            Shading::Path if scene.settings.max_depth == 0 => {
+                self.each_sample(x, y, range, false, add, |_, _, _| Radiance {
+                    color: Color::ZERO,
+                    rays: 0,
+                })
+            }
+            Shading::Path => self.each_sample(x, y, range, true, add, |s, first, stack| {
+                let mut rng = s.rng;
+                path_trace_from(scene, s.ray, first, &mut rng, stack)
+            }),
+        }
+    }
+
+    /// The one sample loop, for each shading mode `shade` (given the sample, its camera ray's
+    /// first hit when `traces`, and scratch space).
+    ///
+    /// Software pipelining: the next sample's camera sample is made after this sample's first
+    /// hit and before this sample is shaded. It depends on nothing the shading computes and has
+    /// no branch of its own, so the processor works it out while a path waits on its long
+    /// chains of arithmetic, and no mispredicted branch of the path can undo it.
+    #[inline(always)]
+    fn each_sample(
+        &mut self,
+        x: u32,
+        y: u32,
+        range: SampleRange,
+        traces: bool,
+        mut add: impl FnMut(Color, u32),
+        shade: impl Fn(CameraSample, Option<Hit>, &mut TraversalStack) -> Radiance,
+    ) {
+        if range.is_empty() {
+            return;
+        }
+        let scene = self.scene;
+        let seed = PixelSeed::new(scene.settings.seed, x, y);
+        let mut next = CameraSample::new(scene, x, y, seed.sample(range.start));
+        for sample in range.start..range.end {
+            let current = next.clone();
+            let first = if traces {
+                self.camera_hit(&current.ray)
+            } else {
+                None
+            };
+            if sample + 1 < range.end {
+                next = CameraSample::new(scene, x, y, seed.sample(sample + 1));
+            }
+            let r = shade(current, first, &mut self.stack);
+            add(r.color, r.rays);
+        }
+    }
+
+    /// What camera ray `ray` hits first: among the candidates when there are some (the same
+    /// answer as the tree), else through the tree.
+    #[inline(always)]
+    fn camera_hit(&mut self, ray: &Ray) -> Option<Hit> {
+        match &self.candidates {
+            Some(candidates) => self.scene.hit_candidates(candidates, ray, ANY_DISTANCE),
+            None => self.scene.hit(ray, ANY_DISTANCE, &mut self.stack),
+        }
+    }
+}
