@@ -196,16 +196,28 @@ mod tests {
     }
 
     #[test]
-    fn neighbouring_samples_differ() {
-        let first = |s: Sampler| s.clone().uniform();
-        let base = first(Sampler::for_sample(1, 10, 10, 0));
-        for other in [
-            Sampler::for_sample(2, 10, 10, 0),
-            Sampler::for_sample(1, 11, 10, 0),
-            Sampler::for_sample(1, 10, 11, 0),
-            Sampler::for_sample(1, 10, 10, 1),
-        ] {
-            assert_ne!(base, first(other));
+    fn neighbouring_samples_draw_unrelated_streams() {
+        // Streams one coordinate apart: each must differ from the others draw by draw, and
+        // not be another's stream shifted by a few draws (overlapping PCG sequences).
+        let draws = |mut s: Sampler| (0..32).map(|_| s.uniform().to_bits()).collect::<Vec<_>>();
+        let streams = [
+            draws(Sampler::for_sample(1, 10, 10, 0)),
+            draws(Sampler::for_sample(2, 10, 10, 0)),
+            draws(Sampler::for_sample(1, 11, 10, 0)),
+            draws(Sampler::for_sample(1, 10, 11, 0)),
+            draws(Sampler::for_sample(1, 10, 10, 1)),
+        ];
+        for (i, a) in streams.iter().enumerate() {
+            for b in &streams[i + 1..] {
+                for shift in 0..8 {
+                    let same = (a[shift..].iter().zip(b)).filter(|(x, y)| x == y).count();
+                    let same_back = (b[shift..].iter().zip(a)).filter(|(x, y)| x == y).count();
+                    assert!(
+                        same <= 1 && same_back <= 1,
+                        "streams {i} overlap at shift {shift}"
+                    );
+                }
+            }
         }
     }
 

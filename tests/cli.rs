@@ -5,23 +5,7 @@ mod common;
 
 use common::*;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
-
-fn tessera(args: &[&str], cwd: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_tessera"))
-        .args(args)
-        .current_dir(cwd)
-        .output()
-        .expect("run tessera")
-}
-
-fn stderr(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
-
-fn cover() -> String {
-    scene_path("cover.toml").to_string_lossy().into_owned()
-}
+use std::process::{Output, Stdio};
 
 #[test]
 fn thread_counts_give_identical_files_in_every_format() {
@@ -30,7 +14,7 @@ fn thread_counts_give_identical_files_in_every_format() {
         let mut files: Vec<Vec<u8>> = Vec::new();
         for threads in ["1", "2", "3"] {
             let out = format!("t{threads}.{ext}");
-            let o = tessera(
+            let o = run(
                 &[
                     "render",
                     &cover(),
@@ -62,14 +46,14 @@ fn thread_counts_give_identical_files_in_every_format() {
 #[test]
 fn default_output_is_named_after_the_scene_and_summary_is_printed() {
     let dir = temp_dir("default-out");
-    let o = tessera(&["render", &cover(), "--width", "30", "--spp", "1"], &dir);
+    let o = run(&["render", &cover(), "--width", "30", "--spp", "1"], &dir);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(dir.join("cover.png").exists());
     let err = stderr(&o);
     for word in ["samples/s", "Mrays/s", "rays/sample", "wall"] {
         assert!(err.contains(word), "summary lacks {word}: {err}");
     }
-    let quiet = tessera(
+    let quiet = run(
         &["render", &cover(), "--width", "30", "--spp", "1", "-q"],
         &dir,
     );
@@ -84,7 +68,7 @@ fn default_output_is_named_after_the_scene_and_summary_is_printed() {
 fn compare_reports_rmse_and_psnr() {
     let dir = temp_dir("compare");
     for (name, spp) in [("a.png", "2"), ("b.png", "2"), ("c.png", "8")] {
-        let o = tessera(
+        let o = run(
             &[
                 "render",
                 &cover(),
@@ -100,19 +84,19 @@ fn compare_reports_rmse_and_psnr() {
         );
         assert!(o.status.success(), "{}", stderr(&o));
     }
-    let same = tessera(&["compare", "a.png", "b.png"], &dir);
+    let same = run(&["compare", "a.png", "b.png"], &dir);
     let same = String::from_utf8_lossy(&same.stdout).into_owned();
     assert!(
         same.contains("RMSE 0.000000") && same.contains("inf dB"),
         "{same}"
     );
-    let differ = tessera(&["compare", "a.png", "c.png"], &dir);
+    let differ = run(&["compare", "a.png", "c.png"], &dir);
     let differ = String::from_utf8_lossy(&differ.stdout).into_owned();
     assert!(
         differ.contains("PSNR") && !differ.contains("inf"),
         "{differ}"
     );
-    let o = tessera(
+    let o = run(
         &[
             "render",
             &cover(),
@@ -127,7 +111,7 @@ fn compare_reports_rmse_and_psnr() {
         &dir,
     );
     assert!(o.status.success());
-    let mismatch = tessera(&["compare", "a.png", "d.png"], &dir);
+    let mismatch = run(&["compare", "a.png", "d.png"], &dir);
     assert_eq!(mismatch.status.code(), Some(2));
     assert!(
         stderr(&mismatch).contains("differ in size"),
@@ -139,7 +123,7 @@ fn compare_reports_rmse_and_psnr() {
 #[test]
 fn bench_prints_json() {
     let dir = temp_dir("bench");
-    let o = tessera(
+    let o = run(
         &[
             "bench",
             &cover(),
@@ -182,7 +166,7 @@ fn assert_rejected(name: &str, text: &str, expected: &[&str]) {
     std::fs::write(&scene, text).unwrap();
     let out = dir.join("out.png");
     std::fs::write(&out, b"precious").unwrap();
-    let o = tessera(&["render", "scene.toml", "-o", "out.png"], &dir);
+    let o = run(&["render", "scene.toml", "-o", "out.png"], &dir);
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(2), "{name}: {err}");
     assert!(!err.contains("panicked"), "{name}: {err}");
@@ -209,7 +193,7 @@ fn assert_rejected(name: &str, text: &str, expected: &[&str]) {
 fn the_good_scene_renders() {
     let dir = temp_dir("good");
     std::fs::write(dir.join("scene.toml"), GOOD).unwrap();
-    let o = tessera(&["render", "scene.toml", "-o", "out.png", "-q"], &dir);
+    let o = run(&["render", "scene.toml", "-o", "out.png", "-q"], &dir);
     assert!(o.status.success(), "{}", stderr(&o));
 }
 
@@ -370,7 +354,7 @@ fn bad_command_lines_exit_2_without_touching_output() {
         ),
         (vec!["compare", "out.png", "scene.toml"], "out.png"),
     ] {
-        let o = tessera(&args, &dir);
+        let o = run(&args, &dir);
         let err = stderr(&o);
         assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
         assert!(
@@ -438,7 +422,7 @@ fn invalid_utf8_is_located() {
     let at = GOOD.find("[materials").unwrap();
     text.splice(at..at, b"# caf\xe9\n".iter().copied());
     std::fs::write(dir.join("scene.toml"), &text).unwrap();
-    let o = tessera(&["render", "scene.toml", "-o", "out.png"], &dir);
+    let o = run(&["render", "scene.toml", "-o", "out.png"], &dir);
     assert_eq!(o.status.code(), Some(2));
     let err = stderr(&o);
     assert!(
@@ -462,7 +446,7 @@ const LOOK_DOWN_Z: &str = "lookfrom = [0, 0, 0]\nlookat = [0, 0, -1]\nvfov_deg =
 fn render_ppm(name: &str, text: &str) -> Result<Vec<u8>, String> {
     let dir = temp_dir(name);
     std::fs::write(dir.join("scene.toml"), text).unwrap();
-    let o = tessera(&["render", "scene.toml", "-o", "out.ppm", "-q"], &dir);
+    let o = run(&["render", "scene.toml", "-o", "out.ppm", "-q"], &dir);
     if !o.status.success() {
         return Err(stderr(&o));
     }
@@ -544,7 +528,7 @@ fn checkpoint_interval_beyond_any_duration_means_never() {
     let dir = temp_dir("ckpt-every");
     std::fs::write(dir.join("scene.toml"), GOOD).unwrap();
     for every in ["2e19", "1e308"] {
-        let o = tessera(
+        let o = run(
             &[
                 "render",
                 "scene.toml",
@@ -565,8 +549,8 @@ fn checkpoint_interval_beyond_any_duration_means_never() {
 }
 
 /// Runs tessera with standard output and error sent to `stdout` and `stderr`.
-fn tessera_to(args: &[&str], cwd: &Path, stdout: Stdio, stderr: Stdio) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_tessera"))
+fn run_to(args: &[&str], cwd: &Path, stdout: Stdio, stderr: Stdio) -> Output {
+    tessera()
         .args(args)
         .current_dir(cwd)
         .stdout(stdout)
@@ -583,7 +567,7 @@ fn dev_full() -> Stdio {
 fn output_that_cannot_be_written_is_an_error_not_a_crash() {
     let dir = temp_dir("dev-full");
     std::fs::write(dir.join("scene.toml"), GOOD).unwrap();
-    let o = tessera(&["render", "scene.toml", "-o", "a.png", "-q"], &dir);
+    let o = run(&["render", "scene.toml", "-o", "a.png", "-q"], &dir);
     assert!(o.status.success(), "{}", stderr(&o));
     // Standard output on a full disk: exit 2 with a message.
     let tiny_bench = [
@@ -595,7 +579,7 @@ fn output_that_cannot_be_written_is_an_error_not_a_crash() {
         "1",
     ];
     for args in [&["compare", "a.png", "a.png"][..], &tiny_bench, &["--help"]] {
-        let o = tessera_to(args, &dir, dev_full(), Stdio::piped());
+        let o = run_to(args, &dir, dev_full(), Stdio::piped());
         assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
         assert!(
             stderr(&o).contains("No space left on device"),
@@ -604,14 +588,14 @@ fn output_that_cannot_be_written_is_an_error_not_a_crash() {
         );
     }
     // Standard error on a full disk: the exit status still tells.
-    let refused = tessera_to(
+    let refused = run_to(
         &["compare", "a.png", "missing.png"],
         &dir,
         Stdio::piped(),
         dev_full(),
     );
     assert_eq!(refused.status.code(), Some(2));
-    let rendered = tessera_to(
+    let rendered = run_to(
         &["render", "scene.toml", "-o", "b.png"],
         &dir,
         Stdio::piped(),
@@ -628,13 +612,13 @@ fn output_that_cannot_be_written_is_an_error_not_a_crash() {
 fn a_closed_pipe_ends_quietly() {
     let dir = temp_dir("closed-pipe");
     std::fs::write(dir.join("scene.toml"), GOOD).unwrap();
-    let o = tessera(&["render", "scene.toml", "-o", "a.png", "-q"], &dir);
+    let o = run(&["render", "scene.toml", "-o", "a.png", "-q"], &dir);
     assert!(o.status.success(), "{}", stderr(&o));
     for args in [&["compare", "a.png", "a.png"][..], &["--help"]] {
         // The reader is gone before tessera writes a byte.
         let (reader, writer) = std::io::pipe().unwrap();
         drop(reader);
-        let o = tessera_to(args, &dir, Stdio::from(writer), Stdio::piped());
+        let o = run_to(args, &dir, Stdio::from(writer), Stdio::piped());
         assert_eq!(o.status.code(), Some(0), "{args:?}: {}", stderr(&o));
         assert!(o.stderr.is_empty(), "{args:?}: {}", stderr(&o));
     }
@@ -644,7 +628,7 @@ fn a_closed_pipe_ends_quietly() {
 fn an_unwritable_checkpoint_is_refused_before_rendering() {
     let dir = temp_dir("ckpt-missing-dir");
     std::fs::write(dir.join("scene.toml"), GOOD).unwrap();
-    let o = tessera(
+    let o = run(
         &[
             "render",
             "scene.toml",

@@ -9,37 +9,6 @@ use std::path::Path;
 use std::process::{Child, Command, Output, Stdio};
 use std::time::Duration;
 
-fn tessera() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_tessera"))
-}
-
-fn run(args: &[&str], dir: &Path) -> Output {
-    run_in_env(args, &[], dir)
-}
-
-/// Runs tessera with the environment variables `env` set.
-fn run_in_env(args: &[&str], env: &[(&str, &str)], dir: &Path) -> Output {
-    tessera()
-        .args(args)
-        .envs(env.iter().copied())
-        .current_dir(dir)
-        .output()
-        .expect("run tessera")
-}
-
-fn ok(args: &[&str], dir: &Path) {
-    ok_in_env(args, &[], dir);
-}
-
-fn ok_in_env(args: &[&str], env: &[(&str, &str)], dir: &Path) {
-    let o = run_in_env(args, env, dir);
-    assert!(
-        o.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-}
-
 fn spawn(args: &[&str], dir: &Path) -> Child {
     tessera()
         .args(args)
@@ -48,10 +17,6 @@ fn spawn(args: &[&str], dir: &Path) -> Child {
         .stderr(Stdio::piped())
         .spawn()
         .expect("spawn tessera")
-}
-
-fn cover() -> String {
-    scene_path("cover.toml").to_string_lossy().into_owned()
 }
 
 /// A scene other than the cover, for parts and checkpoints that must not mix with it.

@@ -93,7 +93,7 @@ impl SlurmRender {
 
     /// The same render straight through, on this machine.
     fn single(&self) -> Vec<u8> {
-        let o = Command::new(env!("CARGO_BIN_EXE_tessera"))
+        let o = tessera()
             .arg("render")
             .arg(scene_path("cover.toml"))
             .args(["-q", "-o", "single.png"])

@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
 use tessera::film::Film;
 use tessera::render::{self, RenderOptions, RenderStats};
 use tessera::scene::{Overrides, Scene};
@@ -17,6 +18,47 @@ pub fn scene_path(name: &str) -> PathBuf {
 /// The book's figures (CC0, like the book), kept with the tests.
 pub fn figures_dir() -> PathBuf {
     root().join("tests").join("data").join("book-figures")
+}
+
+/// The cover scene's path, as an argument.
+pub fn cover() -> String {
+    scene_path("cover.toml").to_string_lossy().into_owned()
+}
+
+/// A command running the `tessera` binary under test.
+pub fn tessera() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_tessera"))
+}
+
+/// Runs tessera with `args` in `dir`.
+pub fn run(args: &[&str], dir: &Path) -> Output {
+    run_in_env(args, &[], dir)
+}
+
+/// Runs tessera with `args` in `dir`, with the environment variables `env` set.
+pub fn run_in_env(args: &[&str], env: &[(&str, &str)], dir: &Path) -> Output {
+    tessera()
+        .args(args)
+        .envs(env.iter().copied())
+        .current_dir(dir)
+        .output()
+        .expect("run tessera")
+}
+
+/// Runs tessera with `args` in `dir`; it must succeed.
+pub fn ok(args: &[&str], dir: &Path) {
+    ok_in_env(args, &[], dir);
+}
+
+/// Runs tessera with `args` in `dir` and the environment `env`; it must succeed.
+pub fn ok_in_env(args: &[&str], env: &[(&str, &str)], dir: &Path) {
+    let o = run_in_env(args, env, dir);
+    assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+}
+
+/// What a run wrote to standard error.
+pub fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
 pub fn load(path: &Path, overrides: Overrides) -> Scene {

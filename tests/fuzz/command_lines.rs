@@ -5,7 +5,7 @@ use super::harness::*;
 use super::parts::part_scene;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::Stdio;
 use std::time::{Duration, Instant};
 use tessera::scene::{Overrides, Scene};
 use tessera::shard::{self, Shard};
@@ -76,11 +76,7 @@ fn cli_workspace() -> PathBuf {
     write("empty", b"");
     std::fs::create_dir_all(dir.join("dir")).unwrap();
     let tessera = |args: &[&str]| {
-        let o = Command::new(env!("CARGO_BIN_EXE_tessera"))
-            .args(args)
-            .current_dir(&dir)
-            .output()
-            .unwrap();
+        let o = tessera().args(args).current_dir(&dir).output().unwrap();
         assert!(
             o.status.success(),
             "{args:?}: {}",
@@ -160,7 +156,7 @@ fn run_bounded(
     env: &[(&str, &str)],
     deadline: Duration,
 ) -> Option<std::process::Output> {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_tessera"))
+    let mut child = tessera()
         .args(args)
         .envs(env.iter().copied())
         .current_dir(dir)
