@@ -1,11 +1,23 @@
 //! tessera: a deterministic, tiled, multicore path tracer of *Ray Tracing in One Weekend*.
 //!
-//! The pipeline runs downward through the modules: a [`scene`] file is parsed and validated
-//! into a runtime [`scene::Scene`]; [`render`] cuts the image into tiles and spreads them over
-//! a rayon pool; each camera sample asks the [`integrator`] for radiance with its own seeded
-//! [`sampling::Sampler`]; the [`film`] accumulates exact fixed-point sums and writes images.
-//! The same scene, settings and seed give the same bytes whatever the thread count or tile
-//! size.
+//! How a render flows through the modules, each importing only those below it:
+//!
+//! - [`scene`] reads a TOML file ([`scene::desc`]), checks every value with its file, line
+//!   and column, and builds the runtime [`scene::Scene`]: settings, the [`camera`], the
+//!   [`material`]s and spheres ([`geometry`]) in a [`bvh`].
+//! - [`job`] says what one process renders, the scene's window over a range of sample
+//!   indices ([`shard`] cuts a render into such jobs), and keeps its state tile by tile.
+//! - [`render`] spreads the job's unfinished tiles over a rayon pool and folds finished ones
+//!   into the state; it is the only module that knows threads.
+//! - [`integrator`] evaluates a tile's pixels: each sample's film position, camera ray and
+//!   random numbers come from the sample's own seeded [`sampling::Sampler`], and its radiance
+//!   from the scene's shading mode (the book's early stages, or a path).
+//! - [`film`] turns the exact fixed-point sums into PNG, PPM or EXR, written atomically;
+//!   [`partial`] stores a job's state as a part file (shards, checkpoints) and merges parts.
+//!
+//! The same scene, settings and seed give the same bytes whatever the thread count, tile
+//! size, shard split or interruption. [`math`], [`ray`] and [`error`] serve them all;
+//! [`compare`] measures the difference of two images.
 
 #![forbid(unsafe_code)]
 

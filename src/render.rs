@@ -147,10 +147,10 @@ pub fn render_job(
     })
 }
 
-/// Finished tiles on their way from a worker to the thread folding them into the image,
-/// sent a few at a time: one message per tile woke that thread, and switched it in on a
-/// worker's core, a thousand times a second. Whatever is left is sent when the batch is
-/// dropped, as its worker finishes.
+/// Finished tiles on their way from a worker to the thread folding them into the job's
+/// state, sent a few at a time (at most `HOLD` late): a message per tile would wake that
+/// thread, and switch it in on a worker's core, a thousand times a second. Whatever is left
+/// is sent when the batch is dropped, as its worker finishes.
 struct TileBatch {
     sender: std::sync::mpsc::Sender<Vec<(usize, TileResult)>>,
     tiles: Vec<(usize, TileResult)>,
