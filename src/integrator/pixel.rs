@@ -109,7 +109,7 @@ impl<'a> PixelEvaluator<'a> {
 
     /// Evaluates samples `range` of pixel `(x, y)`, handing each one's radiance and the ray
     /// segments it traced to `add`, in sample order.
-    #[inline]
+    #[inline(always)]
     pub fn evaluate(&mut self, x: u32, y: u32, range: SampleRange, add: impl FnMut(Color, u32)) {
         let scene = self.scene;
         let background = |ray: &Ray| scene.background.radiance(ray.dir);
