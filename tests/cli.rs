@@ -161,8 +161,7 @@ fn bench_prints_json() {
 
 #[test]
 fn bad_command_lines_exit_2_without_touching_output() {
-    let dir = temp_dir("bad-args");
-    std::fs::write(dir.join("scene.toml"), GOOD).unwrap();
+    let dir = dir_with_scene("bad-args", GOOD);
     std::fs::write(dir.join("out.png"), b"precious").unwrap();
     for (args, expect) in [
         (
@@ -219,8 +218,7 @@ fn bad_command_lines_exit_2_without_touching_output() {
 
 #[test]
 fn checkpoint_interval_beyond_any_duration_means_never() {
-    let dir = temp_dir("ckpt-every");
-    std::fs::write(dir.join("scene.toml"), GOOD).unwrap();
+    let dir = dir_with_scene("ckpt-every", GOOD);
     for every in ["2e19", "1e308"] {
         let o = run(
             &[
@@ -259,8 +257,7 @@ fn dev_full() -> Stdio {
 
 #[test]
 fn output_that_cannot_be_written_is_an_error_not_a_crash() {
-    let dir = temp_dir("dev-full");
-    std::fs::write(dir.join("scene.toml"), GOOD).unwrap();
+    let dir = dir_with_scene("dev-full", GOOD);
     let o = run(&["render", "scene.toml", "-o", "a.png", "-q"], &dir);
     assert!(o.status.success(), "{}", stderr(&o));
     // Standard output on a full disk: exit 2 with a message.
@@ -304,8 +301,7 @@ fn output_that_cannot_be_written_is_an_error_not_a_crash() {
 
 #[test]
 fn a_closed_pipe_ends_quietly() {
-    let dir = temp_dir("closed-pipe");
-    std::fs::write(dir.join("scene.toml"), GOOD).unwrap();
+    let dir = dir_with_scene("closed-pipe", GOOD);
     let o = run(&["render", "scene.toml", "-o", "a.png", "-q"], &dir);
     assert!(o.status.success(), "{}", stderr(&o));
     for args in [&["compare", "a.png", "a.png"][..], &["--help"]] {
@@ -320,8 +316,7 @@ fn a_closed_pipe_ends_quietly() {
 
 #[test]
 fn an_unwritable_checkpoint_is_refused_before_rendering() {
-    let dir = temp_dir("ckpt-missing-dir");
-    std::fs::write(dir.join("scene.toml"), GOOD).unwrap();
+    let dir = dir_with_scene("ckpt-missing-dir", GOOD);
     let o = run(
         &[
             "render",

@@ -40,8 +40,7 @@ fn assert_rejected(name: &str, text: &str, expected: &[&str]) {
 
 #[test]
 fn the_good_scene_renders() {
-    let dir = temp_dir("good");
-    std::fs::write(dir.join("scene.toml"), GOOD).unwrap();
+    let dir = dir_with_scene("good", GOOD);
     let o = run(&["render", "scene.toml", "-o", "out.png", "-q"], &dir);
     assert!(o.status.success(), "{}", stderr(&o));
 }
@@ -235,8 +234,7 @@ const LOOK_DOWN_Z: &str = "lookfrom = [0, 0, 0]\nlookat = [0, 0, -1]\nvfov_deg =
 
 /// Renders `text` as a small PPM; returns its pixel values, or the failure.
 fn render_ppm(name: &str, text: &str) -> Result<Vec<u8>, String> {
-    let dir = temp_dir(name);
-    std::fs::write(dir.join("scene.toml"), text).unwrap();
+    let dir = dir_with_scene(name, text);
     let o = run(&["render", "scene.toml", "-o", "out.ppm", "-q"], &dir);
     if !o.status.success() {
         return Err(stderr(&o));

@@ -90,6 +90,13 @@ pub fn temp_dir(name: &str) -> PathBuf {
     dir
 }
 
+/// A fresh temporary directory holding `text` as `scene.toml`.
+pub fn dir_with_scene(name: &str, text: impl AsRef<[u8]>) -> PathBuf {
+    let dir = temp_dir(name);
+    std::fs::write(dir.join("scene.toml"), text).unwrap();
+    dir
+}
+
 /// Skips the calling test for `why` (something this machine lacks), saying so on the real
 /// standard error, which the test harness does not capture, so `cargo test` shows it.
 /// Under `CI=true` a skip is a failure: CI must run every test.
