@@ -5,7 +5,7 @@
 
 mod pixel;
 
-pub use pixel::{CameraSample, PixelEvaluator, tile_candidates};
+pub use pixel::{PixelEvaluator, tile_candidates};
 
 use crate::bvh::{RayHints, TraversalStack};
 use crate::geometry::Hit;

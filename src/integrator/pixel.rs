@@ -15,18 +15,18 @@ use crate::scene::{Scene, Shading};
 /// One camera sample: where it falls on the film (the book's `u`, `v`), its camera ray, and
 /// its generator after the draws that made them.
 #[derive(Clone, Debug)]
-pub struct CameraSample {
-    pub u: f32,
-    pub v: f32,
-    pub ray: Ray,
-    pub rng: Sampler,
+struct CameraSample {
+    u: f32,
+    v: f32,
+    ray: Ray,
+    rng: Sampler,
 }
 
 impl CameraSample {
     /// The sample of pixel `(x, y)` (top row `y = 0`) drawn from the sample's own generator
     /// `rng`: jitter within the pixel, then the lens.
     #[inline(always)]
-    pub fn new(scene: &Scene, x: u32, y: u32, mut rng: Sampler) -> Self {
+    fn new(scene: &Scene, x: u32, y: u32, mut rng: Sampler) -> Self {
         let s = &scene.settings;
         let (du, dv) = if s.jitter {
             (rng.uniform(), rng.uniform())

@@ -21,13 +21,6 @@ const PIXEL: u64 = 24;
 /// Pixels read at a time when a part's sums are streamed.
 const CHUNK_PIXELS: usize = 1 << 14;
 
-impl Part {
-    /// The length in bytes of a file with this header, once it is known to be consistent.
-    fn file_len(&self, header_len: u64) -> u64 {
-        PREAMBLE + header_len + self.state.job.region.area() * PIXEL + CHECKSUM
-    }
-}
-
 /// Checksum of a byte string of known length, fed in pieces: eight bytes at a time through
 /// `mix64`, the last word padded with zeros.
 struct Checksum {
@@ -226,7 +219,7 @@ struct HeaderOut<'a> {
 }
 
 /// The bytes of a part file holding `state` of the render `render`.
-pub fn encode(render: &RenderId, state: &JobState) -> Vec<u8> {
+fn encode(render: &RenderId, state: &JobState) -> Vec<u8> {
     let header = HeaderOut {
         version: VERSION,
         render,
@@ -256,6 +249,11 @@ pub fn save(path: &Path, render: &RenderId, state: &JobState) -> Result<()> {
 }
 
 impl Part {
+    /// The length in bytes of a file with this header, once it is known to be consistent.
+    fn file_len(&self, header_len: u64) -> u64 {
+        PREAMBLE + header_len + self.state.job.region.area() * PIXEL + CHECKSUM
+    }
+
     pub fn to_bytes(&self) -> Vec<u8> {
         encode(&self.render, &self.state)
     }
@@ -267,11 +265,6 @@ impl Part {
 
     pub fn load(path: &Path) -> Result<Part> {
         PartReader::open(path)?.read_part()
-    }
-
-    /// Writes the part atomically.
-    pub fn save(&self, path: &Path) -> Result<()> {
-        save(path, &self.render, &self.state)
     }
 }
 
