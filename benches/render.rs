@@ -14,6 +14,7 @@ use tessera::ray::Ray;
 use tessera::render::render_tile;
 use tessera::sampling::Sampler;
 use tessera::scene::{Overrides, Scene};
+use tessera::simd;
 
 fn cover(spp: u32) -> Scene {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cover.toml");
@@ -40,7 +41,7 @@ fn tile(c: &mut Criterion) {
     g.throughput(Throughput::Elements(tile.area() * 4));
     g.bench_function("tile_32x32_4spp", |b| {
         let all = SampleRange { start: 0, end: 4 };
-        b.iter(|| render_tile(black_box(&scene), &tile, all))
+        b.iter(|| render_tile(black_box(&scene), &tile, all, simd::Path::best()))
     });
     g.finish();
 }
@@ -114,7 +115,12 @@ fn bvh(c: &mut Criterion) {
                 .iter()
                 .filter(|r| {
                     scene
-                        .hit_candidates(&candidates, r, Interval::new(0.0, f32::INFINITY))
+                        .hit_candidates(
+                            simd::Portable,
+                            &candidates,
+                            r,
+                            Interval::new(0.0, f32::INFINITY),
+                        )
                         .is_some()
                 })
                 .count()

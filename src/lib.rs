@@ -19,7 +19,7 @@
 //! size, shard split or interruption. [`math`], [`ray`] and [`error`] serve them all;
 //! [`compare`] measures the difference of two images.
 
-#![forbid(unsafe_code)]
+#![deny(unsafe_code)]
 
 pub mod bvh;
 pub mod camera;
@@ -37,5 +37,6 @@ pub mod render;
 pub mod sampling;
 pub mod scene;
 pub mod shard;
+pub mod simd;
 
 pub use error::{Error, Result};

@@ -7,6 +7,7 @@ use crate::integrator::PixelEvaluator;
 use crate::job::{Job, JobState, SampleRange};
 use crate::math::{Color, PixelRect};
 use crate::scene::Scene;
+use crate::simd::{self, Isa, Kernel};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -21,6 +22,8 @@ pub struct RenderOptions {
     pub threads: Option<usize>,
     /// Tile edge in pixels.
     pub tile: u32,
+    /// The SIMD path of the hot code; every path gives the same bytes.
+    pub simd: simd::Path,
 }
 
 impl Default for RenderOptions {
@@ -28,6 +31,7 @@ impl Default for RenderOptions {
         Self {
             threads: None,
             tile: DEFAULT_TILE,
+            simd: simd::Path::best(),
         }
     }
 }
@@ -115,7 +119,7 @@ pub fn render_job(
                     if stop.load(Ordering::Relaxed) {
                         return;
                     }
-                    let result = render_tile(scene, tile, *range);
+                    let result = render_tile(scene, tile, *range, options.simd);
                     on_samples(tile.area() * u64::from(range.len()));
                     batch.push(*i, result);
                 },
@@ -198,9 +202,40 @@ pub struct TileResult {
     pub rays: u64,
 }
 
-/// Renders the samples `range` of every pixel of one tile.
-pub fn render_tile(scene: &Scene, tile: &PixelRect, range: SampleRange) -> TileResult {
-    let mut pixels = PixelEvaluator::for_tile(scene, tile);
+/// Renders the samples `range` of every pixel of one tile, compiled for the SIMD path `simd`.
+pub fn render_tile(
+    scene: &Scene,
+    tile: &PixelRect,
+    range: SampleRange,
+    simd: simd::Path,
+) -> TileResult {
+    simd::dispatch(simd, TileKernel { scene, tile, range })
+}
+
+/// `render_tile`'s work, for `simd::dispatch` to compile for each path.
+struct TileKernel<'a> {
+    scene: &'a Scene,
+    tile: &'a PixelRect,
+    range: SampleRange,
+}
+
+impl Kernel for TileKernel<'_> {
+    type Output = TileResult;
+
+    #[inline(always)]
+    fn run<I: Isa>(self, isa: I) -> TileResult {
+        render_tile_on(isa, self.scene, self.tile, self.range)
+    }
+}
+
+#[inline(always)]
+fn render_tile_on<I: Isa>(
+    isa: I,
+    scene: &Scene,
+    tile: &PixelRect,
+    range: SampleRange,
+) -> TileResult {
+    let mut pixels = PixelEvaluator::for_tile(isa, scene, tile);
     let mut sums = Vec::with_capacity(tile.area() as usize);
     let mut rays = 0u64;
     for y in tile.y0..tile.y0 + tile.height {

@@ -85,13 +85,15 @@ fn cropped_regions_equal_the_same_pixels_of_the_whole_image() {
 /// The renderer tests a tile's camera rays against the few spheres picked for it
 /// (`integrator::tile_candidates`) and makes each sample's camera ray while the one before is
 /// traced. Tracing each sample alone (a range of one) through the whole hierarchy, the simple
-/// reference, must give the very same sums and ray counts.
+/// reference (on the portable SIMD path), must give the very same sums and ray counts, on
+/// every SIMD path this CPU runs.
 #[test]
 fn fast_tile_tracer_equals_tracing_each_sample_alone() {
     use tessera::film::to_fixed;
     use tessera::integrator::{PixelEvaluator, tile_candidates};
     use tessera::job::SampleRange;
     use tessera::render::render_tile;
+    use tessera::simd::{Path, Portable};
     let scene = load(
         &scene_path("cover.toml"),
         Overrides {
@@ -116,11 +118,17 @@ fn fast_tile_tracer_equals_tracing_each_sample_alone() {
         rect(37, 101, 9, 13),
         rect(0, 100, 300, 8),
     ];
-    let mut alone = PixelEvaluator::with_candidates(&scene, None);
+    let mut alone = PixelEvaluator::with_candidates(Portable, &scene, None);
     let mut listed = 0;
     for tile in &tiles {
         listed += usize::from(tile_candidates(&scene, tile).is_some());
-        let fast = render_tile(&scene, tile, range);
+        let paths = Path::supported();
+        let fast = render_tile(&scene, tile, range, *paths.last().unwrap());
+        for &path in &paths {
+            let on_path = render_tile(&scene, tile, range, path);
+            assert_eq!(on_path.sums, fast.sums, "{path}");
+            assert_eq!(on_path.rays, fast.rays, "{path}");
+        }
         let mut rays = 0u64;
         for (i, y) in (tile.y0..tile.y0 + tile.height).enumerate() {
             for (j, x) in (tile.x0..tile.x0 + tile.width).enumerate() {

@@ -10,6 +10,7 @@ use std::path::Path;
 /// The top-level modules, lowest first.
 const LAYERS: &[&str] = &[
     "math",
+    "simd",
     "error",
     "ray",
     "sampling",
@@ -79,4 +80,24 @@ fn modules_import_only_modules_below_them() {
     upward.sort();
     upward.dedup();
     assert!(upward.is_empty(), "imports upward: {upward:?}");
+}
+
+/// `unsafe` lives in one module, `simd` (run-time dispatch and the AVX intrinsics), which
+/// alone may allow it; the crate root denies it everywhere else.
+#[test]
+fn unsafe_code_lives_only_in_the_simd_module() {
+    let mut files = Vec::new();
+    sources(&root().join("src"), None, &mut files);
+    let lib = std::fs::read_to_string(root().join("src/lib.rs")).unwrap();
+    assert!(lib.contains("#![deny(unsafe_code)]"));
+    let main = std::fs::read_to_string(root().join("src/main.rs")).unwrap();
+    assert!(main.contains("#![forbid(unsafe_code)]"));
+    let mut found = Vec::new();
+    for (module, text) in &files {
+        let uses = text.contains("unsafe {") || text.contains("allow(unsafe_code)");
+        if uses && module != "simd" {
+            found.push(module.clone());
+        }
+    }
+    assert!(found.is_empty(), "unsafe outside simd: {found:?}");
 }

@@ -2,9 +2,10 @@
 //! into wide nodes of up to `WIDTH` children, with leaves of one sphere pack each.
 
 use super::pack::SpherePack;
-use super::{BINS, Bvh, EMPTY, LEAF, Lanes, MAX_LEAF, TRAVERSAL_COST, WIDTH, WideNode};
+use super::{BINS, Bvh, EMPTY, LEAF, MAX_LEAF, TRAVERSAL_COST, WIDTH, WideNode};
 use crate::geometry::{Aabb, Sphere};
 use crate::math::Vec3;
+use crate::simd::F32x8;
 
 /// A node of the binary build tree: either two children (`count == 0`, at `first` and
 /// `first + 1`) or a leaf of `count` primitives starting at `first` of the build order.
@@ -107,7 +108,7 @@ impl Bvh {
         let mut planes = [[f32::INFINITY; WIDTH]; 6];
         planes[3..].fill([f32::NEG_INFINITY; WIDTH]);
         let mut node_out = WideNode {
-            planes: [Lanes::ZERO; 6],
+            planes: [F32x8::ZERO; 6],
             child: [EMPTY; WIDTH],
             leaf_mask: 0,
             inner_mask: 0,
@@ -136,7 +137,7 @@ impl Bvh {
             }
         }
         for (out, plane) in node_out.planes.iter_mut().zip(planes) {
-            *out = Lanes::from(plane);
+            *out = F32x8(plane);
         }
         self.nodes[index] = node_out;
         index as u32

@@ -2,11 +2,11 @@
 //! picked by walking the tree and tested together without it.
 
 use super::pack::{SpherePack, hit_of, splat3};
-use super::{Bvh, EMPTY, LEAF, Lanes, NO_HIT, NO_SPHERE, WIDTH};
+use super::{Bvh, EMPTY, LEAF, NO_HIT, NO_SPHERE, WIDTH};
 use crate::geometry::{PrimitiveId, Sphere};
 use crate::math::{Interval, Vec3};
 use crate::ray::Ray;
-use wide::u32x8;
+use crate::simd::{Ids, Isa, Lanes};
 
 /// A few spheres picked out for a bundle of rays (the camera rays of one tile), giants
 /// included, tested together in SIMD packs without walking the tree.
@@ -41,7 +41,7 @@ impl Bvh {
         };
         while let Some(index) = todo.pop() {
             let node = &self.nodes[index as usize];
-            let planes = node.planes.map(Lanes::to_array);
+            let planes = node.planes.map(|plane| plane.0);
             for (lane, &child) in node.child.iter().enumerate() {
                 let corner = |first: usize| {
                     Vec3::new(
@@ -77,17 +77,18 @@ impl Bvh {
 
     /// The closest hit among `candidates`: what `intersect` gives for any ray the
     /// candidates were picked for.
-    #[inline]
-    pub fn intersect_candidates(
+    #[inline(always)]
+    pub fn intersect_candidates<I: Isa>(
         &self,
+        isa: I,
         candidates: &Candidates,
         ray: &Ray,
         interval: Interval,
     ) -> Option<(f32, PrimitiveId)> {
         let (mut closest, mut found) = (interval.max, NO_HIT);
-        let (o, d) = (splat3(ray.origin), splat3(ray.dir));
-        let t_min = Lanes::splat(interval.min);
-        let skip = u32x8::splat(NO_SPHERE);
+        let (o, d) = (splat3(isa, ray.origin), splat3(isa, ray.dir));
+        let t_min = Lanes::splat(isa, interval.min);
+        let skip = Ids::splat(isa, NO_SPHERE);
         for pack in &candidates.packs {
             pack.intersect(&o, &d, t_min, skip, &mut closest, &mut found);
         }

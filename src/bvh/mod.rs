@@ -18,14 +18,13 @@ pub use candidates::Candidates;
 use crate::geometry::{PrimitiveId, Sphere};
 use crate::math::{Interval, Vec3};
 use crate::ray::Ray;
+use crate::simd::{F32x8, Isa, Portable};
 use pack::SpherePack;
 use traverse::Traversal;
-use wide::f32x8;
 
 /// Children per node and spheres per pack: one SIMD lane each (AVX where the build has it,
 /// two SSE halves otherwise).
 const WIDTH: usize = 8;
-type Lanes = f32x8;
 
 /// Leaves hold at most this many primitives: one SIMD pack.
 const MAX_LEAF: usize = WIDTH;
@@ -46,7 +45,7 @@ const NO_SPHERE: u32 = u32::MAX;
 /// min x, y, z then max x, y, z.
 #[derive(Clone, Copy, Debug)]
 struct WideNode {
-    planes: [Lanes; 6],
+    planes: [F32x8; 6],
     child: [u32; WIDTH],
     /// Bit `i` is set when child `i` is a leaf.
     leaf_mask: u32,
@@ -87,8 +86,8 @@ impl Bvh {
         (WIDTH - 1) * (self.max_level + 1) + 1
     }
 
-    /// The closest hit in `interval`: its parameter and primitive id.
-    #[inline(always)]
+    /// The closest hit in `interval`: its parameter and primitive id (on the portable SIMD
+    /// path; `intersect_on` takes any).
     pub fn intersect(
         &self,
         ray: &Ray,
@@ -99,9 +98,21 @@ impl Bvh {
     }
 
     /// `intersect` helped by what the caller knows of the ray (see `RayHints`).
-    #[inline(always)]
     pub fn intersect_with(
         &self,
+        ray: &Ray,
+        interval: Interval,
+        stack: &mut TraversalStack,
+        hints: RayHints,
+    ) -> Option<(f32, PrimitiveId)> {
+        self.intersect_on(Portable, ray, interval, stack, hints)
+    }
+
+    /// `intersect_with` on the SIMD path of `isa`: the same answer on every path.
+    #[inline(always)]
+    pub fn intersect_on<I: Isa>(
+        &self,
+        isa: I,
         ray: &Ray,
         interval: Interval,
         stack: &mut TraversalStack,
@@ -111,7 +122,7 @@ impl Bvh {
         if stack.0.len() < need {
             *stack = self.new_stack();
         }
-        let mut walk = Traversal::new(self, ray, interval, hints);
+        let mut walk = Traversal::new(isa, self, ray, interval, hints);
         if !self.nodes.is_empty() {
             while !walk.step(self, &mut stack.0[..need]) {}
         }

@@ -1,18 +1,18 @@
 //! A pack of up to `WIDTH` spheres in structure-of-arrays form, tested against one ray at
 //! once with the same arithmetic, lane by lane, as `Sphere::intersect`.
 
-use super::{Lanes, NO_HIT, NO_SPHERE, WIDTH};
+use super::{NO_HIT, NO_SPHERE, WIDTH};
 use crate::geometry::{PrimitiveId, Sphere};
 use crate::math::Vec3;
-use wide::u32x8;
+use crate::simd::{F32x8, Ids, Isa, Lanes, Mask, U32x8};
 
 /// Up to `WIDTH` spheres in structure-of-arrays form; unused lanes have `r2 = -1`, which no
 /// ray can hit.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct SpherePack {
-    center: [Lanes; 3],
-    r2: Lanes,
-    id: [u32; WIDTH],
+    center: [F32x8; 3],
+    r2: F32x8,
+    id: U32x8,
 }
 
 impl SpherePack {
@@ -29,15 +29,15 @@ impl SpherePack {
             id[lane] = i;
         }
         SpherePack {
-            center: center.map(Lanes::from),
-            r2: Lanes::from(r2),
-            id,
+            center: center.map(F32x8),
+            r2: F32x8(r2),
+            id: U32x8(id),
         }
     }
 
     /// The ids of the spheres the pack holds, leaving out its unused lanes.
     pub(super) fn ids(&self) -> impl Iterator<Item = u32> + '_ {
-        self.id.iter().copied().filter(|&id| id != NO_SPHERE)
+        self.id.0.iter().copied().filter(|&id| id != NO_SPHERE)
     }
 
     /// Takes a hit among the spheres that beats `(closest, found)`, the best so far: the
@@ -45,40 +45,45 @@ impl SpherePack {
     /// they are met, so every traversal order finds the same hit. The same arithmetic, lane
     /// by lane, as `Sphere::intersect`.
     #[inline(always)]
-    pub(super) fn intersect(
+    pub(super) fn intersect<I: Isa>(
         &self,
-        o: &[Lanes; 3],
-        d: &[Lanes; 3],
-        t_min: Lanes,
-        skip: u32x8,
+        o: &[Lanes<I>; 3],
+        d: &[Lanes<I>; 3],
+        t_min: Lanes<I>,
+        skip: Ids<I>,
         closest: &mut f32,
         found: &mut u32,
     ) {
-        let zero = Lanes::ZERO;
-        let fx = o[0] - self.center[0];
-        let fy = o[1] - self.center[1];
-        let fz = o[2] - self.center[2];
+        let isa = t_min.isa();
+        let zero = Lanes::splat(isa, 0.0);
+        let r2 = Lanes::load(isa, &self.r2);
+        let fx = o[0] - Lanes::load(isa, &self.center[0]);
+        let fy = o[1] - Lanes::load(isa, &self.center[1]);
+        let fz = o[2] - Lanes::load(isa, &self.center[2]);
         let b = -(fx * d[0] + fy * d[1] + fz * d[2]);
         let (gx, gy, gz) = (fx + b * d[0], fy + b * d[1], fz + b * d[2]);
-        let disc = self.r2 - (gx * gx + gy * gy + gz * gz);
+        let disc = r2 - (gx * gx + gy * gy + gz * gz);
         // Lanes whose line meets the sphere, less the sphere the ray is known to leave.
-        let valid =
-            disc.simd_ge(zero).to_bitmask() & !u32x8::from(self.id).simd_eq(skip).to_bitmask();
+        let valid = disc.simd_ge(zero).to_bitmask() & !Ids::load(isa, &self.id).eq_bitmask(skip);
         // Most packs a ray reaches it misses outright: leave before the square root.
         if valid == 0 {
             return;
         }
         let sq = disc.fast_max(zero).sqrt();
         let q = b.simd_ge(zero).select(b + sq, b - sq);
-        let c = (fx * fx + fy * fy + fz * fz) - self.r2;
+        let c = (fx * fx + fy * fy + fz * fz) - r2;
         let q_zero = q.simd_eq(zero);
         let t0 = q_zero.select(zero, c / q);
         let t1 = q_zero.select(zero, q);
         let (near, far) = (t0.fast_min(t1), t0.fast_max(t1));
-        let hi = Lanes::splat(*closest);
-        let inside = |t: Lanes| t_min.simd_lt(t) & t.simd_le(hi);
-        let inf = Lanes::splat(f32::INFINITY);
-        let t = inside(near).select(near, inside(far).select(far, inf));
+        let hi = Lanes::splat(isa, *closest);
+        // Not a closure: only a function can be marked to be inlined into the dispatched code.
+        #[inline(always)]
+        fn inside<I: Isa>(t: Lanes<I>, t_min: Lanes<I>, hi: Lanes<I>) -> Mask<I> {
+            t_min.simd_lt(t) & t.simd_le(hi)
+        }
+        let inf = Lanes::splat(isa, f32::INFINITY);
+        let t = inside(near, t_min, hi).select(near, inside(far, t_min, hi).select(far, inf));
         let hits = t.simd_lt(inf).to_bitmask() & valid;
         if hits == 0 {
             return;
@@ -90,11 +95,11 @@ impl SpherePack {
         while rest != 0 {
             let other = lowest_lane(rest);
             rest &= rest - 1;
-            if (t[other], self.id[other]) < (t[lane], self.id[lane]) {
+            if (t[other], self.id.0[other]) < (t[lane], self.id.0[lane]) {
                 lane = other;
             }
         }
-        let (t, id) = (t[lane], self.id[lane]);
+        let (t, id) = (t[lane], self.id.0[lane]);
         // A tie with the best so far counts only against a real hit, not the interval's end.
         if t < *closest || (*found != NO_HIT && id < *found) {
             *closest = t;
@@ -111,8 +116,12 @@ pub(super) fn lowest_lane(mask: u32) -> usize {
 }
 
 #[inline(always)]
-pub(super) fn splat3(v: Vec3) -> [Lanes; 3] {
-    [Lanes::splat(v.x), Lanes::splat(v.y), Lanes::splat(v.z)]
+pub(super) fn splat3<I: Isa>(isa: I, v: Vec3) -> [Lanes<I>; 3] {
+    [
+        Lanes::splat(isa, v.x),
+        Lanes::splat(isa, v.y),
+        Lanes::splat(isa, v.z),
+    ]
 }
 
 pub(super) fn hit_of(closest: f32, found: u32) -> Option<(f32, PrimitiveId)> {

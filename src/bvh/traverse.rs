@@ -3,11 +3,11 @@
 
 use super::pack::SpherePack;
 use super::pack::{hit_of, lowest_lane, splat3};
-use super::{Bvh, LEAF, Lanes, NO_HIT, NO_SPHERE, RayHints};
+use super::{Bvh, LEAF, NO_HIT, NO_SPHERE, RayHints};
 use crate::geometry::PrimitiveId;
 use crate::math::{Interval, Vec3};
 use crate::ray::Ray;
-use wide::u32x8;
+use crate::simd::{Ids, Isa, Lanes};
 
 impl Bvh {
     /// The nearest giant hit in `interval`: its parameter and id, else `(interval.max,
@@ -33,13 +33,13 @@ impl Bvh {
 }
 
 /// One ray's walk through the hierarchy, advanced a node at a time by `step`.
-pub(super) struct Traversal {
-    o: [Lanes; 3],
-    d: [Lanes; 3],
-    inv: [Lanes; 3],
-    t_min: Lanes,
+pub(super) struct Traversal<I: Isa> {
+    o: [Lanes<I>; 3],
+    d: [Lanes<I>; 3],
+    inv: [Lanes<I>; 3],
+    t_min: Lanes<I>,
     /// The id of a sphere the ray cannot hit (`RayHints::leaving`), or `NO_SPHERE`.
-    skip: u32x8,
+    skip: Ids<I>,
     closest: f32,
     found: u32,
     /// The node to visit next.
@@ -48,21 +48,21 @@ pub(super) struct Traversal {
     top: usize,
 }
 
-impl Traversal {
+impl<I: Isa> Traversal<I> {
     /// Starts a walk: tests the giant spheres, and sets up the root as the first node.
     #[inline(always)]
-    pub(super) fn new(bvh: &Bvh, ray: &Ray, interval: Interval, hints: RayHints) -> Self {
+    pub(super) fn new(isa: I, bvh: &Bvh, ray: &Ray, interval: Interval, hints: RayHints) -> Self {
         let (closest, found) = bvh.nearest_giant(ray, interval);
         // Clamped so a zero direction component gives a huge finite slope, never the
         // 0 · ∞ = NaN of a box face through the origin.
         let inv = hints.inv_dir.unwrap_or_else(|| Vec3::ONE / ray.dir);
         let inv = inv.clamp(Vec3::splat(-1e30), Vec3::splat(1e30));
         Traversal {
-            o: splat3(ray.origin),
-            d: splat3(ray.dir),
-            inv: splat3(inv),
-            t_min: Lanes::splat(interval.min),
-            skip: u32x8::splat(hints.leaving.map_or(NO_SPHERE, |id| id.0)),
+            o: splat3(isa, ray.origin),
+            d: splat3(isa, ray.dir),
+            inv: splat3(isa, inv),
+            t_min: Lanes::splat(isa, interval.min),
+            skip: Ids::splat(isa, hints.leaving.map_or(NO_SPHERE, |id| id.0)),
             closest,
             found,
             current: 0,
@@ -80,11 +80,20 @@ impl Traversal {
     pub(super) fn step(&mut self, bvh: &Bvh, stack: &mut [(u32, f32)]) -> bool {
         let (o, inv) = (&self.o, &self.inv);
         let node = &bvh.nodes[self.current as usize];
-        let p = &node.planes;
+        let isa = self.t_min.isa();
         // The slab test: per axis, the ray's parameters at the min and max planes; the
         // nearer of each pair enters the slab, the farther leaves it.
-        let t0 = [0, 1, 2].map(|axis| (p[axis] - o[axis]) * inv[axis]);
-        let t1 = [0, 1, 2].map(|axis| (p[axis + 3] - o[axis]) * inv[axis]);
+        let p = &node.planes;
+        let t0 = [
+            (Lanes::load(isa, &p[0]) - o[0]) * inv[0],
+            (Lanes::load(isa, &p[1]) - o[1]) * inv[1],
+            (Lanes::load(isa, &p[2]) - o[2]) * inv[2],
+        ];
+        let t1 = [
+            (Lanes::load(isa, &p[3]) - o[0]) * inv[0],
+            (Lanes::load(isa, &p[4]) - o[1]) * inv[1],
+            (Lanes::load(isa, &p[5]) - o[2]) * inv[2],
+        ];
         let t_near = t0[0]
             .fast_min(t1[0])
             .fast_max(t0[1].fast_min(t1[1]))
@@ -92,7 +101,11 @@ impl Traversal {
         let t_far = t0[0]
             .fast_max(t1[0])
             .fast_min(t0[1].fast_max(t1[1]))
-            .fast_min(t0[2].fast_max(t1[2]).fast_min(Lanes::splat(self.closest)));
+            .fast_min(
+                t0[2]
+                    .fast_max(t1[2])
+                    .fast_min(Lanes::splat(isa, self.closest)),
+            );
         let mut hits = t_near.simd_le(t_far).to_bitmask();
         // Indexing a SIMD vector by a variable lane compiles to a jump table.
         let t_near = t_near.to_array();

@@ -52,6 +52,15 @@ pub struct SceneArgs {
     /// Worker threads (default: one per core).
     #[arg(long)]
     pub threads: Option<usize>,
+    /// SIMD path of the hot code: auto (the fastest this CPU runs), portable, avx2 or
+    /// avx512. Every path gives the same image; one the CPU lacks is refused.
+    #[arg(
+        long,
+        env = "TESSERA_SIMD",
+        default_value = "auto",
+        value_name = "PATH"
+    )]
+    pub simd: String,
 }
 
 #[derive(Args)]

@@ -6,10 +6,11 @@ use super::{print_out, summary};
 use anyhow::{Context, Result};
 use tessera::render::{self, RenderStats};
 use tessera::scene::Scene;
+use tessera::simd::Path;
 
 /// Renders `repeat` times with `threads` workers; returns the run with the median speed.
-fn median_run(scene: &Scene, threads: usize, repeat: u32) -> Result<RenderStats> {
-    let options = render_options(Some(threads), render::DEFAULT_TILE)?;
+fn median_run(scene: &Scene, threads: usize, repeat: u32, simd: Path) -> Result<RenderStats> {
+    let options = render_options(Some(threads), render::DEFAULT_TILE, simd)?;
     let mut runs = (0..repeat)
         .map(|_| {
             Ok(render::render(scene, &options, &|_| {})
@@ -29,15 +30,16 @@ pub fn run(settings: BenchSettings) -> Result<()> {
         scaling,
         repeat,
         json,
+        simd,
     } = settings;
     // Thread scaling, each the median of `repeat` renders.
     let scaling = (scaling.iter())
-        .map(|&t| median_run(&scene, t, repeat))
+        .map(|&t| median_run(&scene, t, repeat, simd))
         .collect::<Result<Vec<_>>>()?;
     // The headline run at `threads`, unless the table already measured it.
     let stats = match scaling.iter().find(|r| r.threads == threads) {
         Some(r) => *r,
-        None => median_run(&scene, threads, repeat)?,
+        None => median_run(&scene, threads, repeat, simd)?,
     };
     let base = scaling.first().map_or(1.0, RenderStats::samples_per_sec);
     // Per thread count: samples/s, speedup over one thread, parallel efficiency.

@@ -12,6 +12,7 @@ use tessera::partial::RenderId;
 use tessera::render::{self, RenderOptions};
 use tessera::scene::{Overrides, Scene};
 use tessera::shard::{self, Shard, Split, parse_samples};
+use tessera::simd;
 
 /// Where a render's result goes.
 pub enum Output {
@@ -51,7 +52,7 @@ pub struct RenderSettings {
 
 impl RenderSettings {
     pub fn new(args: RenderArgs) -> Result<Self> {
-        let options = render_options(args.scene.threads, args.tile)?;
+        let options = render_options(args.scene.threads, args.tile, simd_path(&args.scene)?)?;
         if !(args.checkpoint_every >= 0.0 && args.checkpoint_every.is_finite()) {
             bail!("--checkpoint-every must be a number of seconds, 0 or more");
         }
@@ -123,6 +124,8 @@ pub struct BenchSettings {
     /// Renders per measurement; the median is reported.
     pub repeat: u32,
     pub json: bool,
+    /// The SIMD path of every render.
+    pub simd: simd::Path,
 }
 
 impl BenchSettings {
@@ -132,7 +135,8 @@ impl BenchSettings {
         scene_args.spp = scene_args.spp.or(Some(8));
         let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
         let threads = scene_args.threads.unwrap_or(cores);
-        render_options(Some(threads), render::DEFAULT_TILE)?;
+        let simd = simd_path(&scene_args)?;
+        render_options(Some(threads), render::DEFAULT_TILE, simd)?;
         Ok(Self {
             scene: load(&scene_args, None, None)?,
             scene_path: scene_args.scene,
@@ -144,8 +148,14 @@ impl BenchSettings {
             },
             repeat: args.repeat.max(1),
             json: args.json,
+            simd,
         })
     }
+}
+
+/// The SIMD path `--simd` (or `TESSERA_SIMD`) names, if this CPU runs it.
+fn simd_path(args: &SceneArgs) -> Result<simd::Path> {
+    simd::Path::choose(&args.simd).map_err(|e| anyhow::anyhow!("--simd: {e}"))
 }
 
 fn load(args: &SceneArgs, depth: Option<u32>, seed: Option<u64>) -> Result<Scene> {
@@ -159,14 +169,22 @@ fn load(args: &SceneArgs, depth: Option<u32>, seed: Option<u64>) -> Result<Scene
 }
 
 /// Scheduling options, checked.
-pub fn render_options(threads: Option<usize>, tile: u32) -> Result<RenderOptions> {
+pub fn render_options(
+    threads: Option<usize>,
+    tile: u32,
+    simd: simd::Path,
+) -> Result<RenderOptions> {
     if threads == Some(0) {
         bail!("--threads must be at least 1");
     }
     if tile == 0 {
         bail!("--tile must be at least 1 pixel");
     }
-    Ok(RenderOptions { threads, tile })
+    Ok(RenderOptions {
+        threads,
+        tile,
+        simd,
+    })
 }
 
 /// The scene's file name with `.png`.

@@ -13,6 +13,7 @@ use crate::math::{Color, Interval, Vec3};
 use crate::ray::Ray;
 use crate::sampling::Sampler;
 use crate::scene::Scene;
+use crate::simd::Isa;
 
 /// Radiance along a camera ray and the number of ray segments traced to find it.
 #[derive(Clone, Copy, Debug)]
@@ -28,7 +29,8 @@ const ANY_DISTANCE: Interval = Interval::new(0.0, f32::INFINITY);
 /// escape rays picking up the background. Its first segment, camera ray `ray`, has been traced
 /// and met `first` (`None`: it escaped); the caller checks that `max_depth` allows one segment.
 #[inline(always)]
-pub fn path_trace_from(
+pub fn path_trace_from<I: Isa>(
+    isa: I,
     scene: &Scene,
     mut ray: Ray,
     first: Option<Hit>,
@@ -63,7 +65,7 @@ pub fn path_trace_from(
         }
         throughput *= scatter.attenuation;
         let (next, hints) = bounce(scene, &here, scatter.dir);
-        hit = scene.hit_with(&next, ANY_DISTANCE, stack, hints);
+        hit = scene.hit_on(isa, &next, ANY_DISTANCE, stack, hints);
         ray = next;
         rays += 1;
     }

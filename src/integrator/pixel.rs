@@ -3,7 +3,7 @@
 //! sample is made, and the only code that knows shading modes.
 
 use super::{ANY_DISTANCE, Radiance, path_trace_from};
-use crate::bvh::{Candidates, TraversalStack};
+use crate::bvh::{Candidates, RayHints, TraversalStack};
 use crate::geometry::Hit;
 use crate::job::SampleRange;
 use crate::material::Material;
@@ -11,6 +11,7 @@ use crate::math::{Color, PixelRect};
 use crate::ray::Ray;
 use crate::sampling::{PixelSeed, Sampler};
 use crate::scene::{Scene, Shading};
+use crate::simd::Isa;
 
 /// One camera sample: where it falls on the film (the book's `u`, `v`), its camera ray, and
 /// its generator after the draws that made them.
@@ -75,32 +76,71 @@ pub fn tile_candidates(scene: &Scene, tile: &PixelRect) -> Option<Candidates> {
     )
 }
 
+/// How a shading mode turns a camera sample (with its first hit, when the mode traces camera
+/// rays) into radiance, given scratch space.
+trait Shade {
+    fn shade(&self, s: CameraSample, first: Option<Hit>, stack: &mut TraversalStack) -> Radiance;
+}
+
+/// A closure as a `Shade`, for the modes that run no SIMD code (see `PathTrace`).
+struct Closure<F>(F);
+
+impl<F: Fn(CameraSample, Option<Hit>, &mut TraversalStack) -> Radiance> Shade for Closure<F> {
+    #[inline(always)]
+    fn shade(&self, s: CameraSample, first: Option<Hit>, stack: &mut TraversalStack) -> Radiance {
+        (self.0)(s, first, stack)
+    }
+}
+
+fn closure<F: Fn(CameraSample, Option<Hit>, &mut TraversalStack) -> Radiance>(f: F) -> Closure<F> {
+    Closure(f)
+}
+
+/// Path tracing, as a type rather than a closure: it runs the SIMD path's code, which must
+/// be inlined into the function `simd::dispatch` compiled for that path, and only a function
+/// (not a closure) can be marked to be inlined.
+struct PathTrace<'a, I: Isa> {
+    isa: I,
+    scene: &'a Scene,
+}
+
+impl<I: Isa> Shade for PathTrace<'_, I> {
+    #[inline(always)]
+    fn shade(&self, s: CameraSample, first: Option<Hit>, stack: &mut TraversalStack) -> Radiance {
+        let mut rng = s.rng;
+        path_trace_from(self.isa, self.scene, s.ray, first, &mut rng, stack)
+    }
+}
+
 /// Evaluates the samples of pixels: one per worker and tile, reused from pixel to pixel, so
 /// nothing is allocated per sample.
-pub struct PixelEvaluator<'a> {
+pub struct PixelEvaluator<'a, I: Isa> {
+    /// The SIMD path of every ray test.
+    isa: I,
     scene: &'a Scene,
     /// The spheres every camera ray may hit (see `tile_candidates`); `None`: the tree.
     candidates: Option<Candidates>,
     stack: TraversalStack,
 }
 
-impl<'a> PixelEvaluator<'a> {
+impl<'a, I: Isa> PixelEvaluator<'a, I> {
     /// For the pixels of `tile`: camera rays are tested against the tile's candidates when
     /// the shading mode traces them and the candidates are few.
-    pub fn for_tile(scene: &'a Scene, tile: &PixelRect) -> Self {
+    pub fn for_tile(isa: I, scene: &'a Scene, tile: &PixelRect) -> Self {
         let traces = match scene.settings.shading {
             Shading::Uv | Shading::Gradient => false,
             Shading::Flat | Shading::Normals => true,
             Shading::Path => scene.settings.max_depth > 0,
         };
         let candidates = traces.then(|| tile_candidates(scene, tile)).flatten();
-        Self::with_candidates(scene, candidates)
+        Self::with_candidates(isa, scene, candidates)
     }
 
     /// With camera rays tested against `candidates`, which must hold every sphere they can
     /// hit; `None` traces them through the tree. Either gives the same hits.
-    pub fn with_candidates(scene: &'a Scene, candidates: Option<Candidates>) -> Self {
+    pub fn with_candidates(isa: I, scene: &'a Scene, candidates: Option<Candidates>) -> Self {
         Self {
+            isa,
             scene,
             candidates,
             stack: scene.new_stack(),
@@ -111,48 +151,80 @@ impl<'a> PixelEvaluator<'a> {
     /// segments it traced to `add`, in sample order.
     #[inline(always)]
     pub fn evaluate(&mut self, x: u32, y: u32, range: SampleRange, add: impl FnMut(Color, u32)) {
-        let scene = self.scene;
+        let (isa, scene) = (self.isa, self.scene);
         let background = |ray: &Ray| scene.background.radiance(ray.dir);
         match scene.settings.shading {
             // Pixel coordinates as red and green (image 1); no rays.
-            Shading::Uv => self.each_sample(x, y, range, false, add, |s, _, _| Radiance {
-                color: Color::new(s.u, s.v, 0.25),
-                rays: 0,
-            }),
+            Shading::Uv => self.each_sample(
+                x,
+                y,
+                range,
+                false,
+                add,
+                closure(|s, _, _| Radiance {
+                    color: Color::new(s.u, s.v, 0.25),
+                    rays: 0,
+                }),
+            ),
             // The background seen through the camera (image 2).
-            Shading::Gradient => self.each_sample(x, y, range, false, add, |s, _, _| Radiance {
-                color: background(&s.ray),
-                rays: 1,
-            }),
+            Shading::Gradient => self.each_sample(
+                x,
+                y,
+                range,
+                false,
+                add,
+                closure(|s, _, _| Radiance {
+                    color: background(&s.ray),
+                    rays: 1,
+                }),
+            ),
             // The surface's albedo where a ray hits (image 3).
-            Shading::Flat => self.each_sample(x, y, range, true, add, |s, first, _| {
-                let color = match first {
-                    Some(hit) => match *scene.material(&hit) {
-                        Material::Lambertian { albedo } | Material::Metal { albedo, .. } => albedo,
-                        Material::Dielectric { .. } => Color::ONE,
-                    },
-                    None => background(&s.ray),
-                };
-                Radiance { color, rays: 1 }
-            }),
+            Shading::Flat => self.each_sample(
+                x,
+                y,
+                range,
+                true,
+                add,
+                closure(|s, first, _| {
+                    let color = match first {
+                        Some(hit) => match *scene.material(&hit) {
+                            Material::Lambertian { albedo } | Material::Metal { albedo, .. } => {
+                                albedo
+                            }
+                            Material::Dielectric { .. } => Color::ONE,
+                        },
+                        None => background(&s.ray),
+                    };
+                    Radiance { color, rays: 1 }
+                }),
+            ),
             // `(n + 1) / 2` of the front-facing normal (images 4–6).
-            Shading::Normals => self.each_sample(x, y, range, true, add, |s, first, _| {
-                let color = match first {
-                    Some(hit) => 0.5 * (hit.normal + Color::ONE),
-                    None => background(&s.ray),
-                };
-                Radiance { color, rays: 1 }
-            }),
-            Shading::Path if scene.settings.max_depth == 0 => {
-                self.each_sample(x, y, range, false, add, |_, _, _| Radiance {
+            Shading::Normals => self.each_sample(
+                x,
+                y,
+                range,
+                true,
+                add,
+                closure(|s, first, _| {
+                    let color = match first {
+                        Some(hit) => 0.5 * (hit.normal + Color::ONE),
+                        None => background(&s.ray),
+                    };
+                    Radiance { color, rays: 1 }
+                }),
+            ),
+            Shading::Path if scene.settings.max_depth == 0 => self.each_sample(
+                x,
+                y,
+                range,
+                false,
+                add,
+                closure(|_, _, _| Radiance {
                     color: Color::ZERO,
                     rays: 0,
-                })
-            }
-            Shading::Path => self.each_sample(x, y, range, true, add, |s, first, stack| {
-                let mut rng = s.rng;
-                path_trace_from(scene, s.ray, first, &mut rng, stack)
-            }),
+                }),
+            ),
+            Shading::Path => self.each_sample(x, y, range, true, add, PathTrace { isa, scene }),
         }
     }
 
@@ -171,7 +243,7 @@ impl<'a> PixelEvaluator<'a> {
         range: SampleRange,
         traces: bool,
         mut add: impl FnMut(Color, u32),
-        shade: impl Fn(CameraSample, Option<Hit>, &mut TraversalStack) -> Radiance,
+        shade: impl Shade,
     ) {
         if range.is_empty() {
             return;
@@ -189,7 +261,7 @@ impl<'a> PixelEvaluator<'a> {
             if sample + 1 < range.end {
                 next = CameraSample::new(scene, x, y, seed.sample(sample + 1));
             }
-            let r = shade(current, first, &mut self.stack);
+            let r = shade.shade(current, first, &mut self.stack);
             add(r.color, r.rays);
         }
     }
@@ -199,8 +271,16 @@ impl<'a> PixelEvaluator<'a> {
     #[inline(always)]
     fn camera_hit(&mut self, ray: &Ray) -> Option<Hit> {
         match &self.candidates {
-            Some(candidates) => self.scene.hit_candidates(candidates, ray, ANY_DISTANCE),
-            None => self.scene.hit(ray, ANY_DISTANCE, &mut self.stack),
+            Some(candidates) => {
+                (self.scene).hit_candidates(self.isa, candidates, ray, ANY_DISTANCE)
+            }
+            None => (self.scene).hit_on(
+                self.isa,
+                ray,
+                ANY_DISTANCE,
+                &mut self.stack,
+                RayHints::default(),
+            ),
         }
     }
 }

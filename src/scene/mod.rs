@@ -17,6 +17,7 @@ use crate::geometry::{Hit, PrimitiveId, Sphere};
 use crate::material::Material;
 use crate::math::{Interval, Vec3};
 use crate::ray::Ray;
+use crate::simd::{Isa, Portable};
 use std::path::Path;
 
 /// A validated, ready-to-render scene.
@@ -102,8 +103,21 @@ impl Scene {
         stack: &mut TraversalStack,
         hints: RayHints,
     ) -> Option<Hit> {
+        self.hit_on(Portable, ray, interval, stack, hints)
+    }
+
+    /// `hit_with` on the SIMD path of `isa`: the same answer on every path.
+    #[inline(always)]
+    pub fn hit_on<I: Isa>(
+        &self,
+        isa: I,
+        ray: &Ray,
+        interval: Interval,
+        stack: &mut TraversalStack,
+        hints: RayHints,
+    ) -> Option<Hit> {
         self.bvh
-            .intersect_with(ray, interval, stack, hints)
+            .intersect_on(isa, ray, interval, stack, hints)
             .map(|(t, id)| self.surface(ray, t, id))
     }
 
@@ -119,16 +133,17 @@ impl Scene {
     }
 
     /// The closest hit along a camera ray among the `candidates` picked for it: the same as
-    /// `hit`.
-    #[inline]
-    pub fn hit_candidates(
+    /// `hit` (on the SIMD path of `isa`).
+    #[inline(always)]
+    pub fn hit_candidates<I: Isa>(
         &self,
+        isa: I,
         candidates: &Candidates,
         ray: &Ray,
         interval: Interval,
     ) -> Option<Hit> {
         self.bvh
-            .intersect_candidates(candidates, ray, interval)
+            .intersect_candidates(isa, candidates, ray, interval)
             .map(|(t, id)| self.surface(ray, t, id))
     }
 

@@ -74,6 +74,7 @@ pub fn render_with(scene: &Scene, threads: usize, tile: u32) -> (Film, RenderSta
     let opts = RenderOptions {
         threads: Some(threads),
         tile,
+        ..RenderOptions::default()
     };
     render::render(scene, &opts, &|_| {}).expect("thread pool")
 }

@@ -23,6 +23,7 @@ fn seed_parts(scene: &Scene) -> Vec<Part> {
     let options = RenderOptions {
         threads: Some(1),
         tile: 4,
+        ..RenderOptions::default()
     };
     let whole = Job::whole(scene);
     let rows = shard::job(

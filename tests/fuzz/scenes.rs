@@ -327,6 +327,7 @@ fn check_scene_case(bytes: &[u8]) -> Result<Outcome, String> {
     let options = RenderOptions {
         threads: Some(1),
         tile: 8,
+        ..RenderOptions::default()
     };
     let (film, stats) = render::render(&scene, &options, &|_| {}).map_err(|e| e.to_string())?;
     let window = scene.settings.window;

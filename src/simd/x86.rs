@@ -1,0 +1,154 @@
+//! The AVX paths on x86-64: the eight-lane operations as AVX intrinsics, and the functions that
+//! run a kernel compiled for AVX2 or AVX-512.
+//!
+//! Soundness rests on one invariant: an [`Avx2`] token exists only after `detect` (or
+//! `detect_avx512`) has seen every feature its code uses on this CPU. Each intrinsic call
+//! below is sound because it is reached through a token. The run functions are compiled with
+//! those features; calling them is sound for the same reason.
+
+use super::{F32x8, Isa, Kernel, U32x8};
+use std::arch::x86_64::*;
+
+/// The token of the AVX2 path (and of the AVX-512 path, which runs the same operations with
+/// more features enabled). Its private field keeps it from being made except by detection.
+#[derive(Clone, Copy, Debug)]
+pub struct Avx2(());
+
+impl Avx2 {
+    /// The token, where this CPU has every feature of the AVX2 path.
+    pub fn detect() -> Option<Self> {
+        let has = is_x86_feature_detected!("avx2")
+            && is_x86_feature_detected!("bmi1")
+            && is_x86_feature_detected!("bmi2")
+            && is_x86_feature_detected!("lzcnt")
+            && is_x86_feature_detected!("popcnt");
+        has.then_some(Avx2(()))
+    }
+
+    /// The token, where this CPU has every feature of the AVX-512 path as well.
+    pub fn detect_avx512() -> Option<Self> {
+        let has = is_x86_feature_detected!("avx512f")
+            && is_x86_feature_detected!("avx512vl")
+            && is_x86_feature_detected!("avx512bw")
+            && is_x86_feature_detected!("avx512dq");
+        Self::detect().filter(|_| has)
+    }
+}
+
+/// Runs `kernel` compiled for AVX2 (its generic body is inlined here, so it takes this
+/// function's features).
+#[target_feature(enable = "avx2,bmi1,bmi2,lzcnt,popcnt")]
+pub(super) fn run_avx2<K: Kernel>(kernel: K, isa: Avx2) -> K::Output {
+    kernel.run(isa)
+}
+
+/// Runs `kernel` compiled for AVX-512 as well.
+#[target_feature(enable = "avx2,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512bw,avx512dq")]
+pub(super) fn run_avx512<K: Kernel>(kernel: K, isa: Avx2) -> K::Output {
+    kernel.run(isa)
+}
+
+/// The body of one operation: an intrinsic call, sound because the token proves AVX2.
+macro_rules! avx {
+    ($e:expr) => {
+        // SAFETY: an `Avx2` token exists only where the CPU has AVX2 (module invariant).
+        unsafe { $e }
+    };
+}
+
+impl Isa for Avx2 {
+    type F = __m256;
+    type M = __m256;
+    type U = __m256i;
+
+    #[inline(always)]
+    fn load(self, v: &F32x8) -> __m256 {
+        // `F32x8` is 32-byte aligned, as the aligned load needs.
+        avx!(_mm256_load_ps(v.0.as_ptr()))
+    }
+    #[inline(always)]
+    fn splat(self, x: f32) -> __m256 {
+        avx!(_mm256_set1_ps(x))
+    }
+    #[inline(always)]
+    fn to_array(self, v: __m256) -> [f32; 8] {
+        let mut out = F32x8::ZERO;
+        avx!(_mm256_store_ps(out.0.as_mut_ptr(), v));
+        out.0
+    }
+    #[inline(always)]
+    fn add(self, a: __m256, b: __m256) -> __m256 {
+        avx!(_mm256_add_ps(a, b))
+    }
+    #[inline(always)]
+    fn sub(self, a: __m256, b: __m256) -> __m256 {
+        avx!(_mm256_sub_ps(a, b))
+    }
+    #[inline(always)]
+    fn mul(self, a: __m256, b: __m256) -> __m256 {
+        avx!(_mm256_mul_ps(a, b))
+    }
+    #[inline(always)]
+    fn div(self, a: __m256, b: __m256) -> __m256 {
+        avx!(_mm256_div_ps(a, b))
+    }
+    #[inline(always)]
+    fn neg(self, a: __m256) -> __m256 {
+        avx!(_mm256_xor_ps(a, _mm256_set1_ps(-0.0)))
+    }
+    #[inline(always)]
+    fn min(self, a: __m256, b: __m256) -> __m256 {
+        avx!(_mm256_min_ps(a, b))
+    }
+    #[inline(always)]
+    fn max(self, a: __m256, b: __m256) -> __m256 {
+        avx!(_mm256_max_ps(a, b))
+    }
+    #[inline(always)]
+    fn sqrt(self, a: __m256) -> __m256 {
+        avx!(_mm256_sqrt_ps(a))
+    }
+    #[inline(always)]
+    fn lt(self, a: __m256, b: __m256) -> __m256 {
+        avx!(_mm256_cmp_ps::<_CMP_LT_OQ>(a, b))
+    }
+    #[inline(always)]
+    fn le(self, a: __m256, b: __m256) -> __m256 {
+        avx!(_mm256_cmp_ps::<_CMP_LE_OQ>(a, b))
+    }
+    #[inline(always)]
+    fn ge(self, a: __m256, b: __m256) -> __m256 {
+        avx!(_mm256_cmp_ps::<_CMP_GE_OQ>(a, b))
+    }
+    #[inline(always)]
+    fn eq(self, a: __m256, b: __m256) -> __m256 {
+        avx!(_mm256_cmp_ps::<_CMP_EQ_OQ>(a, b))
+    }
+    #[inline(always)]
+    fn and(self, a: __m256, b: __m256) -> __m256 {
+        avx!(_mm256_and_ps(a, b))
+    }
+    #[inline(always)]
+    fn select(self, m: __m256, if_true: __m256, if_false: __m256) -> __m256 {
+        avx!(_mm256_blendv_ps(if_false, if_true, m))
+    }
+    #[inline(always)]
+    fn bitmask(self, m: __m256) -> u32 {
+        avx!(_mm256_movemask_ps(m)) as u32
+    }
+    #[inline(always)]
+    fn load_u(self, v: &U32x8) -> __m256i {
+        // `U32x8` is 32-byte aligned, as the aligned load needs.
+        avx!(_mm256_load_si256(v.0.as_ptr().cast()))
+    }
+    #[inline(always)]
+    fn splat_u(self, x: u32) -> __m256i {
+        avx!(_mm256_set1_epi32(x as i32))
+    }
+    #[inline(always)]
+    fn eq_u_bitmask(self, a: __m256i, b: __m256i) -> u32 {
+        avx!(_mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(
+            a, b
+        )))) as u32
+    }
+}
