@@ -106,6 +106,25 @@ impl Film {
             / (ONE * f64::from(self.samples_per_pixel.max(1)) * 3.0 * self.sums.len().max(1) as f64)
     }
 
+    /// XXH3-128 of the image's exact content: width, height and samples per pixel (u32), then
+    /// every pixel's fixed-point sums (u64), all little endian, row by row. Equal hashes mean
+    /// equal images, bit for bit, whatever the machine; `tessera bench` validates with it.
+    pub fn content_hash(&self) -> u128 {
+        let mut hasher = xxhash_rust::xxh3::Xxh3::new();
+        for n in [self.width, self.height, self.samples_per_pixel] {
+            hasher.update(&n.to_le_bytes());
+        }
+        let mut chunk = Vec::with_capacity(4096 * 24);
+        for pixels in self.sums.chunks(4096) {
+            chunk.clear();
+            for c in pixels.iter().flatten() {
+                chunk.extend_from_slice(&c.to_le_bytes());
+            }
+            hasher.update(&chunk);
+        }
+        hasher.digest128()
+    }
+
     /// Encodes the image in `format`.
     pub fn encode(&self, format: Format, gamma: f32) -> Result<Vec<u8>, String> {
         let (w, h) = (self.width, self.height);

@@ -140,22 +140,18 @@ fn bench_prints_json() {
     );
     assert!(o.status.success(), "{}", stderr(&o));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("one JSON object");
-    for key in [
-        "samples_per_sec",
-        "mrays_per_sec",
-        "rays_per_sample",
-        "wall_s",
-        "threads",
-        "width",
-        "height",
-        "spp",
-    ] {
-        assert!(v.get(key).is_some(), "missing {key} in {v}");
+    let r = &v["result"];
+    for key in ["samples_per_sec", "mrays_per_sec", "wall_s"] {
+        assert!(
+            r[key]["median"].as_f64().is_some(),
+            "missing result.{key} in {v}"
+        );
     }
-    assert_eq!(v["width"], 40);
-    assert_eq!(v["height"], 26);
-    assert_eq!(v["threads"], 2);
-    let rps = v["rays_per_sample"].as_f64().unwrap();
+    assert_eq!(v["workload"]["width"], 40);
+    assert_eq!(v["workload"]["height"], 26);
+    assert_eq!(v["workload"]["spp"], 2);
+    assert_eq!(r["threads"], 2);
+    let rps = r["rays_per_sample"].as_f64().unwrap();
     assert!((2.0..3.5).contains(&rps), "rays per sample {rps}");
 }
 

@@ -111,15 +111,55 @@ pub enum SplitArg {
 
 #[derive(Args)]
 pub struct BenchArgs {
-    #[command(flatten)]
-    pub scene: SceneArgs,
-    /// Renders per measurement; the median is reported.
+    /// Scene file of a custom workload (default: the standard workload --workload names).
+    pub scene: Option<PathBuf>,
+    /// Standard workload: `quick` (default, seconds) or `cover` (the full book cover);
+    /// `--list` describes them. Its image is checked against the hash it must produce.
+    #[arg(long, conflicts_with = "scene")]
+    pub workload: Option<String>,
+    /// Image width of a custom workload.
+    #[arg(long, requires = "scene")]
+    pub width: Option<u32>,
+    /// Samples per pixel of a custom workload.
+    #[arg(long, requires = "scene")]
+    pub spp: Option<u32>,
+    /// Threads of the headline result (default: every CPU).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// SIMD path (see `render --simd`).
+    #[arg(
+        long,
+        env = "TESSERA_SIMD",
+        default_value = "auto",
+        value_name = "PATH"
+    )]
+    pub simd: String,
+    /// Measured renders per thread count; the median is reported with min and max.
     #[arg(long, default_value_t = 3)]
     pub repeat: u32,
-    /// Skip the thread-scaling table.
+    /// Renders before measuring, not counted.
+    #[arg(long, default_value_t = 1)]
+    pub warmup: u32,
+    /// Measure only the headline thread count, not 1, 2, 4, … every CPU.
     #[arg(long)]
     pub no_scaling: bool,
-    /// Print one JSON object instead of text.
+    /// Print the JSON result instead of text.
     #[arg(long)]
     pub json: bool,
+    /// Also write the JSON result to FILE (atomically).
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
+    /// Compare two JSON results of the same workload, thread count by thread count.
+    #[arg(long, num_args = 2, value_names = ["OLD", "NEW"], conflicts_with_all = ["scene", "workload"])]
+    pub compare: Option<Vec<PathBuf>>,
+    /// Draw samples/s against threads of JSON results as an SVG chart: `--chart OUT.svg A.json [B.json …]`.
+    #[arg(long, num_args = 2.., value_names = ["SVG", "RESULT"], conflicts_with_all = ["scene", "workload", "compare"])]
+    pub chart: Option<Vec<PathBuf>>,
+    /// List the standard workloads.
+    #[arg(long)]
+    pub list: bool,
+    /// Render each standard workload once and write the workloads file with their image
+    /// hashes (after a deliberate change of the image): `--write-workloads benches/workloads.toml`.
+    #[arg(long, value_name = "FILE")]
+    pub write_workloads: Option<PathBuf>,
 }

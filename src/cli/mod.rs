@@ -11,7 +11,7 @@ use anyhow::{Context, Result};
 use args::{Cli, Command};
 use clap::Parser;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use settings::{BenchSettings, RenderSettings};
+use settings::{BenchMode, RenderSettings};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use tessera::film::Format;
@@ -39,7 +39,7 @@ pub fn parse() -> Command {
 pub fn run(command: Command) -> Result<()> {
     match command {
         Command::Render(args) => render::run(RenderSettings::new(args)?),
-        Command::Bench(args) => bench::run(BenchSettings::new(args)?),
+        Command::Bench(args) => bench::run(BenchMode::new(args)?),
         Command::Merge { parts, output } => merge(&parts, &output),
         Command::Compare { a, b } => compare(&a, &b),
     }

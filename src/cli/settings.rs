@@ -3,6 +3,7 @@
 //! work starts.
 
 use super::args::{BenchArgs, RenderArgs, SceneArgs, SplitArg};
+use super::bench::workload::{self, Workload};
 use anyhow::{Result, bail};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -113,43 +114,104 @@ impl RenderSettings {
     }
 }
 
-/// A benchmark, ready to run.
-pub struct BenchSettings {
-    pub scene: Scene,
-    pub scene_path: PathBuf,
-    /// Threads of the headline measurement.
+/// What `tessera bench` is asked to do, checked.
+pub enum BenchMode {
+    Measure(Box<Measure>),
+    Compare {
+        old: PathBuf,
+        new: PathBuf,
+    },
+    Chart {
+        out: PathBuf,
+        results: Vec<PathBuf>,
+    },
+    List,
+    WriteWorkloads {
+        path: PathBuf,
+        threads: usize,
+        simd: simd::Path,
+    },
+}
+
+/// A measurement, ready to run.
+pub struct Measure {
+    pub workload: Workload,
+    /// Threads of the headline result.
     pub threads: usize,
-    /// The thread counts of the scaling table: 1 … every core; empty for none.
+    /// The thread counts of the scaling table: 1, 2, 4, … and every CPU; empty for none.
     pub scaling: Vec<usize>,
-    /// Renders per measurement; the median is reported.
+    /// Measured renders per thread count.
     pub repeat: u32,
+    pub warmup: u32,
     pub json: bool,
+    pub out: Option<PathBuf>,
     /// The SIMD path of every render.
     pub simd: simd::Path,
 }
 
-impl BenchSettings {
+impl BenchMode {
     pub fn new(args: BenchArgs) -> Result<Self> {
-        let mut scene_args = args.scene;
-        scene_args.width = scene_args.width.or(Some(300));
-        scene_args.spp = scene_args.spp.or(Some(8));
-        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-        let threads = scene_args.threads.unwrap_or(cores);
-        let simd = simd_path(&scene_args)?;
+        if let Some(files) = args.compare {
+            let [old, new] = <[PathBuf; 2]>::try_from(files)
+                .map_err(|_| anyhow::anyhow!("--compare takes two result files"))?;
+            return Ok(Self::Compare { old, new });
+        }
+        if let Some(mut files) = args.chart {
+            let out = files.remove(0);
+            check_writable(&out)?;
+            return Ok(Self::Chart {
+                out,
+                results: files,
+            });
+        }
+        if args.list {
+            return Ok(Self::List);
+        }
+        let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let threads = args.threads.unwrap_or(cpus);
+        let simd = simd::Path::choose(&args.simd).map_err(|e| anyhow::anyhow!("--simd: {e}"))?;
         render_options(Some(threads), render::DEFAULT_TILE, simd)?;
-        Ok(Self {
-            scene: load(&scene_args, None, None)?,
-            scene_path: scene_args.scene,
+        if let Some(path) = args.write_workloads {
+            check_writable(&path)?;
+            return Ok(Self::WriteWorkloads {
+                path,
+                threads,
+                simd,
+            });
+        }
+        let workload = match &args.scene {
+            Some(scene) => {
+                let overrides = Overrides {
+                    width: args.width,
+                    samples_per_pixel: args.spp,
+                    ..Overrides::default()
+                };
+                Workload::custom(scene, &overrides)?
+            }
+            None => {
+                let default = workload::standard().first().map(|w| w.name.clone());
+                let name = args.workload.or(default).unwrap_or_default();
+                Workload::named(&name)?
+            }
+        };
+        if let Some(out) = &args.out {
+            check_writable(out)?;
+        }
+        // 1, 2, 4, … below every CPU, then every CPU.
+        let mut scaling: Vec<usize> = std::iter::successors(Some(1usize), |n| n.checked_mul(2))
+            .take_while(|&n| n < cpus)
+            .collect();
+        scaling.push(cpus);
+        Ok(Self::Measure(Box::new(Measure {
+            workload,
             threads,
-            scaling: if args.no_scaling {
-                Vec::new()
-            } else {
-                (1..=cores).collect()
-            },
+            scaling: if args.no_scaling { Vec::new() } else { scaling },
             repeat: args.repeat.max(1),
+            warmup: args.warmup,
             json: args.json,
+            out: args.out,
             simd,
-        })
+        })))
     }
 }
 

@@ -1,15 +1,15 @@
 //! The partial file's bytes: the 16-byte magic `TESSERA-PARTIAL\n`, the header length (u64,
 //! little endian), the header as JSON, the region's sums (three u64 per pixel, row-major,
-//! little endian), and a checksum (u64) of everything before it. Reading checks every size
+//! little endian), and a checksum (XXH3-64, u64) of everything before it. Reading checks every size
 //! the header claims before allocating anything of that size.
 
 use super::{Part, RenderId, VERSION, part_error};
 use crate::error::{Error, Result};
 use crate::job::JobState;
-use crate::sampling::mix64;
 use serde::Serialize;
 use std::io::{BufReader, Read};
 use std::path::{Path, PathBuf};
+use xxhash_rust::xxh3::Xxh3;
 
 const MAGIC: &[u8; 16] = b"TESSERA-PARTIAL\n";
 /// Bytes before the header: the magic and the header's length.
@@ -21,45 +21,6 @@ const PIXEL: u64 = 24;
 /// Pixels read at a time when a part's sums are streamed.
 const CHUNK_PIXELS: usize = 1 << 14;
 
-/// Checksum of a byte string of known length, fed in pieces: eight bytes at a time through
-/// `mix64`, the last word padded with zeros.
-struct Checksum {
-    hash: u64,
-    word: [u8; 8],
-    filled: usize,
-}
-
-impl Checksum {
-    fn new(total_len: u64) -> Self {
-        Self {
-            hash: mix64(total_len ^ 0x5eed),
-            word: [0; 8],
-            filled: 0,
-        }
-    }
-
-    fn update(&mut self, mut bytes: &[u8]) {
-        while !bytes.is_empty() {
-            let take = (8 - self.filled).min(bytes.len());
-            self.word[self.filled..self.filled + take].copy_from_slice(&bytes[..take]);
-            self.filled += take;
-            bytes = &bytes[take..];
-            if self.filled == 8 {
-                self.hash = mix64(self.hash ^ u64::from_le_bytes(self.word));
-                self.filled = 0;
-            }
-        }
-    }
-
-    fn finish(mut self) -> u64 {
-        if self.filled > 0 {
-            self.word[self.filled..].fill(0);
-            self.hash = mix64(self.hash ^ u64::from_le_bytes(self.word));
-        }
-        self.hash
-    }
-}
-
 /// A part file opened for reading: its header read and checked against the file's real
 /// length, its sums not yet read. Every size the header claims is checked before anything
 /// of that size is allocated, so a small crafted file cannot make a reader ask for gigabytes.
@@ -68,7 +29,7 @@ pub struct PartReader<R> {
     /// The header: the part without its sums.
     header: Part,
     reader: R,
-    checksum: Checksum,
+    checksum: Xxh3,
 }
 
 impl PartReader<BufReader<std::fs::File>> {
@@ -118,7 +79,7 @@ impl<R: Read> PartReader<R> {
                 "is truncated or padded ({len} bytes, expected {expected})"
             ));
         }
-        let mut checksum = Checksum::new(len - CHECKSUM);
+        let mut checksum = Xxh3::new();
         checksum.update(&preamble);
         checksum.update(&text);
         Ok(Self {
@@ -162,7 +123,7 @@ impl<R: Read> PartReader<R> {
         }
         let mut stored = [0u8; CHECKSUM as usize];
         self.read_exact(&mut stored)?;
-        if self.checksum.finish() != u64::from_le_bytes(stored) {
+        if self.checksum.digest() != u64::from_le_bytes(stored) {
             return Err(part_error(
                 &self.path,
                 "is corrupt (checksum mismatch)".to_owned(),
@@ -237,9 +198,8 @@ fn encode(render: &RenderId, state: &JobState) -> Vec<u8> {
             out.extend_from_slice(&c.to_le_bytes());
         }
     }
-    let mut sum = Checksum::new(out.len() as u64);
-    sum.update(&out);
-    out.extend_from_slice(&sum.finish().to_le_bytes());
+    let sum = xxhash_rust::xxh3::xxh3_64(&out);
+    out.extend_from_slice(&sum.to_le_bytes());
     out
 }
 

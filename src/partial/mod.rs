@@ -17,7 +17,7 @@ use serde::{Deserialize, Serialize};
 use std::path::Path;
 
 /// The version of the file layout this build writes and reads.
-const VERSION: u32 = 2;
+const VERSION: u32 = 3;
 
 /// Which render a part belongs to: parts merge, and checkpoints resume, only within one.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -1,0 +1,291 @@
+//! `tessera bench`: a benchmark anyone can trust and compare. It renders a named, fixed
+//! workload (or a custom scene) after a warm-up, repeatedly at each thread count (1, 2, 4, …,
+//! every CPU), checks every image against the hash the workload must produce, and reports the
+//! medians with their spread, as text or JSON with the build and host. `--compare` sets two
+//! results side by side; `--chart` draws them.
+
+mod chart;
+mod host;
+mod report;
+pub mod workload;
+
+use super::print_out;
+use super::settings::{BenchMode, Measure, render_options};
+use anyhow::{Context, Result};
+use host::{Build, Host};
+use report::{Method, Report, Row, SCHEMA, Spread, Validation, WorkloadInfo};
+use std::collections::BTreeSet;
+use tessera::film::write_atomically;
+use tessera::render::{self, RenderStats};
+use workload::{Workload, hash_text};
+
+pub fn run(mode: BenchMode) -> Result<()> {
+    match mode {
+        BenchMode::Measure(m) => measure(*m),
+        BenchMode::Compare { old, new } => print_out(&report::compare(
+            &Report::read(&old)?,
+            &Report::read(&new)?,
+        )?),
+        BenchMode::Chart { out, results } => {
+            let reports = (results.iter())
+                .map(|p| Report::read(p))
+                .collect::<Result<Vec<_>>>()?;
+            let ids: BTreeSet<_> = reports.iter().map(|r| &r.workload.id).collect();
+            if ids.len() > 1 {
+                anyhow::bail!("the results measure different workloads: chart one at a time");
+            }
+            write_atomically(&out, chart::svg(&reports)?.as_bytes())?;
+            Ok(())
+        }
+        BenchMode::List => {
+            let mut text = String::new();
+            for w in workload::standard() {
+                text.push_str(&format!(
+                    "{:<8} {} ({} at {} wide, {} spp)\n",
+                    w.name, w.about, w.scene, w.width, w.spp
+                ));
+            }
+            print_out(&text)
+        }
+        BenchMode::WriteWorkloads {
+            path,
+            threads,
+            simd,
+        } => {
+            let text = workload::with_new_hashes(&mut |w| {
+                let workload = Workload::from_standard(w)?;
+                let (film, _) = render_once(&workload, threads, simd)?;
+                Ok(hash_text(film.content_hash()))
+            })?;
+            write_atomically(&path, text.as_bytes())?;
+            Ok(())
+        }
+    }
+}
+
+/// One render of `workload`: its image and counts.
+fn render_once(
+    workload: &Workload,
+    threads: usize,
+    simd: tessera::simd::Path,
+) -> Result<(tessera::film::Film, RenderStats)> {
+    let options = render_options(Some(threads), render::DEFAULT_TILE, simd)?;
+    render::render(&workload.scene, &options, &|_| {}).context("could not start the thread pool")
+}
+
+fn measure(m: Measure) -> Result<()> {
+    let started_unix_s = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    // Read before the renders load the machine.
+    let host = Host::this();
+    let mut images = BTreeSet::new();
+    let mut render = |threads: usize| -> Result<RenderStats> {
+        let (film, stats) = render_once(&m.workload, threads, m.simd)?;
+        images.insert(hash_text(film.content_hash()));
+        Ok(stats)
+    };
+    for _ in 0..m.warmup {
+        render(m.threads)?;
+    }
+    let mut counts: Vec<usize> = m.scaling.clone();
+    counts.push(m.threads);
+    counts.sort_unstable();
+    counts.dedup();
+    let mut rows = Vec::new();
+    for &threads in &counts {
+        let runs = (0..m.repeat)
+            .map(|_| render(threads))
+            .collect::<Result<Vec<_>>>()?;
+        rows.push(row(threads, &runs));
+    }
+    let base = rows
+        .iter()
+        .find(|r| r.threads == 1)
+        .map(|r| r.samples_per_sec.median);
+    for r in &mut rows {
+        r.speedup = base.map(|b| r.samples_per_sec.median / b);
+        r.efficiency = r.speedup.map(|s| s / r.threads as f64);
+    }
+    let validation = validate(&m.workload, images);
+    let s = &m.workload.scene.settings;
+    let result = rows
+        .iter()
+        .find(|r| r.threads == m.threads)
+        .cloned()
+        .context("the headline thread count was not measured")?;
+    let report = Report {
+        schema: SCHEMA.into(),
+        build: Build::this(m.simd),
+        host,
+        workload: WorkloadInfo {
+            name: m.workload.name.clone(),
+            scene: m.workload.scene_name.clone(),
+            id: m.workload.id.clone(),
+            width: s.width,
+            height: s.height,
+            spp: s.samples_per_pixel,
+            max_depth: s.max_depth,
+            seed: s.seed,
+        },
+        method: Method {
+            threads: m.threads,
+            repeat: m.repeat,
+            warmup: m.warmup,
+            started_unix_s,
+        },
+        result,
+        scaling: rows,
+        validation,
+    };
+    let json = serde_json::to_string_pretty(&report)? + "\n";
+    if let Some(out) = &m.out {
+        write_atomically(out, json.as_bytes())?;
+    }
+    print_out(&if m.json { json } else { text(&report) })?;
+    if report.validation.status == "invalid" {
+        // A wrong image makes the speed meaningless: fail, after the result is written for
+        // inspection. (Status 2 is kept for bad input.)
+        super::note(format_args!(
+            "tessera: the result is INVALID: the image is not the one this workload must produce"
+        ));
+        std::process::exit(1);
+    }
+    Ok(())
+}
+
+/// The measurement of `runs` at `threads`.
+fn row(threads: usize, runs: &[RenderStats]) -> Row {
+    let of = |f: fn(&RenderStats) -> f64| Spread::of(&runs.iter().map(f).collect::<Vec<_>>());
+    Row {
+        threads,
+        samples_per_sec: of(RenderStats::samples_per_sec),
+        mrays_per_sec: of(RenderStats::mrays_per_sec),
+        wall_s: of(|r| r.wall.as_secs_f64()),
+        rays_per_sample: runs.first().map_or(0.0, RenderStats::rays_per_sample),
+        speedup: None,
+        efficiency: None,
+        runs: runs.iter().map(RenderStats::samples_per_sec).collect(),
+    }
+}
+
+fn validate(workload: &Workload, images: BTreeSet<String>) -> Validation {
+    let status = match &workload.expected {
+        None => "unvalidated",
+        Some(want) if images.len() == 1 && images.contains(want) => "valid",
+        Some(_) => "invalid",
+    };
+    Validation {
+        status: status.into(),
+        expected: workload.expected.clone(),
+        images: images.into_iter().collect(),
+    }
+}
+
+/// The report for people.
+fn text(r: &Report) -> String {
+    let w = &r.workload;
+    let h = &r.host;
+    let mut t = format!(
+        "workload {} ({}): {}x{}, {} spp, depth {}, seed {}\n  id {}\n",
+        w.name, w.scene, w.width, w.height, w.spp, w.max_depth, w.seed, w.id
+    );
+    t.push_str(&format!(
+        "build {} {} ({}), SIMD {}\nhost {}, {} CPUs{}{}, load {}\n",
+        r.build.version,
+        r.build.commit.chars().take(12).collect::<String>(),
+        r.build.rustc,
+        r.build.simd,
+        h.cpu_model.as_deref().unwrap_or("unknown CPU"),
+        h.logical_cpus,
+        h.physical_cores
+            .map_or(String::new(), |c| format!(" ({c} cores)")),
+        h.memory_bytes.map_or(String::new(), |b| format!(
+            ", {:.1} GiB",
+            b as f64 / (1u64 << 30) as f64
+        )),
+        h.load_average
+            .map_or("unknown".into(), |l| format!("{:.2}", l[0])),
+    ));
+    t.push_str(&format!(
+        "median of {} after {} warm-up: {:.2} s wall, {:.3} M samples/s, {:.2} Mrays/s, \
+         {:.3} rays/sample, {} threads\n",
+        r.method.repeat,
+        r.method.warmup,
+        r.result.wall_s.median,
+        r.result.samples_per_sec.median / 1e6,
+        r.result.mrays_per_sec.median,
+        r.result.rays_per_sample,
+        r.result.threads,
+    ));
+    if r.scaling.len() > 1 {
+        t.push_str("threads  M samples/s [min-max]      speedup  efficiency\n");
+        for row in &r.scaling {
+            let s = row.samples_per_sec;
+            t.push_str(&format!(
+                "{:>7}  {:<27}  {:>7}  {:>10}\n",
+                row.threads,
+                format!(
+                    "{:.3} [{:.3}-{:.3}]",
+                    s.median / 1e6,
+                    s.min / 1e6,
+                    s.max / 1e6
+                ),
+                row.speedup.map_or("-".into(), |x| format!("{x:.2}")),
+                row.efficiency
+                    .map_or("-".into(), |x| format!("{:.0}%", 100.0 * x)),
+            ));
+        }
+    }
+    let v = &r.validation;
+    t.push_str(&match v.status.as_str() {
+        "valid" => format!("valid: every image is {}\n", v.images.join(", ")),
+        "invalid" => format!(
+            "INVALID: images {}, expected {}\n",
+            v.images.join(", "),
+            v.expected.as_deref().unwrap_or("-")
+        ),
+        _ => format!(
+            "unvalidated (custom workload): image {}\n",
+            v.images.join(", ")
+        ),
+    });
+    t
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn quick_with(expected: Option<&str>) -> Workload {
+        let mut w = Workload::named("quick").unwrap();
+        w.expected = expected.map(str::to_owned);
+        w
+    }
+
+    #[test]
+    fn a_result_is_valid_only_if_every_image_has_the_expected_hash() {
+        let images = |list: &[&str]| list.iter().map(|s| s.to_string()).collect::<BTreeSet<_>>();
+        let status = |w: &Workload, i: &[&str]| validate(w, images(i)).status;
+        assert_eq!(status(&quick_with(Some("a")), &["a"]), "valid");
+        assert_eq!(status(&quick_with(Some("a")), &["b"]), "invalid");
+        assert_eq!(status(&quick_with(Some("a")), &["a", "b"]), "invalid");
+        assert_eq!(status(&quick_with(Some("a")), &[]), "invalid");
+        assert_eq!(status(&quick_with(None), &["b"]), "unvalidated");
+    }
+
+    #[test]
+    fn the_workloads_file_compiled_in_is_whole() {
+        let all = workload::standard();
+        let names: Vec<_> = all.iter().map(|w| w.name.as_str()).collect();
+        assert_eq!(names, ["quick", "cover"]);
+        for w in &all {
+            let loaded = Workload::from_standard(w).unwrap();
+            assert!(loaded.id.starts_with("xxh3-128:") && loaded.id.len() == 41);
+            assert!(w.image.starts_with("xxh3-128:"), "{}", w.image);
+        }
+        // The file rewritten with its own hashes is itself.
+        let same = workload::with_new_hashes(&mut |w| Ok(w.image.clone())).unwrap();
+        assert_eq!(same, include_str!("../../../benches/workloads.toml"));
+    }
+}
