@@ -121,6 +121,43 @@ fn compare_reports_rmse_and_psnr() {
     );
 }
 
+/// `compare` reads JPEG too (the book's final figure is one): a render against its own
+/// JPEG encoding is close but not exact.
+#[test]
+fn compare_reads_jpeg() {
+    let dir = temp_dir("compare-jpeg");
+    ok(
+        &[
+            "render",
+            &cover(),
+            "--width",
+            "60",
+            "--spp",
+            "4",
+            "-o",
+            "a.png",
+            "-q",
+        ],
+        &dir,
+    );
+    let png = image::open(dir.join("a.png")).unwrap().to_rgb8();
+    let mut jpeg = Vec::new();
+    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpeg, 95)
+        .encode_image(&png)
+        .unwrap();
+    std::fs::write(dir.join("a.jpg"), jpeg).unwrap();
+    let o = run(&["compare", "a.png", "a.jpg"], &dir);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8_lossy(&o.stdout).into_owned();
+    let psnr: f64 = text
+        .split("PSNR ")
+        .nth(1)
+        .and_then(|t| t.split_whitespace().next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("{text}"));
+    assert!((30.0..80.0).contains(&psnr), "{text}");
+}
+
 #[test]
 fn bench_prints_json() {
     let dir = temp_dir("bench");

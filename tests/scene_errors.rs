@@ -311,3 +311,33 @@ fn vup_is_a_direction_whatever_its_length() {
         "{err}"
     );
 }
+
+#[test]
+fn a_bad_random_spheres_generator_is_rejected_with_its_line() {
+    let with = |extra: &str| format!("{GOOD}\n[random_spheres]\ngrid = 1\n{extra}\n");
+    // The table starts on line 16; its third line is 18.
+    assert_rejected(
+        "generator-unknown",
+        &with("generator = \"mt19937\""),
+        &["scene.toml:18", "mt19937", "pcg", "glibc"],
+    );
+    assert_rejected(
+        "glibc-seed-too-big",
+        &with("generator = \"glibc\"\nseed = 4294967296"),
+        &["scene.toml:19", "random_spheres.seed", "4294967295"],
+    );
+    assert_rejected(
+        "after-too-many",
+        &with("after_spheres = 2"),
+        &[
+            "scene.toml:18",
+            "random_spheres.after_spheres",
+            "the 1 listed spheres",
+        ],
+    );
+    assert_rejected(
+        "after-negative",
+        &with("after_spheres = -1"),
+        &["random_spheres.after_spheres"],
+    );
+}

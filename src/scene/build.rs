@@ -101,12 +101,27 @@ pub(super) fn build(
     }
 
     if let Some(random) = &desc.random_spheres {
-        let generator = cover::RandomSpheres::from_desc(random.get_ref(), &ck)?;
-        generator.generate(
-            random.get_ref().seed.unwrap_or(settings.seed),
-            &mut materials,
-            &mut spheres,
-        );
+        let random = random.get_ref();
+        let generator = cover::RandomSpheres::from_desc(random, settings.seed, &ck)?;
+        let at = match &random.after_spheres {
+            None => spheres.len(),
+            Some(n) => match usize::try_from(*n.get_ref()) {
+                Ok(k) if k <= spheres.len() => k,
+                _ => {
+                    return Err(ck.error(
+                        n.span(),
+                        "random_spheres.after_spheres",
+                        format!(
+                            "must be between 0 and the {} listed spheres, got {}",
+                            spheres.len(),
+                            n.get_ref()
+                        ),
+                    ));
+                }
+            },
+        };
+        let generated = generator.generate(&mut materials);
+        spheres.splice(at..at, generated);
     }
 
     Ok(Scene::new(settings, camera, background, materials, spheres))

@@ -175,9 +175,16 @@ pub struct SphereDesc {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RandomSpheresDesc {
+    /// Which random numbers place the spheres.
+    #[serde(default)]
+    pub generator: SphereGenerator,
     /// Seed of the generator; defaults to the image seed.
     #[serde(default)]
-    pub seed: Option<u64>,
+    pub seed: Option<Spanned<u64>>,
+    /// The random spheres go after this many of the listed `[[spheres]]` (default: after
+    /// all of them). The book adds them after the ground and before the three big ones.
+    #[serde(default)]
+    pub after_spheres: Option<Spanned<i64>>,
     /// Grid cells run over `a, b in -grid..grid`.
     #[serde(default = "default_grid")]
     pub grid: Spanned<i64>,
@@ -194,6 +201,20 @@ pub struct RandomSpheresDesc {
     pub p_metal: Spanned<f64>,
     #[serde(default = "default_glass_ir")]
     pub glass_ir: Spanned<f64>,
+}
+
+/// The generator of `[random_spheres]`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SphereGenerator {
+    /// tessera's seeded PCG, drawing in the book's source order.
+    #[default]
+    Pcg,
+    /// The book's program as built on Linux: glibc's `rand()` (seeded by `srand(seed)`,
+    /// 1 by default in C), `rand() / (RAND_MAX + 1.0)`, drawn in the order GCC evaluates
+    /// the book's expressions (function arguments right to left). Gives the book's 487
+    /// spheres, sphere for sphere.
+    Glibc,
 }
 
 fn default_grid() -> Spanned<i64> {
