@@ -1,7 +1,8 @@
 //! Criterion benchmarks: a tile of the cover scene (samples/s), the BVH build, and
 //! closest-hit queries against the cover (rays/s): camera rays through the tree, camera rays
 //! of one tile against that tile's candidate spheres, and diffuse bounces off the ground.
-//! Fixed seeds and sizes.
+//! Fixed seeds and sizes. The tile runs on the SIMD path `auto` picks; the ray queries call
+//! the library's public, portable-path functions (the render's own path is `tessera bench`'s).
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;

@@ -18,6 +18,10 @@
 //! The same scene, settings and seed give the same bytes whatever the thread count, tile
 //! size, shard split or interruption. [`math`], [`ray`] and [`error`] serve them all;
 //! [`compare`] measures the difference of two images.
+//!
+//! [`simd`] picks the instruction set of the hot code when a tile is rendered (portable,
+//! AVX2 or AVX-512, the same bytes on each) and holds the crate's only `unsafe` code; the
+//! rest of the crate denies it.
 
 #![deny(unsafe_code)]
 
