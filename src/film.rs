@@ -87,12 +87,15 @@ impl Film {
             .collect()
     }
 
-    /// 8-bit values as the book computes them: `256 · clamp(c^(1/γ), 0, 0.999)`.
+    /// 8-bit values as the book computes them: `256 · clamp(c^(1/γ), 0, 0.999)`, made
+    /// straight from the sums (no image of floats in between).
     pub fn to_rgb8(&self, gamma: f32) -> Vec<u8> {
-        self.linear()
-            .into_iter()
-            .map(|c| encode_8bit(c, gamma))
-            .collect()
+        let scale = 1.0 / (ONE * f64::from(self.samples_per_pixel.max(1)));
+        let mut rgb = Vec::with_capacity(self.sums.len() * 3);
+        for s in &self.sums {
+            rgb.extend(s.map(|c| encode_8bit((c as f64 * scale) as f32, gamma)));
+        }
+        rgb
     }
 
     /// Mean radiance over all pixels and channels, summed in a fixed order.
@@ -127,32 +130,41 @@ impl Film {
 
     /// Encodes the image in `format`.
     pub fn encode(&self, format: Format, gamma: f32) -> Result<Vec<u8>, String> {
+        let mut out = Vec::new();
+        self.write(format, gamma, &mut out)
+            .map_err(|e| e.to_string())?;
+        Ok(out)
+    }
+
+    /// Writes the image in `format` to `out`, holding as little beside the sums as the format
+    /// allows: PPM goes pixel by pixel, PNG needs one byte per channel, EXR a float per
+    /// channel and its encoding.
+    pub fn write(&self, format: Format, gamma: f32, out: &mut dyn Write) -> std::io::Result<()> {
         let (w, h) = (self.width, self.height);
+        let encoder_error = |e: image::ImageError| std::io::Error::other(e.to_string());
         match format {
             Format::Ppm => {
-                let rgb = self.to_rgb8(gamma);
-                let mut out = Vec::with_capacity(rgb.len() * 4 + 32);
-                write!(out, "P3\n{w} {h}\n255\n").map_err(|e| e.to_string())?;
-                for px in rgb.chunks_exact(3) {
-                    writeln!(out, "{} {} {}", px[0], px[1], px[2]).map_err(|e| e.to_string())?;
+                write!(out, "P3\n{w} {h}\n255\n")?;
+                let scale = 1.0 / (ONE * f64::from(self.samples_per_pixel.max(1)));
+                for s in &self.sums {
+                    let [r, g, b] = s.map(|c| encode_8bit((c as f64 * scale) as f32, gamma));
+                    writeln!(out, "{r} {g} {b}")?;
                 }
-                Ok(out)
+                Ok(())
             }
             Format::Png => {
-                let img = image::RgbImage::from_raw(w, h, self.to_rgb8(gamma))
-                    .ok_or("image buffer has the wrong size")?;
-                let mut out = std::io::Cursor::new(Vec::new());
-                img.write_to(&mut out, image::ImageFormat::Png)
-                    .map_err(|e| e.to_string())?;
-                Ok(out.into_inner())
+                use image::ImageEncoder;
+                image::codecs::png::PngEncoder::new(out)
+                    .write_image(&self.to_rgb8(gamma), w, h, image::ExtendedColorType::Rgb8)
+                    .map_err(encoder_error)
             }
             Format::Exr => {
                 let img = image::Rgb32FImage::from_raw(w, h, self.linear())
-                    .ok_or("image buffer has the wrong size")?;
-                let mut out = std::io::Cursor::new(Vec::new());
-                img.write_to(&mut out, image::ImageFormat::OpenExr)
-                    .map_err(|e| e.to_string())?;
-                Ok(out.into_inner())
+                    .ok_or_else(|| std::io::Error::other("image buffer has the wrong size"))?;
+                let mut encoded = std::io::Cursor::new(Vec::new());
+                img.write_to(&mut encoded, image::ImageFormat::OpenExr)
+                    .map_err(encoder_error)?;
+                out.write_all(encoded.get_ref())
             }
         }
     }
@@ -160,11 +172,7 @@ impl Film {
     /// Writes the image to `path` in the format its extension names, atomically.
     pub fn save(&self, path: &Path, gamma: f32) -> Result<()> {
         let format = Format::from_path(path)?;
-        let bytes = self.encode(format, gamma).map_err(|message| Error::Image {
-            path: path.to_owned(),
-            message,
-        })?;
-        write_atomically(path, &bytes)
+        write_atomically_with(path, &mut |out| self.write(format, gamma, out))
     }
 }
 
@@ -265,21 +273,36 @@ pub fn check_writable(path: &Path) -> Result<()> {
 /// A device or a pipe (`-o /dev/null`) is written in place: renaming a file over it would
 /// replace the device itself.
 pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
+    write_atomically_with(path, &mut |out| out.write_all(bytes))
+}
+
+/// `write_atomically` of what `write` writes, streamed through a buffer rather than made
+/// whole in memory first.
+pub fn write_atomically_with(
+    path: &Path,
+    write: &mut dyn FnMut(&mut dyn Write) -> std::io::Result<()>,
+) -> Result<()> {
     let io = |cause| Error::Io {
         path: path.to_owned(),
         cause,
     };
+    let buffered =
+        |file: std::fs::File, write: &mut dyn FnMut(&mut dyn Write) -> std::io::Result<()>| {
+            let mut out = std::io::BufWriter::with_capacity(1 << 16, file);
+            write(&mut out)?;
+            out.into_inner()
+                .map_err(std::io::IntoInnerError::into_error)
+        };
     if is_special(path) {
-        let mut f = std::fs::OpenOptions::new()
+        let f = std::fs::OpenOptions::new()
             .write(true)
             .open(path)
             .map_err(io)?;
-        return f.write_all(bytes).map_err(io);
+        return buffered(f, write).map(drop).map_err(io);
     }
     let tmp = temporary_beside(path)?;
     let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
+        let f = buffered(std::fs::File::create(&tmp)?, write)?;
         f.sync_all()?;
         std::fs::rename(&tmp, path)
     })();

@@ -7,7 +7,7 @@ use super::{Part, RenderId, VERSION, part_error};
 use crate::error::{Error, Result};
 use crate::job::JobState;
 use serde::Serialize;
-use std::io::{BufReader, Read};
+use std::io::{BufReader, Read, Write};
 use std::path::{Path, PathBuf};
 use xxhash_rust::xxh3::Xxh3;
 
@@ -179,33 +179,44 @@ struct HeaderOut<'a> {
     state: &'a JobState,
 }
 
-/// The bytes of a part file holding `state` of the render `render`.
-fn encode(render: &RenderId, state: &JobState) -> Vec<u8> {
+/// Writes the part file holding `state` of the render `render` to `out`, a chunk of sums at
+/// a time, hashing as it goes.
+fn write_part(out: &mut dyn Write, render: &RenderId, state: &JobState) -> std::io::Result<()> {
     let header = HeaderOut {
         version: VERSION,
         render,
         state,
     };
-    let header = serde_json::to_vec(&header).expect("a header serialises");
-    let mut out = Vec::with_capacity(
-        PREAMBLE as usize + header.len() + state.sums.len() * PIXEL as usize + CHECKSUM as usize,
-    );
-    out.extend_from_slice(MAGIC);
-    out.extend_from_slice(&(header.len() as u64).to_le_bytes());
-    out.extend_from_slice(&header);
-    for px in &state.sums {
-        for c in px {
-            out.extend_from_slice(&c.to_le_bytes());
+    let header = serde_json::to_vec(&header).map_err(std::io::Error::other)?;
+    let mut checksum = Xxh3::new();
+    let mut put = |bytes: &[u8]| {
+        checksum.update(bytes);
+        out.write_all(bytes)
+    };
+    put(MAGIC)?;
+    put(&(header.len() as u64).to_le_bytes())?;
+    put(&header)?;
+    let mut chunk = Vec::with_capacity(CHUNK_PIXELS * PIXEL as usize);
+    for pixels in state.sums.chunks(CHUNK_PIXELS) {
+        chunk.clear();
+        for c in pixels.iter().flatten() {
+            chunk.extend_from_slice(&c.to_le_bytes());
         }
+        put(&chunk)?;
     }
-    let sum = xxhash_rust::xxh3::xxh3_64(&out);
-    out.extend_from_slice(&sum.to_le_bytes());
+    out.write_all(&checksum.digest().to_le_bytes())
+}
+
+/// The bytes of a part file holding `state` of the render `render`.
+fn encode(render: &RenderId, state: &JobState) -> Vec<u8> {
+    let mut out = Vec::new();
+    write_part(&mut out, render, state).expect("writing to memory cannot fail");
     out
 }
 
 /// Writes `state` of the render `render` to `path` as a part file, atomically.
 pub fn save(path: &Path, render: &RenderId, state: &JobState) -> Result<()> {
-    crate::film::write_atomically(path, &encode(render, state))
+    crate::film::write_atomically_with(path, &mut |out| write_part(out, render, state))
 }
 
 impl Part {
