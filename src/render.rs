@@ -64,7 +64,9 @@ pub type Snapshot<'a> = &'a mut dyn FnMut(&JobState);
 pub struct Control<'a> {
     /// Set (e.g. by a signal handler) to stop taking new tiles; the job returns early.
     pub stop: &'a AtomicBool,
-    /// Called with the number of samples of each finished tile.
+    /// Called as each tile finishes, with its worth in samples of the job's estimated work:
+    /// the calls add up to the samples left, but a costly tile counts for more than its own
+    /// samples and a cheap one for less, so the running total tracks the time spent.
     pub on_samples: &'a (dyn Fn(u64) + Sync),
     /// Called with the state at most every `interval` while the job runs, e.g. to save a
     /// checkpoint; a zero interval calls it after every tile.
@@ -106,7 +108,11 @@ pub fn render_job(
         .as_ref()
         .map_or_else(rayon::current_num_threads, |p| p.current_num_threads());
     let tiles = state.job.region.tiles(state.tile);
-    let todo = state.unfinished_tiles();
+    let unfinished = state.unfinished_tiles();
+    let todo = match &pool {
+        Some(p) => p.install(|| plan(scene, unfinished, options.simd)),
+        None => plan(scene, unfinished, options.simd),
+    };
     let (sender, receiver) = std::sync::mpsc::channel::<Vec<(usize, TileResult)>>();
     let (stop, on_samples) = (control.stop, control.on_samples);
     let mut samples = 0u64;
@@ -115,13 +121,13 @@ pub fn render_job(
         let work = move || {
             todo.par_iter().for_each_init(
                 || TileBatch::new(sender.clone()),
-                |batch, (i, tile, range)| {
+                |batch, task| {
                     if stop.load(Ordering::Relaxed) {
                         return;
                     }
-                    let result = render_tile(scene, tile, *range, options.simd);
-                    on_samples(tile.area() * u64::from(range.len()));
-                    batch.push(*i, result);
+                    let result = render_tile(scene, &task.tile, task.range, options.simd);
+                    on_samples(task.worth);
+                    batch.push(task.index, result);
                 },
             );
         };
@@ -149,6 +155,90 @@ pub fn render_job(
         wall: start.elapsed(),
         threads,
     })
+}
+
+/// A tile to render: its index in the job, its pixels and samples, and the progress it is
+/// worth, in samples of the job's estimated work (see `plan`).
+struct Task {
+    index: usize,
+    tile: PixelRect,
+    range: SampleRange,
+    worth: u64,
+}
+
+/// Samples of each tile a cost probe renders (at most four pixels of it).
+const PROBE_SAMPLES: u32 = 2;
+/// Below this many samples per pixel a render is too short to be worth probing.
+const PROBE_FROM_SPP: u32 = 8;
+
+/// Orders the unfinished tiles costliest first, so a render ends on cheap tiles that fill
+/// the cores' last moments, and gives each tile a share of the remaining samples in
+/// proportion to its estimated cost, so progress (and the ETA drawn from it) follows the
+/// work rather than the sample count: a tile of sky costs a fraction of a tile of ground.
+/// Neither changes the image: sums are exact integers, added in any order.
+fn plan(scene: &Scene, todo: Vec<(usize, PixelRect, SampleRange)>, simd: simd::Path) -> Vec<Task> {
+    let samples = |tile: &PixelRect, range: &SampleRange| tile.area() * u64::from(range.len());
+    let probe = todo
+        .first()
+        .is_some_and(|(_, _, r)| r.len() >= PROBE_FROM_SPP);
+    let costs: Vec<f64> = todo
+        .par_iter()
+        .map(|(_, tile, range)| {
+            let per_sample = if probe {
+                probe_cost(scene, tile, simd)
+            } else {
+                1.0
+            };
+            per_sample * samples(tile, range) as f64
+        })
+        .collect();
+    let mut order: Vec<usize> = (0..todo.len()).collect();
+    order.sort_by(|&a, &b| costs[b].total_cmp(&costs[a]).then(a.cmp(&b)));
+    let total_samples: u64 = todo.iter().map(|(_, t, r)| samples(t, r)).sum();
+    let total_cost: f64 = costs.iter().sum();
+    // Worth by cumulative rounding, so the worths add up to exactly the samples left.
+    let (mut cost_so_far, mut given) = (0.0, 0u64);
+    order
+        .into_iter()
+        .map(|k| {
+            let (index, tile, range) = todo[k];
+            cost_so_far += costs[k];
+            let upto = if total_cost > 0.0 && total_cost.is_finite() {
+                ((cost_so_far / total_cost) * total_samples as f64).round() as u64
+            } else {
+                given + samples(&tile, &range)
+            };
+            let worth = upto.min(total_samples).saturating_sub(given);
+            given += worth;
+            Task {
+                index,
+                tile,
+                range,
+                worth,
+            }
+        })
+        .collect()
+}
+
+/// The estimated cost of one of `tile`'s samples, in units of a bounce ray: renders a few
+/// samples of up to four pixels at its centre and counts their rays; a sample costs about
+/// half a bounce ray besides (its camera ray, mostly against a short candidate list, and its
+/// set-up). What the probe renders is thrown away.
+fn probe_cost(scene: &Scene, tile: &PixelRect, simd: simd::Path) -> f64 {
+    let (w, h) = (tile.width.min(2), tile.height.min(2));
+    let probe = PixelRect {
+        x0: tile.x0 + (tile.width - w) / 2,
+        y0: tile.y0 + (tile.height - h) / 2,
+        width: w,
+        height: h,
+    };
+    let range = SampleRange {
+        start: 0,
+        end: PROBE_SAMPLES,
+    };
+    let rays = render_tile(scene, &probe, range, simd).rays;
+    let samples = (probe.area() * u64::from(PROBE_SAMPLES)).max(1);
+    0.5 + (rays as f64 / samples as f64 - 1.0).max(0.0)
 }
 
 /// Finished tiles on their way from a worker to the thread folding them into the job's

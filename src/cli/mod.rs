@@ -101,7 +101,7 @@ fn progress_bar(total: u64, quiet: bool) -> ProgressBar {
     let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr());
     bar.set_style(
         ProgressStyle::with_template(
-            "{elapsed_precise} [{wide_bar}] {percent:>3}% of {human_len} samples, ETA {eta_precise}",
+            "{elapsed_precise} [{wide_bar}] {percent:>3}% of the estimated work, ETA {eta_precise}",
         )
         .expect("progress template is valid")
         .progress_chars("=> "),
