@@ -28,6 +28,13 @@ const FLAGS: &[(&str, &[&str], &[&str])] = &[
     ("-o", &["out.png", "out.ppm", "out.exr", "part.bin"], &["out.jpg", "out", "no/dir/x.png", "dir"]),
     ("--repeat", &["1", "2"], &["0", "x"]),
     ("--json", &[], &[]),
+    ("--simd", &["auto", "portable"], &["avx9", "", "AVX2"]),
+    ("--warmup", &["0", "1"], &["-1", "x"]),
+    ("--workload", &["quick", "cover"], &["nope", ""]),
+    ("--out", &["r.json"], &["no/dir/r.json", "dir"]),
+    ("--compare", &["a.png"], &["good.toml"]),
+    ("--chart", &["c.svg"], &["no/dir/c.svg"]),
+    ("--list", &[], &[]),
     ("--no-scaling", &[], &[]),
     ("--quiet", &[], &[]),
     ("--bogus", &[], &[]),
@@ -120,6 +127,9 @@ fn command_line(g: &mut Gen) -> Vec<String> {
     let positionals = match command {
         "merge" => 1 + g.below(4),
         "compare" => g.below(4),
+        // Always a scene: `bench` alone runs the standard quick workload (seconds), which
+        // tests/bench.rs covers.
+        "bench" => 1,
         _ => usize::from(g.chance(80)),
     };
     for _ in 0..positionals {
