@@ -171,11 +171,11 @@ const PROBE_SAMPLES: u32 = 2;
 /// Below this many samples per pixel a render is too short to be worth probing.
 const PROBE_FROM_SPP: u32 = 8;
 
-/// Orders the unfinished tiles costliest first, so a render ends on cheap tiles that fill
-/// the cores' last moments, and gives each tile a share of the remaining samples in
-/// proportion to its estimated cost, so progress (and the ETA drawn from it) follows the
-/// work rather than the sample count: a tile of sky costs a fraction of a tile of ground.
-/// Neither changes the image: sums are exact integers, added in any order.
+/// Gives each unfinished tile a share of the remaining samples in proportion to its
+/// estimated cost, so progress (and the ETA drawn from it) follows the work rather than the
+/// sample count: a tile of sky costs a fraction of a tile of ground. Tiles keep their raster
+/// order: costliest first measured 0.7% slower on one thread (neighbouring tiles share
+/// caches and branch history), and rayon's stealing already ends a render evenly.
 fn plan(scene: &Scene, todo: Vec<(usize, PixelRect, SampleRange)>, simd: simd::Path) -> Vec<Task> {
     let samples = |tile: &PixelRect, range: &SampleRange| tile.area() * u64::from(range.len());
     let probe = todo
@@ -192,17 +192,13 @@ fn plan(scene: &Scene, todo: Vec<(usize, PixelRect, SampleRange)>, simd: simd::P
             per_sample * samples(tile, range) as f64
         })
         .collect();
-    let mut order: Vec<usize> = (0..todo.len()).collect();
-    order.sort_by(|&a, &b| costs[b].total_cmp(&costs[a]).then(a.cmp(&b)));
     let total_samples: u64 = todo.iter().map(|(_, t, r)| samples(t, r)).sum();
     let total_cost: f64 = costs.iter().sum();
     // Worth by cumulative rounding, so the worths add up to exactly the samples left.
     let (mut cost_so_far, mut given) = (0.0, 0u64);
-    order
-        .into_iter()
-        .map(|k| {
-            let (index, tile, range) = todo[k];
-            cost_so_far += costs[k];
+    (todo.iter().zip(&costs))
+        .map(|(&(index, tile, range), &cost)| {
+            cost_so_far += cost;
             let upto = if total_cost > 0.0 && total_cost.is_finite() {
                 ((cost_so_far / total_cost) * total_samples as f64).round() as u64
             } else {
