@@ -22,7 +22,8 @@ pub struct Cli {
 pub enum Command {
     /// Render a scene file to an image (.png, .ppm or .exr).
     Render(RenderArgs),
-    /// Measure rendering speed: samples/s, Mrays/s and rays per sample.
+    /// Benchmark a standard workload (validated by its image hash) or a scene: samples/s
+    /// with their spread over 1, 2, 4, … threads, as text or JSON; compare or chart results.
     Bench(BenchArgs),
     /// Combine partial renders (shards, sample ranges) into one image, byte-identical to a
     /// single render of the same scene and settings.
@@ -34,7 +35,7 @@ pub enum Command {
         #[arg(short, long)]
         output: PathBuf,
     },
-    /// Print the RMSE and PSNR between two images of equal size.
+    /// Print the RMSE and PSNR between two images of equal size (PNG, PPM, EXR or JPEG).
     Compare { a: PathBuf, b: PathBuf },
 }
 
