@@ -1,6 +1,6 @@
 //! The book's positionable thin-lens camera: settings in, derived basis out, rays per pixel.
 
-use crate::math::Vec3;
+use crate::math::{Vec3, cross, unit};
 use crate::ray::Ray;
 use crate::sampling::Sampler;
 
@@ -92,9 +92,9 @@ impl Camera {
         let h = (s.vfov_deg.to_radians() / 2.0).tan();
         let viewport_height = 2.0 * h;
         let viewport_width = s.aspect_ratio * viewport_height;
-        let w = (s.lookfrom - s.lookat).normalize();
-        let u = s.vup.cross(w).normalize();
-        let v = w.cross(u);
+        let w = unit(s.lookfrom - s.lookat);
+        let u = unit(cross(s.vup, w));
+        let v = cross(w, u);
         let horizontal = s.focus_dist * viewport_width * u;
         let vertical = s.focus_dist * viewport_height * v;
         Self {
@@ -123,7 +123,7 @@ impl Camera {
         };
         let target = self.lower_left_corner + s * self.horizontal + t * self.vertical;
         let origin = self.origin + offset;
-        Ray::new(origin, (target - origin).normalize())
+        Ray::new(origin, unit(target - origin))
     }
 
     /// True when every ray the camera shoots has a sound unit direction: the view's

@@ -5,6 +5,26 @@ pub type Vec3 = glam::Vec3A;
 /// Linear RGB radiance or reflectance.
 pub type Color = glam::Vec3A;
 
+/// The cross product `a × b`, each component a difference of two rounded products. Not
+/// glam's `cross`: on aarch64 that fuses one multiply into the subtraction (`vfmsq_f32`),
+/// which rounds differently and moved every camera ray there by a last bit.
+#[inline]
+pub fn cross(a: Vec3, b: Vec3) -> Vec3 {
+    Vec3::new(
+        a.y * b.z - a.z * b.y,
+        a.z * b.x - a.x * b.z,
+        a.x * b.y - a.y * b.x,
+    )
+}
+
+/// `v` scaled to unit length, by dividing by its length. Not glam's `normalize`: on aarch64
+/// that multiplies by the reciprocal of the length, which rounds differently from the
+/// division its x86-64 code does.
+#[inline]
+pub fn unit(v: Vec3) -> Vec3 {
+    v / v.length()
+}
+
 /// An open interval of ray parameters `(min, max)` that a hit must fall in.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Interval {

@@ -9,7 +9,7 @@ use crate::camera::{Camera, CameraSettings};
 use crate::error::{Error, Result};
 use crate::geometry::{MaterialId, Sphere};
 use crate::material::{Material, Refraction};
-use crate::math::{Color, PixelRect, Vec3};
+use crate::math::{Color, PixelRect, Vec3, cross, unit};
 use std::collections::BTreeMap;
 use std::ops::Range;
 use std::path::Path;
@@ -241,7 +241,7 @@ fn camera_settings(c: &desc::CameraDesc, ck: &Checker) -> Result<CameraSettings>
     let vup = match &c.vup {
         Some(v) => {
             let vup = ck.direction(v, "camera.vup")?;
-            if view.normalize().cross(vup).length_squared() < 1e-12 {
+            if cross(unit(view), vup).length_squared() < 1e-12 {
                 return Err(ck.error(
                     v.span(),
                     "camera.vup",
