@@ -151,3 +151,47 @@ fn a_cpu_without_avx_renders_the_same_bytes() {
         );
     }
 }
+
+/// An aarch64 build of tessera (`TESSERA_AARCH64_BIN`, which `.ci/run` cross-builds) run
+/// under `qemu-aarch64` gives the x86-64 bytes on the cover and every figure scene.
+#[cfg(target_arch = "x86_64")]
+#[test]
+fn an_aarch64_build_renders_the_same_bytes() {
+    let name = "an_aarch64_build_renders_the_same_bytes";
+    let Some(arm) = std::env::var_os("TESSERA_AARCH64_BIN").map(PathBuf::from) else {
+        skip(
+            name,
+            "TESSERA_AARCH64_BIN is not set (.ci/run cross-builds one as root)",
+        );
+        return;
+    };
+    let Some(qemu) = qemu().map(|q| q.with_file_name("qemu-aarch64")) else {
+        skip(name, "qemu-user is not installed");
+        return;
+    };
+    assert!(
+        arm.is_file(),
+        "TESSERA_AARCH64_BIN={} is not a file",
+        arm.display()
+    );
+    let dir = temp_dir("aarch64");
+    let bin = env!("CARGO_BIN_EXE_tessera");
+    for (scene, flags) in scenes() {
+        let native = dir.join("native.png");
+        let emulated = dir.join("aarch64.png");
+        render(&[bin], &scene, &flags, &native);
+        let o = std::process::Command::new(&qemu)
+            .env("QEMU_LD_PREFIX", "/usr/aarch64-linux-gnu")
+            .arg(&arm)
+            .args(["render", &scene, "-q", "-o"])
+            .arg(&emulated)
+            .args(&flags)
+            .output()
+            .expect("run qemu-aarch64");
+        assert!(o.status.success(), "{scene}: {}", stderr(&o));
+        assert!(
+            std::fs::read(&native).unwrap() == std::fs::read(&emulated).unwrap(),
+            "{scene}: aarch64 differs from x86-64"
+        );
+    }
+}
