@@ -53,15 +53,22 @@ pub struct SceneArgs {
     /// Worker threads (default: one per core).
     #[arg(long)]
     pub threads: Option<usize>,
+    #[command(flatten)]
+    pub simd: SimdArg,
+}
+
+/// `--simd`, shared by `render` and `bench`.
+#[derive(Args)]
+pub struct SimdArg {
     /// SIMD path of the hot code: auto (the fastest this CPU runs), portable, avx2 or
     /// avx512. Every path gives the same image; one the CPU lacks is refused.
     #[arg(
-        long,
+        long = "simd",
         env = "TESSERA_SIMD",
         default_value = "auto",
         value_name = "PATH"
     )]
-    pub simd: String,
+    pub name: String,
 }
 
 #[derive(Args)]
@@ -127,14 +134,8 @@ pub struct BenchArgs {
     /// Threads of the headline result (default: every CPU).
     #[arg(long)]
     pub threads: Option<usize>,
-    /// SIMD path (see `render --simd`).
-    #[arg(
-        long,
-        env = "TESSERA_SIMD",
-        default_value = "auto",
-        value_name = "PATH"
-    )]
-    pub simd: String,
+    #[command(flatten)]
+    pub simd: SimdArg,
     /// Measured renders per thread count; the median is reported with min and max.
     #[arg(long, default_value_t = 3)]
     pub repeat: u32,

@@ -2,7 +2,7 @@
 //! against each other and against the scene, and every output checked writable, before any
 //! work starts.
 
-use super::args::{BenchArgs, RenderArgs, SceneArgs, SplitArg};
+use super::args::{BenchArgs, RenderArgs, SceneArgs, SimdArg, SplitArg};
 use super::bench::workload::{self, Workload};
 use anyhow::{Result, bail};
 use std::path::{Path, PathBuf};
@@ -53,7 +53,7 @@ pub struct RenderSettings {
 
 impl RenderSettings {
     pub fn new(args: RenderArgs) -> Result<Self> {
-        let options = render_options(args.scene.threads, args.tile, simd_path(&args.scene)?)?;
+        let options = render_options(args.scene.threads, args.tile, args.scene.simd.path()?)?;
         if !(args.checkpoint_every >= 0.0 && args.checkpoint_every.is_finite()) {
             bail!("--checkpoint-every must be a number of seconds, 0 or more");
         }
@@ -169,7 +169,7 @@ impl BenchMode {
         }
         let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
         let threads = args.threads.unwrap_or(cpus);
-        let simd = simd::Path::choose(&args.simd).map_err(|e| anyhow::anyhow!("--simd: {e}"))?;
+        let simd = args.simd.path()?;
         render_options(Some(threads), render::DEFAULT_TILE, simd)?;
         if let Some(path) = args.write_workloads {
             check_writable(&path)?;
@@ -215,9 +215,11 @@ impl BenchMode {
     }
 }
 
-/// The SIMD path `--simd` (or `TESSERA_SIMD`) names, if this CPU runs it.
-fn simd_path(args: &SceneArgs) -> Result<simd::Path> {
-    simd::Path::choose(&args.simd).map_err(|e| anyhow::anyhow!("--simd: {e}"))
+impl SimdArg {
+    /// The SIMD path `--simd` (or `TESSERA_SIMD`) names, if this CPU runs it.
+    fn path(&self) -> Result<simd::Path> {
+        simd::Path::choose(&self.name).map_err(|e| anyhow::anyhow!("--simd: {e}"))
+    }
 }
 
 fn load(args: &SceneArgs, depth: Option<u32>, seed: Option<u64>) -> Result<Scene> {
