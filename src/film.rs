@@ -78,22 +78,31 @@ impl Film {
         }
     }
 
-    /// Mean linear radiance of every pixel, row-major RGB.
-    pub fn linear(&self) -> Vec<f32> {
+    /// The mean linear radiance of each pixel, row-major, computed from the sums as they are
+    /// read (every output format goes through here).
+    fn pixels(&self) -> impl Iterator<Item = [f32; 3]> + '_ {
         let scale = 1.0 / (ONE * f64::from(self.samples_per_pixel.max(1)));
         self.sums
             .iter()
-            .flat_map(|s| s.map(|c| (c as f64 * scale) as f32))
-            .collect()
+            .map(move |s| s.map(|c| (c as f64 * scale) as f32))
+    }
+
+    /// The 8-bit values of each pixel, row-major (see `encode_8bit`).
+    fn pixels_8bit(&self, gamma: f32) -> impl Iterator<Item = [u8; 3]> + '_ {
+        self.pixels().map(move |p| p.map(|c| encode_8bit(c, gamma)))
+    }
+
+    /// Mean linear radiance of every pixel, row-major RGB.
+    pub fn linear(&self) -> Vec<f32> {
+        self.pixels().flatten().collect()
     }
 
     /// 8-bit values as the book computes them: `256 · clamp(c^(1/γ), 0, 0.999)`, made
     /// straight from the sums (no image of floats in between).
     pub fn to_rgb8(&self, gamma: f32) -> Vec<u8> {
-        let scale = 1.0 / (ONE * f64::from(self.samples_per_pixel.max(1)));
         let mut rgb = Vec::with_capacity(self.sums.len() * 3);
-        for s in &self.sums {
-            rgb.extend(s.map(|c| encode_8bit((c as f64 * scale) as f32, gamma)));
+        for p in self.pixels_8bit(gamma) {
+            rgb.extend(p);
         }
         rgb
     }
@@ -117,14 +126,11 @@ impl Film {
         for n in [self.width, self.height, self.samples_per_pixel] {
             hasher.update(&n.to_le_bytes());
         }
-        let mut chunk = Vec::with_capacity(4096 * 24);
-        for pixels in self.sums.chunks(4096) {
-            chunk.clear();
-            for c in pixels.iter().flatten() {
-                chunk.extend_from_slice(&c.to_le_bytes());
-            }
-            hasher.update(&chunk);
-        }
+        write_sums_le(&self.sums, &mut |bytes| {
+            hasher.update(bytes);
+            Ok(())
+        })
+        .expect("hashing cannot fail");
         hasher.digest128()
     }
 
@@ -145,9 +151,7 @@ impl Film {
         match format {
             Format::Ppm => {
                 write!(out, "P3\n{w} {h}\n255\n")?;
-                let scale = 1.0 / (ONE * f64::from(self.samples_per_pixel.max(1)));
-                for s in &self.sums {
-                    let [r, g, b] = s.map(|c| encode_8bit((c as f64 * scale) as f32, gamma));
+                for [r, g, b] in self.pixels_8bit(gamma) {
                     writeln!(out, "{r} {g} {b}")?;
                 }
                 Ok(())
@@ -174,6 +178,24 @@ impl Film {
         let format = Format::from_path(path)?;
         write_atomically_with(path, &mut |out| self.write(format, gamma, out))
     }
+}
+
+/// Hands `sums` to `write` as little-endian bytes (three u64 per pixel, in order), a chunk of
+/// pixels at a time: the layout of part files and of `Film::content_hash`.
+pub fn write_sums_le(
+    sums: &[[u64; 3]],
+    write: &mut dyn FnMut(&[u8]) -> std::io::Result<()>,
+) -> std::io::Result<()> {
+    const CHUNK_PIXELS: usize = 1 << 14;
+    let mut chunk = Vec::with_capacity(CHUNK_PIXELS.min(sums.len()) * 24);
+    for pixels in sums.chunks(CHUNK_PIXELS) {
+        chunk.clear();
+        for c in pixels.iter().flatten() {
+            chunk.extend_from_slice(&c.to_le_bytes());
+        }
+        write(&chunk)?;
+    }
+    Ok(())
 }
 
 /// Adds `sums`, the row-major sums of the pixels `rect`, into `into`, the row-major sums of

@@ -196,14 +196,7 @@ fn write_part(out: &mut dyn Write, render: &RenderId, state: &JobState) -> std::
     put(MAGIC)?;
     put(&(header.len() as u64).to_le_bytes())?;
     put(&header)?;
-    let mut chunk = Vec::with_capacity(CHUNK_PIXELS * PIXEL as usize);
-    for pixels in state.sums.chunks(CHUNK_PIXELS) {
-        chunk.clear();
-        for c in pixels.iter().flatten() {
-            chunk.extend_from_slice(&c.to_le_bytes());
-        }
-        put(&chunk)?;
-    }
+    crate::film::write_sums_le(&state.sums, &mut put)?;
     out.write_all(&checksum.digest().to_le_bytes())
 }
 
