@@ -8,6 +8,18 @@ use common::*;
 use serde_json::Value;
 use std::path::Path;
 
+/// The quick workload, measured once on one thread: the fastest valid result.
+const ONE_QUICK_RUN: [&str; 8] = [
+    "bench",
+    "--repeat",
+    "1",
+    "--warmup",
+    "0",
+    "--no-scaling",
+    "--threads",
+    "1",
+];
+
 fn json(path: &Path) -> Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
@@ -91,19 +103,13 @@ fn a_quick_result_is_valid_and_carries_build_host_and_workload() {
 #[test]
 fn results_compare_and_chart() {
     let dir = temp_dir("bench-compare");
-    let quick = [
-        "bench",
-        "--repeat",
-        "1",
-        "--warmup",
-        "0",
-        "--no-scaling",
-        "--threads",
-        "1",
-    ];
-    ok(&[&quick[..], &["--out", "a.json"]].concat(), &dir);
+    ok(&[&ONE_QUICK_RUN[..], &["--out", "a.json"]].concat(), &dir);
     ok(
-        &[&quick[..], &["--out", "b.json", "--simd", "portable"]].concat(),
+        &[
+            &ONE_QUICK_RUN[..],
+            &["--out", "b.json", "--simd", "portable"],
+        ]
+        .concat(),
         &dir,
     );
     let o = run(&["bench", "--compare", "a.json", "b.json"], &dir);
@@ -154,17 +160,7 @@ fn a_custom_scene_is_validated_only_when_it_is_a_standard_workload() {
 #[test]
 fn bad_results_and_workloads_are_refused_with_status_2() {
     let dir = temp_dir("bench-bad");
-    let quick = [
-        "bench",
-        "--repeat",
-        "1",
-        "--warmup",
-        "0",
-        "--no-scaling",
-        "--threads",
-        "1",
-    ];
-    ok(&[&quick[..], &["--out", "a.json"]].concat(), &dir);
+    ok(&[&ONE_QUICK_RUN[..], &["--out", "a.json"]].concat(), &dir);
     ok(
         &[
             "bench",

@@ -92,74 +92,63 @@ fn cover_generator_is_seeded() {
 #[allow(clippy::excessive_precision)]
 fn the_book_cover_scene_has_the_books_spheres_in_the_books_order() {
     use tessera::material::Material;
+    use tessera::math::Color;
     let scene = load(&scene_path("cover-book.toml"), Overrides::default());
     assert_eq!(scene.spheres.len(), 487);
     let s = &scene.spheres;
-    let material = |i: usize| scene.materials[s[i].material.0 as usize];
     let at = |i: usize| (s[i].center.x, s[i].center.y, s[i].center.z, s[i].radius);
     // The ground first, the three big spheres last.
     assert_eq!(at(0), (0.0, -1000.0, 0.0, 1000.0));
     assert_eq!(at(484), (0.0, 1.0, 0.0, 1.0));
     assert_eq!(at(485), (-4.0, 1.0, 0.0, 1.0));
     assert_eq!(at(486), (4.0, 1.0, 0.0, 1.0));
-    // The first small sphere: metal.
-    assert_eq!(
-        at(1),
-        (
-            -10.295210698945448_f64 as f32,
-            0.2,
-            -10.6450553660281_f64 as f32,
-            0.2
-        )
-    );
-    let Material::Metal { albedo, fuzz } = material(1) else {
-        panic!("sphere 1 is {:?}", material(1));
+    // Small spheres: centre x and z, and material, as the C++ program printed them.
+    let small = |i: usize, x: f64, z: f64, material: Material| {
+        assert_eq!(at(i), (x as f32, 0.2, z as f32, 0.2), "sphere {i}");
+        assert_eq!(
+            scene.materials[s[i].material.0 as usize], material,
+            "sphere {i}"
+        );
     };
-    let want = [
-        0.59877568460069597_f64,
-        0.95582367875613272,
-        0.89922001655213535,
-    ];
-    assert_eq!(albedo.to_array(), want.map(|c| c as f32));
-    assert_eq!(fuzz, 0.16761137777939439_f64 as f32);
-    // The second: diffuse.
-    assert_eq!(
-        at(2),
-        (
-            -10.501427040016278_f64 as f32,
-            0.2,
-            -9.7500027603935457_f64 as f32,
-            0.2
-        )
+    let color = |c: [f64; 3]| Color::from_array(c.map(|x| x as f32));
+    small(
+        1,
+        -10.295210698945448,
+        -10.6450553660281,
+        Material::Metal {
+            albedo: color([
+                0.59877568460069597,
+                0.95582367875613272,
+                0.89922001655213535,
+            ]),
+            fuzz: 0.16761137777939439_f64 as f32,
+        },
     );
-    let Material::Lambertian { albedo } = material(2) else {
-        panic!("sphere 2 is {:?}", material(2));
-    };
-    let want = [
-        0.33421373454495618_f64,
-        0.59882958729871127,
-        0.24509608072247305,
-    ];
-    assert_eq!(albedo.to_array(), want.map(|c| c as f32));
+    small(
+        2,
+        -10.501427040016278,
+        -9.7500027603935457,
+        Material::Lambertian {
+            albedo: color([
+                0.33421373454495618,
+                0.59882958729871127,
+                0.24509608072247305,
+            ]),
+        },
+    );
     // The last small one.
-    assert_eq!(
-        at(483),
-        (
-            10.547971142642201_f64 as f32,
-            0.2,
-            10.416230813739821_f64 as f32,
-            0.2
-        )
+    small(
+        483,
+        10.547971142642201,
+        10.416230813739821,
+        Material::Lambertian {
+            albedo: color([
+                0.0019927751580631802,
+                0.38925773163881977,
+                0.17954751492354906,
+            ]),
+        },
     );
-    let Material::Lambertian { albedo } = material(483) else {
-        panic!("sphere 483 is {:?}", material(483));
-    };
-    let want = [
-        0.0019927751580631802_f64,
-        0.38925773163881977,
-        0.17954751492354906,
-    ];
-    assert_eq!(albedo.to_array(), want.map(|c| c as f32));
     // The PCG cover is another layout of the same kind.
     let pcg = load(&scene_path("cover.toml"), Overrides::default());
     assert_eq!(pcg.spheres.len(), 485);
