@@ -38,6 +38,14 @@ pub fn standard() -> Vec<Standard> {
     toml::from_str::<File>(WORKLOADS).map_or_else(|_| Vec::new(), |f| f.workload)
 }
 
+/// The text of the compiled-in scene file `name`.
+fn compiled_scene(name: &str) -> Option<&'static str> {
+    SCENES
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map(|&(_, text)| text)
+}
+
 /// A workload ready to render.
 pub struct Workload {
     /// The standard workload's name, or `custom`.
@@ -86,7 +94,7 @@ impl Workload {
     }
 
     pub fn from_standard(w: &Standard) -> Result<Self> {
-        let Some(&(_, text)) = SCENES.iter().find(|(n, _)| *n == w.scene) else {
+        let Some(text) = compiled_scene(&w.scene) else {
             bail!(
                 "workload `{}` names scene {}, which is not compiled in",
                 w.name,
@@ -116,8 +124,11 @@ impl Workload {
             .with_context(|| format!("could not read {}", path.display()))?;
         let scene = Scene::parse(&text, path, overrides)?;
         let id = workload_id(&text, &scene);
+        // The id hashes the scene's text, so only a workload of this very text can match:
+        // no other standard scene is built.
         for w in standard() {
-            if let Ok(known) = Self::from_standard(&w)
+            if compiled_scene(&w.scene) == Some(text.as_str())
+                && let Ok(known) = Self::from_standard(&w)
                 && known.id == id
             {
                 return Ok(known);
@@ -136,6 +147,7 @@ impl Workload {
 /// `benches/workloads.toml` with each workload's image hash replaced by `hash(workload)`, for
 /// regenerating the file after a deliberate change of the image.
 pub fn with_new_hashes(hash: &mut dyn FnMut(&Standard) -> Result<String>) -> Result<String> {
+    let all = standard();
     let mut text = String::new();
     let mut name = None;
     for line in WORKLOADS.lines() {
@@ -143,7 +155,6 @@ pub fn with_new_hashes(hash: &mut dyn FnMut(&Standard) -> Result<String>) -> Res
             name = Some(v.trim_matches('"').to_owned());
         }
         if line.starts_with("image = ") {
-            let all = standard();
             let w = all
                 .iter()
                 .find(|w| Some(&w.name) == name.as_ref())
