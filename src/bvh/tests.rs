@@ -211,3 +211,19 @@ fn leaves_stay_small_even_for_coincident_spheres() {
         4.0
     );
 }
+
+#[test]
+fn stack_entries_share_no_cache_line_with_other_allocations() {
+    let mut rng = Sampler::from_seed(9);
+    let bvh = Bvh::build(&random_spheres(500, &mut rng));
+    for mut stack in [TraversalStack::default(), bvh.new_stack()] {
+        // A walk grows a stack too small for the tree before using it.
+        let ray = Ray::new(Vec3::new(0.0, 1.0, -20.0), Vec3::Z);
+        bvh.intersect(&ray, Interval::new(1e-4, f32::INFINITY), &mut stack);
+        let need = bvh.stack_need();
+        let whole = stack.0.as_ptr_range();
+        let used = stack.entries(need).as_ptr_range();
+        assert!(used.start as usize - whole.start as usize >= 64);
+        assert!(whole.end as usize - used.end as usize >= 64);
+    }
+}
