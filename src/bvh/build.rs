@@ -1,11 +1,17 @@
-//! Building the hierarchy: a binary tree by the binned surface area heuristic, collapsed
-//! into wide nodes of up to `WIDTH` children, with leaves of one sphere pack each.
+//! Building the hierarchy: a binary tree by the surface area heuristic (binned for large
+//! nodes; for small ones, a sweep that keeps packs full), collapsed into wide nodes of up to
+//! `WIDTH` children, with leaves of one sphere pack each.
 
 use super::pack::SpherePack;
 use super::{BINS, Bvh, EMPTY, LEAF, MAX_LEAF, TRAVERSAL_COST, WIDTH, WideNode};
 use crate::geometry::{Aabb, Sphere};
 use crate::math::Vec3;
 use crate::simd::F32x8;
+
+/// Nodes of at most this many items (`WIDTH³`) are split by a sweep of their sorted
+/// centroids at the positions `best_aligned_split` allows; larger ones by binned SAH. The
+/// sweep sorts, so it is kept to the levels where full packs and nodes pay.
+const EXACT_SPLIT_LIMIT: usize = WIDTH * WIDTH * WIDTH;
 
 /// A node of the binary build tree: either two children (`count == 0`, at `first` and
 /// `first + 1`) or a leaf of `count` primitives starting at `first` of the build order.
@@ -14,6 +20,8 @@ struct Node {
     bounds: Aabb,
     first: u32,
     count: u32,
+    /// Items in the subtree.
+    size: u32,
 }
 
 struct BuildItem {
@@ -60,6 +68,7 @@ pub(super) fn build(spheres: &[Sphere]) -> Bvh {
         bounds: Aabb::EMPTY,
         first: 0,
         count: 0,
+        size: 0,
     }];
     let len = items.len();
     build_node(&mut binary, 0, &mut items, 0, len);
@@ -86,17 +95,18 @@ impl Bvh {
             let first = binary[at].first as usize;
             kids = vec![first, first + 1];
         }
-        // Open the largest inner child until the node is full.
+        // Open inner children until the node is full: first those bigger than this node's
+        // groups (see `granularity`), then the largest.
+        let g = granularity(binary[at].size as usize);
         while kids.len() < WIDTH {
+            let key = |k: usize| (binary[k].size as usize > g, binary[k].bounds.area());
             let widest = kids
                 .iter()
                 .enumerate()
                 .filter(|(_, k)| binary[**k].count == 0)
                 .max_by(|a, b| {
-                    binary[*a.1]
-                        .bounds
-                        .area()
-                        .total_cmp(&binary[*b.1].bounds.area())
+                    let (ka, kb) = (key(*a.1), key(*b.1));
+                    ka.0.cmp(&kb.0).then(ka.1.total_cmp(&kb.1))
                 });
             let Some((slot, &k)) = widest else { break };
             let first = binary[k].first as usize;
@@ -153,13 +163,21 @@ fn build_node(nodes: &mut Vec<Node>, at: usize, items: &mut [BuildItem], start: 
         bounds,
         first: start as u32,
         count: count as u32,
+        size: count as u32,
     };
     // A pack tests `WIDTH` spheres for the price of one, so never split what fits in one.
     if count <= MAX_LEAF {
         nodes[at] = leaf;
         return;
     }
-    let Some((axis, split)) = best_split(slice, &centroids, bounds) else {
+    let binned = best_split(slice, &centroids, bounds);
+    if count <= EXACT_SPLIT_LIMIT {
+        let axis = binned.map_or_else(|| widest_axis(&centroids), |(axis, _)| axis);
+        let mid = best_aligned_split(slice, bounds, axis);
+        push_children(nodes, at, items, start, start + mid, end, bounds);
+        return;
+    }
+    let Some((axis, split)) = binned else {
         // No useful SAH split (e.g. coincident centroids): split at the median of the
         // widest axis so the leaf size bound still holds.
         let axis = widest_axis(&centroids);
@@ -176,6 +194,64 @@ fn build_node(nodes: &mut Vec<Node>, at: usize, items: &mut [BuildItem], start: 
     push_children(nodes, at, items, start, start + mid, end, bounds);
 }
 
+/// The size of the groups a node of `count` items is cut into so its subtree needs as few
+/// wide levels as possible: a node of up to `WIDTH²` items is one wide node over packs of
+/// `WIDTH`, one of up to `WIDTH³` is one over such nodes, and so on.
+fn granularity(count: usize) -> usize {
+    let mut g = MAX_LEAF;
+    while g.saturating_mul(WIDTH) < count {
+        g = g.saturating_mul(WIDTH);
+    }
+    g
+}
+
+/// Sorts `items` along `axis` (the binned SAH's choice) and returns where to split them: the
+/// cheapest split by the SAH, over every position that keeps the items in as few groups of
+/// `granularity` as the whole needs. So packs come out full, and a node of up to `WIDTH²`
+/// spheres becomes one wide node whose children are all packs, with no half-empty level
+/// below it (the cover's 486 spheres: 61 packs under 8 nodes under the root, where binned
+/// splits gave 67 packs and five nodes of two or three packs on a third level).
+fn best_aligned_split(items: &mut [BuildItem], bounds: Aabb, axis: usize) -> usize {
+    let count = items.len();
+    let g = granularity(count);
+    let groups = |n: usize| n.div_ceil(g);
+    let packs = |n: usize| n.div_ceil(WIDTH) as f32;
+    let parent_area = bounds.area().max(f32::MIN_POSITIVE);
+    sort_on_axis(items, axis);
+    let mut right_area = vec![0.0f32; count + 1];
+    let mut acc = Aabb::EMPTY;
+    for i in (1..count).rev() {
+        acc = acc.union(items[i].bounds);
+        right_area[i] = acc.area();
+    }
+    // A multiple of `g` below `count` always qualifies, so there is a best.
+    let mut best: Option<(f32, usize)> = None;
+    let mut left = Aabb::EMPTY;
+    for mid in 1..count {
+        left = left.union(items[mid - 1].bounds);
+        if groups(mid) + groups(count - mid) != groups(count) {
+            continue;
+        }
+        let cost = TRAVERSAL_COST
+            + (left.area() * packs(mid) + right_area[mid] * packs(count - mid)) / parent_area;
+        if best.is_none_or(|(c, _)| cost < c) {
+            best = Some((cost, mid));
+        }
+    }
+    best.map_or(g, |(_, mid)| mid)
+}
+
+/// Sorts by centroid along `axis`, ties by id: a total order, so the tree is the same on
+/// every run.
+fn sort_on_axis(items: &mut [BuildItem], axis: usize) {
+    items.sort_unstable_by_key(|it| {
+        // `f32::total_cmp`'s order, as an unsigned integer, then the id.
+        let bits = it.centroid[axis].to_bits() as i32;
+        let ordered = (bits ^ (((bits >> 31) as u32) >> 1) as i32) as u32 ^ (1 << 31);
+        (u64::from(ordered) << 32) | u64::from(it.id)
+    });
+}
+
 fn push_children(
     nodes: &mut Vec<Node>,
     at: usize,
@@ -190,6 +266,7 @@ fn push_children(
         bounds: Aabb::EMPTY,
         first: 0,
         count: 0,
+        size: 0,
     };
     nodes.push(placeholder);
     nodes.push(placeholder);
@@ -197,6 +274,7 @@ fn push_children(
         bounds,
         first: left as u32,
         count: 0,
+        size: (end - start) as u32,
     };
     build_node(nodes, left, items, start, mid);
     build_node(nodes, left + 1, items, mid, end);

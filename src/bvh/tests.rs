@@ -213,6 +213,33 @@ fn leaves_stay_small_even_for_coincident_spheres() {
 }
 
 #[test]
+fn packs_come_out_full_and_small_scenes_need_two_levels_at_most() {
+    let mut rng = Sampler::from_seed(13);
+    for n in [9, 40, 64, 65, 200, 486, 512] {
+        // Without the giant `random_spheres` adds, so every sphere is in the tree.
+        let mut spheres = random_spheres(n, &mut rng);
+        spheres.pop();
+        let bvh = Bvh::build(&spheres);
+        assert!(bvh.giants.is_empty());
+        // As few packs as `n` spheres need, so at most one is not full.
+        assert_eq!(bvh.packs.len(), n.div_ceil(WIDTH), "{n} spheres");
+        // Up to 64 spheres: one node over packs; up to 512: a root over such nodes.
+        let levels = if n <= WIDTH * WIDTH { 0 } else { 1 };
+        assert_eq!(bvh.max_level, levels, "{n} spheres");
+        let inner_of_root = bvh.nodes[0].inner_mask.count_ones() as usize;
+        assert_eq!(bvh.nodes.len(), 1 + inner_of_root, "{n} spheres");
+    }
+    // The cover: 486 spheres in the tree, 61 packs under 8 nodes under the root.
+    let path = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cover.toml"));
+    let scene = crate::scene::Scene::load(path, &crate::scene::Overrides::default()).unwrap();
+    let bvh = Bvh::build(&scene.spheres);
+    assert_eq!(
+        (bvh.packs.len(), bvh.nodes.len(), bvh.max_level),
+        (61, 9, 1)
+    );
+}
+
+#[test]
 fn stack_entries_share_no_cache_line_with_other_allocations() {
     let mut rng = Sampler::from_seed(9);
     let bvh = Bvh::build(&random_spheres(500, &mut rng));
