@@ -26,6 +26,15 @@ pub fn to_fixed(c: f32) -> u64 {
     }
 }
 
+/// `count` zero sums, written now rather than left to the allocator's zero pages: a page
+/// first read then written during a render faults twice, and the second fault flushes that
+/// page's mapping from every core running the render (an interrupt per page on each worker).
+pub fn zeroed_sums(count: usize) -> Vec<[u64; 3]> {
+    let mut sums = Vec::with_capacity(count);
+    sums.resize(count, [0; 3]);
+    sums
+}
+
 /// An image of per-pixel radiance sums over `samples_per_pixel` samples each.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Film {

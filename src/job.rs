@@ -71,7 +71,7 @@ impl JobState {
         let tile = tile.max(1);
         JobState {
             done: vec![0; job.region.tiles(tile).len()],
-            sums: vec![[0; 3]; job.region.area() as usize],
+            sums: crate::film::zeroed_sums(job.region.area() as usize),
             job,
             tile,
         }
