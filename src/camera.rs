@@ -1,6 +1,6 @@
 //! The book's positionable thin-lens camera: settings in, derived basis out, rays per pixel.
 
-use crate::math::{Vec3, cross, unit};
+use crate::math::{Vec3, cross, tan, unit};
 use crate::ray::Ray;
 use crate::sampling::Sampler;
 
@@ -89,7 +89,7 @@ impl RayBundle {
 
 impl Camera {
     pub fn new(s: &CameraSettings) -> Self {
-        let h = (s.vfov_deg.to_radians() / 2.0).tan();
+        let h = tan(s.vfov_deg.to_radians() / 2.0);
         let viewport_height = 2.0 * h;
         let viewport_width = s.aspect_ratio * viewport_height;
         let w = unit(s.lookfrom - s.lookat);

@@ -250,7 +250,7 @@ pub fn encode_8bit(c: f32, gamma: f32) -> u8 {
     } else if gamma == 1.0 {
         c
     } else {
-        c.max(0.0).powf(1.0 / gamma)
+        crate::math::pow(c, 1.0 / gamma)
     };
     (256.0 * c.clamp(0.0, 0.999)) as u8
 }

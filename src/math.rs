@@ -25,6 +25,81 @@ pub fn unit(v: Vec3) -> Vec3 {
     v / v.length()
 }
 
+/// `tan(x)` for `|x| < π/2`, rounded to `f32`: the same bits on every machine. A platform's
+/// `tanf` (its libm) may round differently, and the camera's field of view goes through this
+/// once per render, so one last bit would move every camera ray. Computed in `f64` as
+/// `sin / cos` by Taylor series with only `+`, `×` and `/` (IEEE-exact operations), to about
+/// 10⁻¹⁵ relative: far under `f32`'s 6·10⁻⁸, so the result is the correctly rounded tangent
+/// but where the exact value lies within 10⁻¹⁵ of a rounding boundary.
+pub fn tan(x: f32) -> f32 {
+    let x = f64::from(x);
+    let x2 = x * x;
+    // sin x = x Σ (-x²)ⁿ / (2n+1)!, cos x = Σ (-x²)ⁿ / (2n)!: 16 terms reach x³³/33!, under
+    // 10⁻²⁹ for |x| < π/2.
+    let (mut sin, mut cos) = (0.0f64, 0.0f64);
+    for n in (0..16).rev() {
+        let k = 2.0 * f64::from(n);
+        sin = 1.0 - x2 * sin / ((k + 2.0) * (k + 3.0));
+        cos = 1.0 - x2 * cos / ((k + 1.0) * (k + 2.0));
+    }
+    (x * sin / cos) as f32
+}
+
+/// `c^e` for `c ≥ 0` (negative `c` and NaN give 0), rounded to `f32`, the same bits on every
+/// machine (see `tan`): `exp(e · ln c)` in `f64`, the logarithm by the `atanh` series on the
+/// mantissa scaled into `[√½, √2)`, the exponential by its Taylor series after taking out
+/// whole powers of two.
+pub fn pow(c: f32, e: f32) -> f32 {
+    if c.is_nan() || c <= 0.0 {
+        return 0.0;
+    }
+    if c.is_infinite() {
+        return if e > 0.0 { c } else { 0.0 };
+    }
+    let y = f64::from(e) * ln(f64::from(c));
+    exp(y) as f32
+}
+
+/// `ln x` for finite `x > 0` in `f64`.
+fn ln(x: f64) -> f64 {
+    const LN_2: f64 = std::f64::consts::LN_2;
+    // x = m · 2^k, m in [1, 2) (an f32's value is a normal f64), then into [√½, √2).
+    let bits = x.to_bits();
+    let mut k = ((bits >> 52) & 0x7ff) as i64 - 1023;
+    let mut m = f64::from_bits((bits & ((1 << 52) - 1)) | (1023 << 52));
+    if m > std::f64::consts::SQRT_2 {
+        m /= 2.0;
+        k += 1;
+    }
+    // ln m = 2 atanh s = 2 (s + s³/3 + s⁵/5 + …), s = (m - 1)/(m + 1), |s| < 0.172: 20 terms.
+    let s = (m - 1.0) / (m + 1.0);
+    let s2 = s * s;
+    let mut sum = 0.0f64;
+    for n in (0..20).rev() {
+        sum = 1.0 / f64::from(2 * n + 1) + s2 * sum;
+    }
+    k as f64 * LN_2 + 2.0 * s * sum
+}
+
+/// `e^y` in `f64`: 0 below the smallest and infinity above the largest `f32` it can round to.
+fn exp(y: f64) -> f64 {
+    const LN_2: f64 = std::f64::consts::LN_2;
+    if y < -110.0 {
+        return 0.0;
+    }
+    if y > 90.0 {
+        return f64::INFINITY;
+    }
+    // y = k ln 2 + r with |r| ≤ ln 2 / 2, e^r by Taylor to r²⁰/20!, then times 2^k exactly.
+    let k = (y / LN_2).round();
+    let r = y - k * LN_2;
+    let mut sum = 0.0f64;
+    for n in (1..=20).rev() {
+        sum = 1.0 + r * sum / f64::from(n);
+    }
+    sum * f64::from_bits(((k as i64 + 1023) as u64) << 52)
+}
+
 /// An open interval of ray parameters `(min, max)` that a hit must fall in.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Interval {
@@ -137,6 +212,64 @@ pub fn near_zero(v: Vec3) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// True when `got` is `exact` rounded to `f32` (to the nearer neighbour, with a hair of
+    /// slack for `exact`'s own error).
+    fn correctly_rounded(got: f32, exact: f64) -> bool {
+        let g = f64::from(got);
+        let spacing = f64::from(got.abs().next_up() - got.abs());
+        (g - exact).abs() <= 0.5 * spacing * (1.0 + 1e-6)
+    }
+
+    #[test]
+    fn tan_is_correctly_rounded_over_the_whole_field_of_view() {
+        let mut x = 1e-6f32;
+        let mut checked = 0;
+        while x < std::f32::consts::FRAC_PI_2 {
+            for v in [x, -x] {
+                let exact = f64::from(v).tan();
+                assert!(
+                    correctly_rounded(tan(v), exact),
+                    "tan({v}) = {} not {exact}",
+                    tan(v)
+                );
+            }
+            checked += 1;
+            x = x * 1.0001 + 1e-7;
+        }
+        assert!(checked > 70_000, "{checked}");
+        // Every field of view the scenes use, and the extremes a scene may ask for.
+        for deg in [20.0f32, 40.0, 90.0, 0.001, 179.999] {
+            let half = deg.to_radians() / 2.0;
+            assert!(correctly_rounded(tan(half), f64::from(half).tan()), "{deg}");
+        }
+        assert_eq!(tan(0.0), 0.0);
+    }
+
+    #[test]
+    fn pow_is_correctly_rounded_over_radiance_values_and_gammas() {
+        let mut c = 1e-30f32;
+        let mut checked = 0;
+        while c < 1e12 {
+            for e in [1.0 / 2.2, 1.0 / 1.8, 0.5, 1.0, 2.5, 1.0 / 3.0, 7.0] {
+                let exact = f64::from(c).powf(f64::from(e));
+                let got = pow(c, e);
+                if exact < f64::from(f32::MAX) && exact > 1e-37 {
+                    assert!(correctly_rounded(got, exact), "{c}^{e} = {got} not {exact}");
+                }
+            }
+            checked += 1;
+            c = c * 1.003 + 1e-38;
+        }
+        assert!(checked > 25_000, "{checked}");
+        assert_eq!(pow(1.0, 1.0 / 2.2), 1.0);
+        assert_eq!(pow(0.0, 0.5), 0.0);
+        assert_eq!(pow(-1.0, 0.5), 0.0);
+        assert_eq!(pow(f32::NAN, 0.5), 0.0);
+        assert_eq!(pow(f32::INFINITY, 0.5), f32::INFINITY);
+        assert_eq!(pow(1e30, 7.0), f32::INFINITY);
+        assert_eq!(pow(1e-30, 7.0), 0.0);
+    }
 
     #[test]
     fn tiles_cover_the_rectangle_once() {
