@@ -3,10 +3,13 @@
 //! `WIDTH` children, with leaves of one sphere pack each.
 
 use super::pack::SpherePack;
-use super::{BINS, Bvh, EMPTY, LEAF, MAX_LEAF, TRAVERSAL_COST, WIDTH, WideNode};
+use super::{
+    BINS, Bvh, EMPTY, FLAT_GROUP, FLAT_MAX_PACKS, LEAF, MAX_LEAF, PackBoxes, TRAVERSAL_COST, WIDTH,
+    WideNode,
+};
 use crate::geometry::{Aabb, Sphere};
 use crate::math::Vec3;
-use crate::simd::F32x8;
+use crate::simd::{F32x8, F32x16};
 
 /// Nodes of at most this many items (`WIDTH³`) are split by a sweep of their sorted
 /// centroids at the positions `best_aligned_split` allows; larger ones by binned SAH. The
@@ -75,7 +78,38 @@ pub(super) fn build(spheres: &[Sphere]) -> Bvh {
     let order: Vec<u32> = items.iter().map(|it| it.id).collect();
     let root_kids = if binary[0].count > 0 { vec![0] } else { vec![] };
     bvh.collapse(&binary, &order, spheres, 0, root_kids, 0);
+    if bvh.packs.len() <= FLAT_MAX_PACKS {
+        bvh.flat = pack_boxes(&bvh.packs, spheres);
+    }
     bvh
+}
+
+/// The boxes of `packs` (the same as the tree's leaf boxes: unions of the spheres' boxes),
+/// `FLAT_GROUP` to a group; unused lanes hold an inverted box.
+fn pack_boxes(packs: &[SpherePack], spheres: &[Sphere]) -> Vec<PackBoxes> {
+    packs
+        .chunks(FLAT_GROUP)
+        .map(|group| {
+            let mut planes = [[f32::INFINITY; FLAT_GROUP]; 6];
+            planes[3..].fill([f32::NEG_INFINITY; FLAT_GROUP]);
+            for (lane, pack) in group.iter().enumerate() {
+                let bounds =
+                    (pack.ids()).fold(Aabb::EMPTY, |b, id| b.union(spheres[id as usize].bounds()));
+                for axis in 0..3 {
+                    planes[axis][lane] = bounds.min[axis];
+                    planes[axis + 3][lane] = bounds.max[axis];
+                }
+            }
+            let halves = |p: [f32; FLAT_GROUP]| {
+                let (lo, hi) = p.split_at(WIDTH);
+                F32x16([lo, hi].map(|h| F32x8(h.try_into().expect("WIDTH lanes"))))
+            };
+            PackBoxes {
+                planes: planes.map(halves),
+                mask: (1 << group.len()) - 1,
+            }
+        })
+        .collect()
 }
 
 impl Bvh {

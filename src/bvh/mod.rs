@@ -1,6 +1,8 @@
-//! A bounding volume hierarchy over spheres: built as a binary tree with the binned surface
-//! area heuristic, then collapsed into a flat array of eight-wide nodes whose child boxes, and
+//! A bounding volume hierarchy over spheres: built as a binary tree with the surface area
+//! heuristic, then collapsed into a flat array of eight-wide nodes whose child boxes, and
 //! whose leaf spheres, are stored as structure-of-arrays and tested eight at a time with SIMD.
+//! A tree of at most 64 packs also keeps their boxes sixteen to a group, for a flat walk on
+//! the AVX-512 path.
 //!
 //! The public surface is this file: build, intersect (with optional hints), and per-tile
 //! candidate lists. `build` makes the tree, `traverse` walks it, `pack` tests eight spheres
@@ -18,7 +20,7 @@ pub use candidates::Candidates;
 use crate::geometry::{PrimitiveId, Sphere};
 use crate::math::{Interval, Vec3};
 use crate::ray::Ray;
-use crate::simd::{F32x8, Isa, Portable};
+use crate::simd::{F32x8, F32x16, Isa, Portable};
 use pack::SpherePack;
 use traverse::Traversal;
 
@@ -53,11 +55,34 @@ struct WideNode {
     inner_mask: u32,
 }
 
+/// Trees of at most this many packs (two levels: a root over nodes of packs) are walked flat
+/// on a path with sixteen-lane box tests (`Isa::WIDE_SLABS`): every pack's box is tested,
+/// sixteen at a time, then the packs whose boxes the ray meets. The four tests are
+/// independent of one another, so they overlap, where the tree's two levels wait on each
+/// other and branch between them. With eight-lane tests (twice the instructions) the flat
+/// walk measured slower than the tree.
+const FLAT_MAX_PACKS: usize = WIDTH * WIDTH;
+/// Pack boxes per group of a flat tree.
+const FLAT_GROUP: usize = 16;
+/// Groups of pack boxes in a flat tree, at most.
+const FLAT_MAX_GROUPS: usize = FLAT_MAX_PACKS / FLAT_GROUP;
+
+/// The boxes of packs `FLAT_GROUP · g ..` (for group `g`), one lane each; `mask` has a bit
+/// for each lane that holds a pack.
+#[derive(Clone, Copy, Debug)]
+struct PackBoxes {
+    planes: [F32x16; 6],
+    mask: u32,
+}
+
 /// The hierarchy, ready to trace.
 #[derive(Clone, Debug, Default)]
 pub struct Bvh {
     nodes: Vec<WideNode>,
     packs: Vec<SpherePack>,
+    /// For a tree of at most `FLAT_MAX_PACKS` packs, their boxes (see `FLAT_MAX_PACKS`);
+    /// else empty.
+    flat: Vec<PackBoxes>,
     /// Spheres so large (the book's ground) that any box holding them holds everything:
     /// tested on their own before the tree, which then stays tight around the rest.
     giants: Vec<(Sphere, u32)>,
@@ -143,12 +168,29 @@ impl Bvh {
         stack: &mut TraversalStack,
         hints: RayHints,
     ) -> Option<(f32, PrimitiveId)> {
-        let need = self.stack_need();
-        if !stack.holds(need) {
-            *stack = self.new_stack();
-        }
+        self.walk(isa, ray, interval, stack, hints, I::WIDE_SLABS)
+    }
+
+    /// `intersect_on`, walking the tree flat (see `FLAT_MAX_PACKS`) when `flat` and the
+    /// tree is small enough. Either walk gives the same answer on any path.
+    #[inline(always)]
+    fn walk<I: Isa>(
+        &self,
+        isa: I,
+        ray: &Ray,
+        interval: Interval,
+        stack: &mut TraversalStack,
+        hints: RayHints,
+        flat: bool,
+    ) -> Option<(f32, PrimitiveId)> {
         let mut walk = Traversal::new(isa, self, ray, interval, hints);
-        if !self.nodes.is_empty() {
+        if flat && !self.flat.is_empty() {
+            walk.flat(self);
+        } else if !self.nodes.is_empty() {
+            let need = self.stack_need();
+            if !stack.holds(need) {
+                *stack = self.new_stack();
+            }
             let entries = stack.entries(need);
             while !walk.step(self, entries) {}
         }

@@ -5,6 +5,7 @@ use super::pack::SpherePack;
 use super::*;
 use crate::geometry::MaterialId;
 use crate::sampling::Sampler;
+use crate::simd::Portable;
 
 /// The closest hit by testing every sphere: the reference the hierarchy is tested against.
 fn intersect_brute_force(
@@ -21,6 +22,21 @@ fn intersect_brute_force(
         }
     }
     found
+}
+
+/// The closest hit by each walk the hierarchy has, flat (where the tree is small enough for
+/// one) and down the tree, each checked to agree with the other.
+fn intersect_both_walks(
+    bvh: &Bvh,
+    ray: &Ray,
+    interval: Interval,
+    stack: &mut TraversalStack,
+    hints: RayHints,
+) -> Option<(f32, PrimitiveId)> {
+    let flat = bvh.walk(Portable, ray, interval, stack, hints, true);
+    let tree = bvh.walk(Portable, ray, interval, stack, hints, false);
+    assert_eq!(flat, tree, "flat and tree walks differ for {ray:?}");
+    tree
 }
 
 fn random_spheres(n: usize, rng: &mut Sampler) -> Vec<Sphere> {
@@ -45,9 +61,11 @@ fn random_spheres(n: usize, rng: &mut Sampler) -> Vec<Sphere> {
 #[test]
 fn matches_brute_force_on_random_rays() {
     let mut rng = Sampler::from_seed(5);
-    for n in [0, 1, 2, 7, 64, 500] {
+    for n in [0, 1, 2, 7, 64, 500, 1000] {
         let spheres = random_spheres(n, &mut rng);
         let bvh = Bvh::build(&spheres);
+        // Up to 64 packs the tree also has a flat walk.
+        assert_eq!(bvh.flat.is_empty(), bvh.packs.len() > FLAT_MAX_PACKS, "{n}");
         let mut stack = TraversalStack::default();
         for _ in 0..4000 {
             let o = Vec3::new(
@@ -57,7 +75,7 @@ fn matches_brute_force_on_random_rays() {
             );
             let ray = Ray::new(o, rng.unit_vector());
             let iv = Interval::new(1e-4, f32::INFINITY);
-            let a = bvh.intersect(&ray, iv, &mut stack);
+            let a = intersect_both_walks(&bvh, &ray, iv, &mut stack, RayHints::default());
             let b = intersect_brute_force(&spheres, &ray, iv);
             match (a, b) {
                 (None, None) => {}
@@ -105,8 +123,8 @@ fn rays_leaving_a_sphere_find_what_brute_force_finds_without_testing_it() {
             leaving: Some(PrimitiveId(id as u32)),
             inv_dir: Some(raw.length() * (Vec3::ONE / raw)),
         };
-        let fast = bvh.intersect_with(&ray, iv, &mut stack, hints);
-        let full = bvh.intersect(&ray, iv, &mut stack);
+        let fast = intersect_both_walks(&bvh, &ray, iv, &mut stack, hints);
+        let full = intersect_both_walks(&bvh, &ray, iv, &mut stack, RayHints::default());
         let brute = intersect_brute_force(&spheres, &ray, iv);
         assert_eq!(fast, brute, "{ray:?} leaving {id}");
         assert_eq!(full, brute, "{ray:?} leaving {id}");
@@ -132,7 +150,7 @@ fn ties_go_to_the_lower_id_whatever_the_traversal_order() {
     for _ in 0..2000 {
         let o = Vec3::new(rng.range(-15.0, 15.0), rng.range(0.0, 6.0), 15.0);
         let ray = Ray::new(o, rng.unit_vector());
-        let a = bvh.intersect(&ray, iv, &mut stack);
+        let a = intersect_both_walks(&bvh, &ray, iv, &mut stack, RayHints::default());
         let b = intersect_brute_force(&spheres, &ray, iv);
         assert_eq!(a, b, "for {ray:?}");
         if let Some((_, id)) = a {

@@ -1,13 +1,14 @@
 //! One ray's walk through the hierarchy: the giants first, then node by node, leaves as soon
-//! as their parent is tested, inner children nearest first.
+//! as their parent is tested, inner children nearest first; or, for a small tree on a path
+//! with sixteen-lane box tests, every pack's box at once, then the packs hit.
 
 use super::pack::SpherePack;
 use super::pack::{hit_of, lowest_lane, splat3};
-use super::{Bvh, LEAF, NO_HIT, NO_SPHERE, RayHints};
+use super::{Bvh, FLAT_GROUP, FLAT_MAX_GROUPS, LEAF, NO_HIT, NO_SPHERE, RayHints};
 use crate::geometry::PrimitiveId;
 use crate::math::{Interval, Vec3};
 use crate::ray::Ray;
-use crate::simd::{Ids, Isa, Lanes};
+use crate::simd::{Ids, Isa, Lanes, SlabRay, slab8};
 
 impl Bvh {
     /// The nearest giant hit in `interval`: its parameter and id, else `(interval.max,
@@ -32,12 +33,16 @@ impl Bvh {
     }
 }
 
-/// One ray's walk through the hierarchy, advanced a node at a time by `step`.
+/// One ray's walk through the hierarchy, advanced a node at a time by `step`, or over every
+/// pack of a small tree at once by `flat`.
 pub(super) struct Traversal<I: Isa> {
     o: [Lanes<I>; 3],
     d: [Lanes<I>; 3],
-    inv: [Lanes<I>; 3],
     t_min: Lanes<I>,
+    /// The ray as the box tests take it (see `slab_ray`).
+    origin: [f32; 3],
+    inv_dir: [f32; 3],
+    t_min_scalar: f32,
     /// The id of a sphere the ray cannot hit (`RayHints::leaving`), or `NO_SPHERE`.
     skip: Ids<I>,
     closest: f32,
@@ -60,8 +65,10 @@ impl<I: Isa> Traversal<I> {
         Traversal {
             o: splat3(isa, ray.origin),
             d: splat3(isa, ray.dir),
-            inv: splat3(isa, inv),
             t_min: Lanes::splat(isa, interval.min),
+            origin: ray.origin.to_array(),
+            inv_dir: inv.to_array(),
+            t_min_scalar: interval.min,
             skip: Ids::splat(isa, hints.leaving.map_or(NO_SPHERE, |id| id.0)),
             closest,
             found,
@@ -74,41 +81,63 @@ impl<I: Isa> Traversal<I> {
         hit_of(self.closest, self.found)
     }
 
+    /// The ray as the slab tests take it, bounded by the closest hit so far.
+    #[inline(always)]
+    fn slab_ray(&self) -> SlabRay {
+        SlabRay {
+            origin: self.origin,
+            inv_dir: self.inv_dir,
+            t_min: self.t_min_scalar,
+            t_max: self.closest,
+        }
+    }
+
+    /// Tests the spheres of `pack`, keeping a hit that beats the closest so far.
+    #[inline(always)]
+    fn test_pack(&mut self, pack: &SpherePack) {
+        pack.intersect(
+            &self.o,
+            &self.d,
+            self.t_min,
+            self.skip,
+            &mut self.closest,
+            &mut self.found,
+        );
+    }
+
+    /// The walk of a flat tree (see `FLAT_MAX_PACKS`): every group of pack boxes tested
+    /// first (independent tests, which overlap), then the packs whose boxes the ray meets,
+    /// in order, each unless the closest hit so far is nearer than its box.
+    #[inline(always)]
+    pub(super) fn flat(&mut self, bvh: &Bvh) {
+        let isa = self.t_min.isa();
+        let groups = &bvh.flat[..bvh.flat.len().min(FLAT_MAX_GROUPS)];
+        let ray = self.slab_ray();
+        let mut hits = [0u32; FLAT_MAX_GROUPS];
+        let mut t_near = [[0.0f32; FLAT_GROUP]; FLAT_MAX_GROUPS];
+        for (g, boxes) in groups.iter().enumerate() {
+            let (meets, near) = isa.slab16(&boxes.planes, &ray);
+            hits[g] = meets & boxes.mask;
+            t_near[g] = near;
+        }
+        for g in 0..groups.len() {
+            let mut packs = hits[g];
+            while packs != 0 {
+                let lane = packs.trailing_zeros() as usize & (FLAT_GROUP - 1);
+                packs &= packs - 1;
+                if t_near[g][lane] <= self.closest {
+                    self.test_pack(&bvh.packs[g * FLAT_GROUP + lane]);
+                }
+            }
+        }
+    }
+
     /// Visits the current node: tests its leaf children's spheres at once and picks the
     /// next inner node. True when the walk is over.
     #[inline(always)]
     pub(super) fn step(&mut self, bvh: &Bvh, stack: &mut [(u32, f32)]) -> bool {
-        let (o, inv) = (&self.o, &self.inv);
         let node = &bvh.nodes[self.current as usize];
-        let isa = self.t_min.isa();
-        // The slab test: per axis, the ray's parameters at the min and max planes; the
-        // nearer of each pair enters the slab, the farther leaves it.
-        let p = &node.planes;
-        let t0 = [
-            (Lanes::load(isa, &p[0]) - o[0]) * inv[0],
-            (Lanes::load(isa, &p[1]) - o[1]) * inv[1],
-            (Lanes::load(isa, &p[2]) - o[2]) * inv[2],
-        ];
-        let t1 = [
-            (Lanes::load(isa, &p[3]) - o[0]) * inv[0],
-            (Lanes::load(isa, &p[4]) - o[1]) * inv[1],
-            (Lanes::load(isa, &p[5]) - o[2]) * inv[2],
-        ];
-        let t_near = t0[0]
-            .fast_min(t1[0])
-            .fast_max(t0[1].fast_min(t1[1]))
-            .fast_max(t0[2].fast_min(t1[2]).fast_max(self.t_min));
-        let t_far = t0[0]
-            .fast_max(t1[0])
-            .fast_min(t0[1].fast_max(t1[1]))
-            .fast_min(
-                t0[2]
-                    .fast_max(t1[2])
-                    .fast_min(Lanes::splat(isa, self.closest)),
-            );
-        let mut hits = t_near.simd_le(t_far).to_bitmask();
-        // Indexing a SIMD vector by a variable lane compiles to a jump table.
-        let t_near = t_near.to_array();
+        let (mut hits, t_near) = slab8(self.t_min.isa(), node.planes.each_ref(), &self.slab_ray());
         // Leaves first, as soon as their parent is tested: a pack test costs the same
         // whatever `closest` is, so their order does not matter, only that their boxes are
         // not already behind the closest hit.
@@ -117,14 +146,7 @@ impl<I: Isa> Traversal<I> {
             let lane = lowest_lane(leaves);
             leaves &= leaves - 1;
             if t_near[lane] <= self.closest {
-                bvh.leaf_pack(node.child[lane]).intersect(
-                    &self.o,
-                    &self.d,
-                    self.t_min,
-                    self.skip,
-                    &mut self.closest,
-                    &mut self.found,
-                );
+                self.test_pack(bvh.leaf_pack(node.child[lane]));
             }
         }
         hits &= node.inner_mask;

@@ -10,6 +10,15 @@ use std::ops::{Add, BitAnd, Div, Mul, Neg, Sub};
 #[repr(C, align(32))]
 pub struct F32x8(pub [f32; 8]);
 
+/// Sixteen `f32`s as stored: two eight-lane halves, aligned for one 512-bit load.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(64))]
+pub struct F32x16(pub [F32x8; 2]);
+
+impl F32x16 {
+    pub const ZERO: Self = Self([F32x8::ZERO; 2]);
+}
+
 /// Eight `u32`s as stored.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[repr(C, align(32))]

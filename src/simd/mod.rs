@@ -9,7 +9,8 @@
 //!   aarch64, plain arrays elsewhere);
 //! - `avx2`: x86-64 with AVX2, BMI1/2, LZCNT and POPCNT; one AVX instruction per operation;
 //! - `avx512`: the same eight-lane code compiled with AVX-512 F/VL/BW/DQ enabled as well (mask
-//!   registers, 32 vector registers).
+//!   registers, 32 vector registers), and sixteen-lane box tests (`Isa::slab16`), with which
+//!   a small tree is walked flat.
 //!
 //! Every operation is exact IEEE arithmetic with the same rule on every path (no fused
 //! multiply-add, `min`/`max` as the SSE instructions define them), so every path gives the
@@ -26,7 +27,7 @@ mod tests;
 #[cfg(target_arch = "x86_64")]
 mod x86;
 
-pub use lanes::{F32x8, Ids, Lanes, Mask, U32x8};
+pub use lanes::{F32x8, F32x16, Ids, Lanes, Mask, U32x8};
 pub use portable::Portable;
 
 use std::fmt;
@@ -68,6 +69,63 @@ pub trait Isa: Copy + fmt::Debug + Send + Sync + 'static {
     fn splat_u(self, x: u32) -> Self::U;
     /// Bit `i` set when lane `i` of `a` equals that of `b`.
     fn eq_u_bitmask(self, a: Self::U, b: Self::U) -> u32;
+
+    /// Whether `slab16` is one set of sixteen-lane instructions (not two of eight), which
+    /// makes testing every pack box of a small tree at once faster than walking it.
+    const WIDE_SLABS: bool = false;
+
+    /// The slab test of `ray` against sixteen boxes (`planes`: min x, y, z, max x, y, z):
+    /// each box's entry parameter, and bit `i` set when the ray meets box `i` within
+    /// `(ray.t_min, ray.t_max)`. The same arithmetic, lane by lane, on every path: here two
+    /// halves of eight lanes; the AVX-512 path does all sixteen at once.
+    #[inline(always)]
+    fn slab16(self, planes: &[F32x16; 6], ray: &SlabRay) -> (u32, [f32; 16]) {
+        let (lo, near_lo) = slab8(self, planes.each_ref().map(|p| &p.0[0]), ray);
+        let (hi, near_hi) = slab8(self, planes.each_ref().map(|p| &p.0[1]), ray);
+        let mut near = [0.0; 16];
+        near[..8].copy_from_slice(&near_lo);
+        near[8..].copy_from_slice(&near_hi);
+        (lo | hi << 8, near)
+    }
+}
+
+/// A ray as the slab test takes it: origin, `1 / direction` (finite) and the parameter
+/// interval.
+#[derive(Clone, Copy, Debug)]
+pub struct SlabRay {
+    pub origin: [f32; 3],
+    pub inv_dir: [f32; 3],
+    pub t_min: f32,
+    pub t_max: f32,
+}
+
+/// The slab test against eight boxes: per axis, the ray's parameters at the min and max
+/// planes; the nearer of each pair enters the slab, the farther leaves it. The entry is
+/// the latest entry and `t_min`, the exit the earliest exit and `t_max`, combined in this
+/// order on every path.
+#[inline(always)]
+pub fn slab8<I: Isa>(isa: I, p: [&F32x8; 6], ray: &SlabRay) -> (u32, [f32; 8]) {
+    let o = ray.origin.map(|x| Lanes::splat(isa, x));
+    let inv = ray.inv_dir.map(|x| Lanes::splat(isa, x));
+    let t0 = [
+        (Lanes::load(isa, p[0]) - o[0]) * inv[0],
+        (Lanes::load(isa, p[1]) - o[1]) * inv[1],
+        (Lanes::load(isa, p[2]) - o[2]) * inv[2],
+    ];
+    let t1 = [
+        (Lanes::load(isa, p[3]) - o[0]) * inv[0],
+        (Lanes::load(isa, p[4]) - o[1]) * inv[1],
+        (Lanes::load(isa, p[5]) - o[2]) * inv[2],
+    ];
+    let t_near = t0[0]
+        .fast_min(t1[0])
+        .fast_max(t0[1].fast_min(t1[1]))
+        .fast_max(t0[2].fast_min(t1[2]).fast_max(Lanes::splat(isa, ray.t_min)));
+    let t_far = t0[0]
+        .fast_max(t1[0])
+        .fast_min(t0[1].fast_max(t1[1]))
+        .fast_min(t0[2].fast_max(t1[2]).fast_min(Lanes::splat(isa, ray.t_max)));
+    (t_near.simd_le(t_far).to_bitmask(), t_near.to_array())
 }
 
 /// Work generic over the instruction set, for [`dispatch`] to run on a chosen path. (A
@@ -104,7 +162,7 @@ impl Path {
             #[cfg(target_arch = "x86_64")]
             Path::Avx2 => x86::Avx2::detect().is_some(),
             #[cfg(target_arch = "x86_64")]
-            Path::Avx512 => x86::Avx2::detect_avx512().is_some(),
+            Path::Avx512 => x86::Avx512::detect().is_some(),
             #[cfg(not(target_arch = "x86_64"))]
             Path::Avx2 | Path::Avx512 => false,
         }
@@ -115,11 +173,14 @@ impl Path {
         Path::ALL.into_iter().filter(|p| p.is_supported()).collect()
     }
 
-    /// The path a render takes unless told otherwise: AVX2 where the CPU has it, else
-    /// portable. AVX-512 is not picked by itself: on the eight-lane code it measured no faster
-    /// than AVX2 (`docs/performance.md`); `--simd avx512` forces it.
+    /// The path a render takes unless told otherwise: the widest the CPU runs. AVX-512's
+    /// sixteen-lane box tests made the cover 5% faster than AVX2 on a Zen 5
+    /// (`docs/performance.md`); `--simd avx2` stays the choice for a CPU that slows its
+    /// clock for 512-bit instructions.
     pub fn best() -> Path {
-        if Path::Avx2.is_supported() {
+        if Path::Avx512.is_supported() {
+            Path::Avx512
+        } else if Path::Avx2.is_supported() {
             Path::Avx2
         } else {
             Path::Portable
@@ -176,8 +237,8 @@ pub fn dispatch<K: Kernel>(path: Path, kernel: K) -> K::Output {
             None => kernel.run(Portable),
         },
         #[cfg(target_arch = "x86_64")]
-        Path::Avx512 => match x86::Avx2::detect_avx512() {
-            // SAFETY: `detect_avx512` checked every feature `run_avx512` enables.
+        Path::Avx512 => match x86::Avx512::detect() {
+            // SAFETY: the token exists, so the CPU has every feature `run_avx512` enables.
             Some(isa) => unsafe { x86::run_avx512(kernel, isa) },
             None => kernel.run(Portable),
         },

@@ -96,3 +96,95 @@ fn paths_parse_and_refuse_what_the_cpu_lacks() {
     }
     assert!(Path::best().is_supported());
 }
+
+/// `slab16` of random rays against random boxes (and inverted, flat and infinite ones).
+struct Slabs(Vec<([F32x16; 6], SlabRay)>);
+
+impl Kernel for Slabs {
+    type Output = Vec<(u32, [u32; 16])>;
+    fn run<I: Isa>(self, isa: I) -> Self::Output {
+        (self.0.iter())
+            .map(|(planes, ray)| {
+                let (hits, near) = isa.slab16(planes, ray);
+                (hits, near.map(f32::to_bits))
+            })
+            .collect()
+    }
+}
+
+/// The slab test of one box, one `f32` at a time, in `slab8`'s order of operations.
+fn slab_scalar(min: [f32; 3], max: [f32; 3], ray: &SlabRay) -> (bool, f32) {
+    let lo = |a: f32, b: f32| if a < b { a } else { b };
+    let hi = |a: f32, b: f32| if a > b { a } else { b };
+    let t0: [f32; 3] = std::array::from_fn(|k| (min[k] - ray.origin[k]) * ray.inv_dir[k]);
+    let t1: [f32; 3] = std::array::from_fn(|k| (max[k] - ray.origin[k]) * ray.inv_dir[k]);
+    let near = hi(
+        hi(lo(t0[0], t1[0]), lo(t0[1], t1[1])),
+        hi(lo(t0[2], t1[2]), ray.t_min),
+    );
+    let far = lo(
+        lo(hi(t0[0], t1[0]), hi(t0[1], t1[1])),
+        lo(hi(t0[2], t1[2]), ray.t_max),
+    );
+    (near <= far, near)
+}
+
+#[test]
+fn sixteen_lane_box_tests_match_scalar_arithmetic_on_every_path() {
+    let mut rng = crate::sampling::Sampler::from_seed(3);
+    let mut cases = Vec::new();
+    for case in 0..2000 {
+        let mut planes = [F32x16::ZERO; 6];
+        for lane in 0..16 {
+            let c: [f32; 3] = std::array::from_fn(|_| rng.range(-10.0, 10.0));
+            let h: [f32; 3] = std::array::from_fn(|_| rng.range(0.0, 3.0));
+            for k in 0..3 {
+                let (mut lo, mut hi) = (c[k] - h[k], c[k] + h[k]);
+                match (case + lane) % 7 {
+                    0 => (lo, hi) = (f32::INFINITY, f32::NEG_INFINITY), // an unused lane
+                    1 => hi = lo,                                       // a flat box
+                    _ => {}
+                }
+                planes[k].0[lane / 8].0[lane % 8] = lo;
+                planes[k + 3].0[lane / 8].0[lane % 8] = hi;
+            }
+        }
+        let d: [f32; 3] = std::array::from_fn(|_| rng.range(-1.0, 1.0));
+        let inv = d.map(|x| {
+            if case % 5 == 0 {
+                1e30
+            } else {
+                (1.0 / x).clamp(-1e30, 1e30)
+            }
+        });
+        let ray = SlabRay {
+            origin: std::array::from_fn(|_| rng.range(-12.0, 12.0)),
+            inv_dir: inv,
+            t_min: if case % 3 == 0 { 0.0 } else { 1e-3 },
+            t_max: if case % 4 == 0 {
+                f32::INFINITY
+            } else {
+                rng.range(0.0, 30.0)
+            },
+        };
+        cases.push((planes, ray));
+    }
+    let want: Vec<(u32, [u32; 16])> = (cases.iter())
+        .map(|(planes, ray)| {
+            let mut hits = 0;
+            let near = std::array::from_fn(|lane| {
+                let at = |p: &F32x16| p.0[lane / 8].0[lane % 8];
+                let min = [0, 1, 2].map(|k| at(&planes[k]));
+                let max = [3, 4, 5].map(|k| at(&planes[k]));
+                let (meets, near) = slab_scalar(min, max, ray);
+                hits |= u32::from(meets) << lane;
+                near.to_bits()
+            });
+            (hits, near)
+        })
+        .collect();
+    assert!(want.iter().any(|(h, _)| *h != 0) && want.iter().any(|(h, _)| *h != 0xffff));
+    for path in Path::supported() {
+        assert_eq!(dispatch(path, Slabs(cases.clone())), want, "{path}");
+    }
+}

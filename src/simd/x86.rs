@@ -6,7 +6,7 @@
 //! below is sound because it is reached through a token. The run functions are compiled with
 //! those features; calling them is sound for the same reason.
 
-use super::{F32x8, Isa, Kernel, U32x8};
+use super::{F32x8, F32x16, Isa, Kernel, SlabRay, U32x8};
 use std::arch::x86_64::*;
 
 /// The token of the AVX2 path (and of the AVX-512 path, which runs the same operations with
@@ -24,14 +24,21 @@ impl Avx2 {
             && is_x86_feature_detected!("popcnt");
         has.then_some(Avx2(()))
     }
+}
 
-    /// The token, where this CPU has every feature of the AVX-512 path as well.
-    pub fn detect_avx512() -> Option<Self> {
+/// The token of the AVX-512 path: the AVX2 path's eight-lane operations, compiled with
+/// AVX-512 enabled, and sixteen-lane box tests. Made only by detection, like [`Avx2`].
+#[derive(Clone, Copy, Debug)]
+pub struct Avx512(Avx2);
+
+impl Avx512 {
+    /// The token, where this CPU has every feature of the AVX2 and AVX-512 paths.
+    pub fn detect() -> Option<Self> {
         let has = is_x86_feature_detected!("avx512f")
             && is_x86_feature_detected!("avx512vl")
             && is_x86_feature_detected!("avx512bw")
             && is_x86_feature_detected!("avx512dq");
-        Self::detect().filter(|_| has)
+        Avx2::detect().filter(|_| has).map(Avx512)
     }
 }
 
@@ -44,7 +51,7 @@ pub(super) fn run_avx2<K: Kernel>(kernel: K, isa: Avx2) -> K::Output {
 
 /// Runs `kernel` compiled for AVX-512 as well.
 #[target_feature(enable = "avx2,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512bw,avx512dq")]
-pub(super) fn run_avx512<K: Kernel>(kernel: K, isa: Avx2) -> K::Output {
+pub(super) fn run_avx512<K: Kernel>(kernel: K, isa: Avx512) -> K::Output {
     kernel.run(isa)
 }
 
@@ -54,6 +61,92 @@ macro_rules! avx {
         // SAFETY: an `Avx2` token exists only where the CPU has AVX2 (module invariant).
         unsafe { $e }
     };
+}
+
+/// The body of one AVX-512 operation, sound because an `Avx512` token proves AVX-512.
+macro_rules! avx512 {
+    ($e:expr) => {
+        // SAFETY: an `Avx512` token exists only where the CPU has AVX-512 F/VL/BW/DQ and
+        // every AVX2 feature (module invariant).
+        unsafe { $e }
+    };
+}
+
+/// `Isa` methods of `Avx512` that are `Avx2`'s.
+macro_rules! same_as_avx2 {
+    ($($name:ident($($arg:ident: $ty:ty),*) -> $out:ty;)*) => {
+        $(
+            #[inline(always)]
+            fn $name(self, $($arg: $ty),*) -> $out {
+                self.0.$name($($arg),*)
+            }
+        )*
+    };
+}
+
+impl Isa for Avx512 {
+    type F = __m256;
+    type M = __m256;
+    type U = __m256i;
+    const WIDE_SLABS: bool = true;
+
+    same_as_avx2! {
+        load(v: &F32x8) -> __m256;
+        splat(x: f32) -> __m256;
+        to_array(v: __m256) -> [f32; 8];
+        add(a: __m256, b: __m256) -> __m256;
+        sub(a: __m256, b: __m256) -> __m256;
+        mul(a: __m256, b: __m256) -> __m256;
+        div(a: __m256, b: __m256) -> __m256;
+        neg(a: __m256) -> __m256;
+        min(a: __m256, b: __m256) -> __m256;
+        max(a: __m256, b: __m256) -> __m256;
+        sqrt(a: __m256) -> __m256;
+        lt(a: __m256, b: __m256) -> __m256;
+        le(a: __m256, b: __m256) -> __m256;
+        ge(a: __m256, b: __m256) -> __m256;
+        eq(a: __m256, b: __m256) -> __m256;
+        and(a: __m256, b: __m256) -> __m256;
+        select(m: __m256, if_true: __m256, if_false: __m256) -> __m256;
+        bitmask(m: __m256) -> u32;
+        load_u(v: &U32x8) -> __m256i;
+        splat_u(x: u32) -> __m256i;
+        eq_u_bitmask(a: __m256i, b: __m256i) -> u32;
+    }
+
+    /// All sixteen lanes at once, in `slab8`'s order of operations.
+    #[inline(always)]
+    fn slab16(self, planes: &[F32x16; 6], ray: &SlabRay) -> (u32, [f32; 16]) {
+        // `F32x16` is 64-byte aligned, as the aligned load needs.
+        let load = |i: usize| avx512!(_mm512_load_ps(planes[i].0.as_ptr().cast::<f32>()));
+        let splat = |x: f32| avx512!(_mm512_set1_ps(x));
+        let o = ray.origin.map(splat);
+        let inv = ray.inv_dir.map(splat);
+        let slope = |i: usize, axis: usize| {
+            avx512!(_mm512_mul_ps(_mm512_sub_ps(load(i), o[axis]), inv[axis]))
+        };
+        let t0 = [slope(0, 0), slope(1, 1), slope(2, 2)];
+        let t1 = [slope(3, 0), slope(4, 1), slope(5, 2)];
+        let (min, max) = (
+            |a, b| avx512!(_mm512_min_ps(a, b)),
+            |a, b| avx512!(_mm512_max_ps(a, b)),
+        );
+        let t_near = max(
+            max(min(t0[0], t1[0]), min(t0[1], t1[1])),
+            max(min(t0[2], t1[2]), splat(ray.t_min)),
+        );
+        let t_far = min(
+            min(max(t0[0], t1[0]), max(t0[1], t1[1])),
+            min(max(t0[2], t1[2]), splat(ray.t_max)),
+        );
+        let hits = avx512!(_mm512_cmp_ps_mask::<_CMP_LE_OQ>(t_near, t_far));
+        let mut near = F32x16::ZERO;
+        avx512!(_mm512_store_ps(near.0.as_mut_ptr().cast::<f32>(), t_near));
+        let mut out = [0.0; 16];
+        out[..8].copy_from_slice(&near.0[0].0);
+        out[8..].copy_from_slice(&near.0[1].0);
+        (u32::from(hits), out)
+    }
 }
 
 impl Isa for Avx2 {
