@@ -8,7 +8,7 @@ use super::{Bvh, FLAT_GROUP, FLAT_MAX_GROUPS, LEAF, NO_HIT, NO_SPHERE, RayHints}
 use crate::geometry::PrimitiveId;
 use crate::math::{Interval, Vec3};
 use crate::ray::Ray;
-use crate::simd::{Ids, Isa, Lanes, SlabRay, slab8};
+use crate::simd::{Ids, Isa, Lanes, SlabLanes, SlabRay, slab8};
 
 impl Bvh {
     /// The nearest giant hit in `interval`: its parameter and id, else `(interval.max,
@@ -36,13 +36,14 @@ impl Bvh {
 /// One ray's walk through the hierarchy, advanced a node at a time by `step`, or over every
 /// pack of a small tree at once by `flat`.
 pub(super) struct Traversal<I: Isa> {
-    o: [Lanes<I>; 3],
+    /// The ray's origin, `1 / direction` and `t_min` in lanes, for the box tests (and the
+    /// origin and `t_min` for the sphere tests).
+    lanes: SlabLanes<I>,
+    /// The same as scalars, for the sixteen-lane box tests of a flat walk.
+    origin: Vec3,
+    inv_dir: Vec3,
+    t_min: f32,
     d: [Lanes<I>; 3],
-    t_min: Lanes<I>,
-    /// The ray as the box tests take it (see `slab_ray`).
-    origin: [f32; 3],
-    inv_dir: [f32; 3],
-    t_min_scalar: f32,
     /// The id of a sphere the ray cannot hit (`RayHints::leaving`), or `NO_SPHERE`.
     skip: Ids<I>,
     closest: f32,
@@ -63,12 +64,15 @@ impl<I: Isa> Traversal<I> {
         let inv = hints.inv_dir.unwrap_or_else(|| Vec3::ONE / ray.dir);
         let inv = inv.clamp(Vec3::splat(-1e30), Vec3::splat(1e30));
         Traversal {
-            o: splat3(isa, ray.origin),
+            lanes: SlabLanes {
+                origin: splat3(isa, ray.origin),
+                inv_dir: splat3(isa, inv),
+                t_min: Lanes::splat(isa, interval.min),
+            },
+            origin: ray.origin,
+            inv_dir: inv,
+            t_min: interval.min,
             d: splat3(isa, ray.dir),
-            t_min: Lanes::splat(isa, interval.min),
-            origin: ray.origin.to_array(),
-            inv_dir: inv.to_array(),
-            t_min_scalar: interval.min,
             skip: Ids::splat(isa, hints.leaving.map_or(NO_SPHERE, |id| id.0)),
             closest,
             found,
@@ -85,9 +89,9 @@ impl<I: Isa> Traversal<I> {
     #[inline(always)]
     fn slab_ray(&self) -> SlabRay {
         SlabRay {
-            origin: self.origin,
-            inv_dir: self.inv_dir,
-            t_min: self.t_min_scalar,
+            origin: self.origin.to_array(),
+            inv_dir: self.inv_dir.to_array(),
+            t_min: self.t_min,
             t_max: self.closest,
         }
     }
@@ -96,9 +100,9 @@ impl<I: Isa> Traversal<I> {
     #[inline(always)]
     fn test_pack(&mut self, pack: &SpherePack) {
         pack.intersect(
-            &self.o,
+            &self.lanes.origin,
             &self.d,
-            self.t_min,
+            self.lanes.t_min,
             self.skip,
             &mut self.closest,
             &mut self.found,
@@ -110,7 +114,7 @@ impl<I: Isa> Traversal<I> {
     /// in order, each unless the closest hit so far is nearer than its box.
     #[inline(always)]
     pub(super) fn flat(&mut self, bvh: &Bvh) {
-        let isa = self.t_min.isa();
+        let isa = self.lanes.t_min.isa();
         let groups = &bvh.flat[..bvh.flat.len().min(FLAT_MAX_GROUPS)];
         let ray = self.slab_ray();
         let mut hits = [0u32; FLAT_MAX_GROUPS];
@@ -137,7 +141,7 @@ impl<I: Isa> Traversal<I> {
     #[inline(always)]
     pub(super) fn step(&mut self, bvh: &Bvh, stack: &mut [(u32, f32)]) -> bool {
         let node = &bvh.nodes[self.current as usize];
-        let (mut hits, t_near) = slab8(self.t_min.isa(), node.planes.each_ref(), &self.slab_ray());
+        let (mut hits, t_near) = slab8(node.planes.each_ref(), &self.lanes, self.closest);
         // Leaves first, as soon as their parent is tested: a pack test costs the same
         // whatever `closest` is, so their order does not matter, only that their boxes are
         // not already behind the closest hit.

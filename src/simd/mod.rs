@@ -80,8 +80,9 @@ pub trait Isa: Copy + fmt::Debug + Send + Sync + 'static {
     /// halves of eight lanes; the AVX-512 path does all sixteen at once.
     #[inline(always)]
     fn slab16(self, planes: &[F32x16; 6], ray: &SlabRay) -> (u32, [f32; 16]) {
-        let (lo, near_lo) = slab8(self, planes.each_ref().map(|p| &p.0[0]), ray);
-        let (hi, near_hi) = slab8(self, planes.each_ref().map(|p| &p.0[1]), ray);
+        let lanes = ray.lanes(self);
+        let (lo, near_lo) = slab8(planes.each_ref().map(|p| &p.0[0]), &lanes, ray.t_max);
+        let (hi, near_hi) = slab8(planes.each_ref().map(|p| &p.0[1]), &lanes, ray.t_max);
         let mut near = [0.0; 16];
         near[..8].copy_from_slice(&near_lo);
         near[8..].copy_from_slice(&near_hi);
@@ -99,14 +100,34 @@ pub struct SlabRay {
     pub t_max: f32,
 }
 
-/// The slab test against eight boxes: per axis, the ray's parameters at the min and max
-/// planes; the nearer of each pair enters the slab, the farther leaves it. The entry is
-/// the latest entry and `t_min`, the exit the earliest exit and `t_max`, combined in this
-/// order on every path.
+impl SlabRay {
+    /// The ray's origin, `1 / direction` and `t_min` in lanes, for `slab8`.
+    #[inline(always)]
+    pub fn lanes<I: Isa>(&self, isa: I) -> SlabLanes<I> {
+        SlabLanes {
+            origin: self.origin.map(|x| Lanes::splat(isa, x)),
+            inv_dir: self.inv_dir.map(|x| Lanes::splat(isa, x)),
+            t_min: Lanes::splat(isa, self.t_min),
+        }
+    }
+}
+
+/// A `SlabRay`'s fixed part in lanes: made once per ray, used for every group of boxes.
+#[derive(Clone, Copy)]
+pub struct SlabLanes<I: Isa> {
+    pub origin: [Lanes<I>; 3],
+    pub inv_dir: [Lanes<I>; 3],
+    pub t_min: Lanes<I>,
+}
+
+/// The slab test against eight boxes, within `(ray.t_min, t_max)`: per axis, the ray's
+/// parameters at the min and max planes; the nearer of each pair enters the slab, the
+/// farther leaves it. The entry is the latest entry and `t_min`, the exit the earliest exit
+/// and `t_max`, combined in this order on every path.
 #[inline(always)]
-pub fn slab8<I: Isa>(isa: I, p: [&F32x8; 6], ray: &SlabRay) -> (u32, [f32; 8]) {
-    let o = ray.origin.map(|x| Lanes::splat(isa, x));
-    let inv = ray.inv_dir.map(|x| Lanes::splat(isa, x));
+pub fn slab8<I: Isa>(p: [&F32x8; 6], ray: &SlabLanes<I>, t_max: f32) -> (u32, [f32; 8]) {
+    let (o, inv) = (&ray.origin, &ray.inv_dir);
+    let isa = ray.t_min.isa();
     let t0 = [
         (Lanes::load(isa, p[0]) - o[0]) * inv[0],
         (Lanes::load(isa, p[1]) - o[1]) * inv[1],
@@ -120,11 +141,11 @@ pub fn slab8<I: Isa>(isa: I, p: [&F32x8; 6], ray: &SlabRay) -> (u32, [f32; 8]) {
     let t_near = t0[0]
         .fast_min(t1[0])
         .fast_max(t0[1].fast_min(t1[1]))
-        .fast_max(t0[2].fast_min(t1[2]).fast_max(Lanes::splat(isa, ray.t_min)));
+        .fast_max(t0[2].fast_min(t1[2]).fast_max(ray.t_min));
     let t_far = t0[0]
         .fast_max(t1[0])
         .fast_min(t0[1].fast_max(t1[1]))
-        .fast_min(t0[2].fast_max(t1[2]).fast_min(Lanes::splat(isa, ray.t_max)));
+        .fast_min(t0[2].fast_max(t1[2]).fast_min(Lanes::splat(isa, t_max)));
     (t_near.simd_le(t_far).to_bitmask(), t_near.to_array())
 }
 
