@@ -1,16 +1,16 @@
 //! The AVX paths on x86-64: the eight-lane operations as AVX intrinsics, and the functions that
 //! run a kernel compiled for AVX2 or AVX-512.
 //!
-//! Soundness rests on one invariant: an [`Avx2`] token exists only after `detect` (or
-//! `detect_avx512`) has seen every feature its code uses on this CPU. Each intrinsic call
+//! Soundness rests on one invariant: an [`Avx2`] or [`Avx512`] token exists only after its
+//! `detect` has seen every feature its code uses on this CPU. Each intrinsic call
 //! below is sound because it is reached through a token. The run functions are compiled with
 //! those features; calling them is sound for the same reason.
 
 use super::{F32x8, F32x16, Isa, Kernel, SlabRay, U32x8};
 use std::arch::x86_64::*;
 
-/// The token of the AVX2 path (and of the AVX-512 path, which runs the same operations with
-/// more features enabled). Its private field keeps it from being made except by detection.
+/// The token of the AVX2 path. Its private field keeps it from being made except by
+/// detection.
 #[derive(Clone, Copy, Debug)]
 pub struct Avx2(());
 
@@ -140,12 +140,10 @@ impl Isa for Avx512 {
             min(max(t0[2], t1[2]), splat(ray.t_max)),
         );
         let hits = avx512!(_mm512_cmp_ps_mask::<_CMP_LE_OQ>(t_near, t_far));
-        let mut near = F32x16::ZERO;
-        avx512!(_mm512_store_ps(near.0.as_mut_ptr().cast::<f32>(), t_near));
-        let mut out = [0.0; 16];
-        out[..8].copy_from_slice(&near.0[0].0);
-        out[8..].copy_from_slice(&near.0[1].0);
-        (u32::from(hits), out)
+        let mut near = [0.0; 16];
+        // An unaligned store: sixteen `f32`s, the size of the vector.
+        avx512!(_mm512_storeu_ps(near.as_mut_ptr(), t_near));
+        (u32::from(hits), near)
     }
 }
 
