@@ -85,27 +85,20 @@ pub(super) fn build(spheres: &[Sphere]) -> Bvh {
 }
 
 /// The boxes of `packs` (the same as the tree's leaf boxes: unions of the spheres' boxes),
-/// `FLAT_GROUP` to a group; unused lanes hold an inverted box.
+/// `FLAT_GROUP` to a group.
 fn pack_boxes(packs: &[SpherePack], spheres: &[Sphere]) -> Vec<PackBoxes> {
     packs
         .chunks(FLAT_GROUP)
         .map(|group| {
-            let mut planes = [[f32::INFINITY; FLAT_GROUP]; 6];
-            planes[3..].fill([f32::NEG_INFINITY; FLAT_GROUP]);
-            for (lane, pack) in group.iter().enumerate() {
-                let bounds =
-                    (pack.ids()).fold(Aabb::EMPTY, |b, id| b.union(spheres[id as usize].bounds()));
-                for axis in 0..3 {
-                    planes[axis][lane] = bounds.min[axis];
-                    planes[axis + 3][lane] = bounds.max[axis];
-                }
-            }
+            let bounds = group.iter().map(|pack| {
+                (pack.ids()).fold(Aabb::EMPTY, |b, id| b.union(spheres[id as usize].bounds()))
+            });
             let halves = |p: [f32; FLAT_GROUP]| {
                 let (lo, hi) = p.split_at(WIDTH);
                 F32x16([lo, hi].map(|h| F32x8(h.try_into().expect("WIDTH lanes"))))
             };
             PackBoxes {
-                planes: planes.map(halves),
+                planes: box_planes::<FLAT_GROUP>(bounds).map(halves),
                 mask: (1 << group.len()) - 1,
             }
         })
@@ -148,9 +141,6 @@ impl Bvh {
             kids.push(first + 1);
         }
         let index = self.nodes.len();
-        // Empty lanes keep an inverted box; the masks leave them out anyway.
-        let mut planes = [[f32::INFINITY; WIDTH]; 6];
-        planes[3..].fill([f32::NEG_INFINITY; WIDTH]);
         let mut node_out = WideNode {
             planes: [F32x8::ZERO; 6],
             child: [EMPTY; WIDTH],
@@ -169,10 +159,6 @@ impl Bvh {
             } else {
                 self.collapse(binary, order, spheres, k, Vec::new(), level + 1)
             };
-            for axis in 0..3 {
-                planes[axis][lane] = node.bounds.min[axis];
-                planes[axis + 3][lane] = node.bounds.max[axis];
-            }
             node_out.child[lane] = child;
             if child & LEAF != 0 {
                 node_out.leaf_mask |= 1 << lane;
@@ -180,12 +166,24 @@ impl Bvh {
                 node_out.inner_mask |= 1 << lane;
             }
         }
-        for (out, plane) in node_out.planes.iter_mut().zip(planes) {
-            *out = F32x8(plane);
-        }
+        node_out.planes = box_planes::<WIDTH>(kids.iter().map(|&k| binary[k].bounds)).map(F32x8);
         self.nodes[index] = node_out;
         index as u32
     }
+}
+
+/// The planes (min x, y, z, then max x, y, z) of up to `N` boxes, one lane each; lanes past
+/// them keep an inverted box (the masks leave them out anyway).
+fn box_planes<const N: usize>(boxes: impl IntoIterator<Item = Aabb>) -> [[f32; N]; 6] {
+    let mut planes = [[f32::INFINITY; N]; 6];
+    planes[3..].fill([f32::NEG_INFINITY; N]);
+    for (lane, b) in boxes.into_iter().take(N).enumerate() {
+        for axis in 0..3 {
+            planes[axis][lane] = b.min[axis];
+            planes[axis + 3][lane] = b.max[axis];
+        }
+    }
+    planes
 }
 
 fn build_node(nodes: &mut Vec<Node>, at: usize, items: &mut [BuildItem], start: usize, end: usize) {

@@ -108,11 +108,17 @@ impl SpherePack {
     }
 }
 
-/// The lowest set lane of a non-empty lane mask. (Masked to `WIDTH`, which changes nothing
-/// but lets the compiler drop the bounds checks of indexing by it.)
+/// The lowest set lane of a non-empty mask of `WIDTH` lanes.
 #[inline(always)]
 pub(super) fn lowest_lane(mask: u32) -> usize {
-    mask.trailing_zeros() as usize & (WIDTH - 1)
+    lowest_of::<WIDTH>(mask)
+}
+
+/// The lowest set lane of a non-empty mask of `N` lanes (a power of two). (Masked to `N`,
+/// which changes nothing but lets the compiler drop the bounds checks of indexing by it.)
+#[inline(always)]
+pub(super) fn lowest_of<const N: usize>(mask: u32) -> usize {
+    mask.trailing_zeros() as usize & (N - 1)
 }
 
 #[inline(always)]

@@ -3,7 +3,7 @@
 //! with sixteen-lane box tests, every pack's box at once, then the packs hit.
 
 use super::pack::SpherePack;
-use super::pack::{hit_of, lowest_lane, splat3};
+use super::pack::{hit_of, lowest_lane, lowest_of, splat3};
 use super::{Bvh, FLAT_GROUP, FLAT_MAX_GROUPS, LEAF, NO_HIT, NO_SPHERE, RayHints};
 use crate::geometry::PrimitiveId;
 use crate::math::{Interval, Vec3};
@@ -36,13 +36,11 @@ impl Bvh {
 /// One ray's walk through the hierarchy, advanced a node at a time by `step`, or over every
 /// pack of a small tree at once by `flat`.
 pub(super) struct Traversal<I: Isa> {
-    /// The ray's origin, `1 / direction` and `t_min` in lanes, for the box tests (and the
-    /// origin and `t_min` for the sphere tests).
+    /// The ray as the box tests take it (`t_max` unused: the closest hit bounds each test).
+    slab: SlabRay,
+    /// Its origin, `1 / direction` and `t_min` in lanes, for the eight-lane box tests (and
+    /// the origin and `t_min` for the sphere tests).
     lanes: SlabLanes<I>,
-    /// The same as scalars, for the sixteen-lane box tests of a flat walk.
-    origin: Vec3,
-    inv_dir: Vec3,
-    t_min: f32,
     d: [Lanes<I>; 3],
     /// The id of a sphere the ray cannot hit (`RayHints::leaving`), or `NO_SPHERE`.
     skip: Ids<I>,
@@ -63,15 +61,15 @@ impl<I: Isa> Traversal<I> {
         // 0 · ∞ = NaN of a box face through the origin.
         let inv = hints.inv_dir.unwrap_or_else(|| Vec3::ONE / ray.dir);
         let inv = inv.clamp(Vec3::splat(-1e30), Vec3::splat(1e30));
-        Traversal {
-            lanes: SlabLanes {
-                origin: splat3(isa, ray.origin),
-                inv_dir: splat3(isa, inv),
-                t_min: Lanes::splat(isa, interval.min),
-            },
-            origin: ray.origin,
-            inv_dir: inv,
+        let slab = SlabRay {
+            origin: ray.origin.to_array(),
+            inv_dir: inv.to_array(),
             t_min: interval.min,
+            t_max: interval.max,
+        };
+        Traversal {
+            slab,
+            lanes: slab.lanes(isa),
             d: splat3(isa, ray.dir),
             skip: Ids::splat(isa, hints.leaving.map_or(NO_SPHERE, |id| id.0)),
             closest,
@@ -89,10 +87,8 @@ impl<I: Isa> Traversal<I> {
     #[inline(always)]
     fn slab_ray(&self) -> SlabRay {
         SlabRay {
-            origin: self.origin.to_array(),
-            inv_dir: self.inv_dir.to_array(),
-            t_min: self.t_min,
             t_max: self.closest,
+            ..self.slab
         }
     }
 
@@ -127,7 +123,7 @@ impl<I: Isa> Traversal<I> {
         for g in 0..groups.len() {
             let mut packs = hits[g];
             while packs != 0 {
-                let lane = packs.trailing_zeros() as usize & (FLAT_GROUP - 1);
+                let lane = lowest_of::<FLAT_GROUP>(packs);
                 packs &= packs - 1;
                 if t_near[g][lane] <= self.closest {
                     self.test_pack(&bvh.packs[g * FLAT_GROUP + lane]);
