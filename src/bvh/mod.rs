@@ -188,12 +188,15 @@ impl Bvh {
         if !stack.holds(need) {
             *stack = self.new_stack();
         }
-        let mut walk = Traversal::new(isa, self, ray, interval, hints);
+        let mut walk = Traversal::new(isa, ray, interval, hints);
         if flat && !self.flat.is_empty() {
-            walk.flat(self);
-        } else if !self.nodes.is_empty() {
-            let entries = stack.entries(need);
-            while !walk.step(self, entries) {}
+            walk.flat(self, ray);
+        } else {
+            walk.test_giants(self, ray);
+            if !self.nodes.is_empty() {
+                let entries = stack.entries(need);
+                while !walk.step(self, entries) {}
+            }
         }
         walk.result()
     }

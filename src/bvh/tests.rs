@@ -161,6 +161,40 @@ fn ties_go_to_the_lower_id_whatever_the_traversal_order() {
     assert!(hits > 200, "only {hits} hits");
 }
 
+#[test]
+fn a_giant_and_a_tree_sphere_tied_go_to_the_lower_id() {
+    // Along -z from the origin both the giant and the small sphere are met at t = 1
+    // exactly (every step of the arithmetic is exact): whichever comes first in the list
+    // must win, on both walks, wherever the giants are tested.
+    let giant = Sphere::new(Vec3::new(0.0, 0.0, -1001.0), 1000.0, MaterialId(0));
+    let tied = Sphere::new(Vec3::new(0.0, 0.0, -1.5), 0.5, MaterialId(1));
+    let others =
+        (0..9).map(|i| Sphere::new(Vec3::new(5.0 + i as f32, 0.0, -5.0), 0.3, MaterialId(2)));
+    let ray = Ray::new(Vec3::ZERO, -Vec3::Z);
+    let iv = Interval::new(1e-4, f32::INFINITY);
+    for giant_first in [true, false] {
+        let (first, last) = if giant_first {
+            (giant, tied)
+        } else {
+            (tied, giant)
+        };
+        let spheres: Vec<Sphere> = std::iter::once(first)
+            .chain(others.clone())
+            .chain(std::iter::once(last))
+            .collect();
+        let bvh = Bvh::build(&spheres);
+        assert_eq!(bvh.giants.len(), 1, "the radius-1000 sphere is a giant");
+        let mut stack = TraversalStack::default();
+        let hit = intersect_both_walks(&bvh, &ray, iv, &mut stack, RayHints::default());
+        assert_eq!(
+            hit,
+            Some((1.0, PrimitiveId(0))),
+            "giant first: {giant_first}"
+        );
+        assert_eq!(hit, intersect_brute_force(&spheres, &ray, iv));
+    }
+}
+
 /// Picking candidates through the tree, skipping subtrees whose boxes the bundle misses,
 /// must pick exactly the spheres a scan of every sphere picks.
 #[test]

@@ -1,6 +1,6 @@
 //! One ray's walk through the hierarchy: the giants first, then node by node, leaves as soon
 //! as their parent is tested, inner children nearest first; or, for a small tree on a path
-//! with sixteen-lane box tests, every pack's box at once, then the packs hit.
+//! with sixteen-lane box tests, every pack's box at once, then the packs hit, then the giants.
 
 use super::pack::SpherePack;
 use super::pack::{hit_of, lowest_lane, lowest_of, splat3};
@@ -11,21 +11,6 @@ use crate::ray::Ray;
 use crate::simd::{Ids, Isa, Lanes, SlabLanes, SlabRay, slab8};
 
 impl Bvh {
-    /// The nearest giant hit in `interval`: its parameter and id, else `(interval.max,
-    /// NO_HIT)`.
-    #[inline(always)]
-    pub(super) fn nearest_giant(&self, ray: &Ray, interval: Interval) -> (f32, u32) {
-        let mut closest = interval.max;
-        let mut found = NO_HIT;
-        for (sphere, id) in &self.giants {
-            if let Some(t) = sphere.intersect(ray, Interval::new(interval.min, closest)) {
-                closest = t;
-                found = *id;
-            }
-        }
-        (closest, found)
-    }
-
     /// The pack of the leaf child reference `child`.
     #[inline(always)]
     pub(super) fn leaf_pack(&self, child: u32) -> &SpherePack {
@@ -36,7 +21,8 @@ impl Bvh {
 /// One ray's walk through the hierarchy, advanced a node at a time by `step`, or over every
 /// pack of a small tree at once by `flat`.
 pub(super) struct Traversal<I: Isa> {
-    /// The ray as the box tests take it (`t_max` unused: the closest hit bounds each test).
+    /// The ray as the box tests take it, over the whole interval: the tree walk bounds
+    /// each test by the closest hit so far, the flat walk checks that after its tests.
     slab: SlabRay,
     /// Its origin, `1 / direction` and `t_min` in lanes, for the eight-lane box tests (and
     /// the origin and `t_min` for the sphere tests).
@@ -53,10 +39,9 @@ pub(super) struct Traversal<I: Isa> {
 }
 
 impl<I: Isa> Traversal<I> {
-    /// Starts a walk: tests the giant spheres, and sets up the root as the first node.
+    /// Starts a walk, with no hit yet and the root as the first node.
     #[inline(always)]
-    pub(super) fn new(isa: I, bvh: &Bvh, ray: &Ray, interval: Interval, hints: RayHints) -> Self {
-        let (closest, found) = bvh.nearest_giant(ray, interval);
+    pub(super) fn new(isa: I, ray: &Ray, interval: Interval, hints: RayHints) -> Self {
         // Clamped so a zero direction component gives a huge finite slope, never the
         // 0 · ∞ = NaN of a box face through the origin.
         let inv = hints.inv_dir.unwrap_or_else(|| Vec3::ONE / ray.dir);
@@ -72,24 +57,30 @@ impl<I: Isa> Traversal<I> {
             lanes: slab.lanes(isa),
             d: splat3(isa, ray.dir),
             skip: Ids::splat(isa, hints.leaving.map_or(NO_SPHERE, |id| id.0)),
-            closest,
-            found,
+            closest: interval.max,
+            found: NO_HIT,
             current: 0,
             top: 0,
         }
     }
 
-    pub(super) fn result(&self) -> Option<(f32, PrimitiveId)> {
-        hit_of(self.closest, self.found)
+    /// Tests the giant spheres after the rest, keeping a giant's hit when it beats the
+    /// closest so far: nearer, or as near with a lower id (as the packs' ties go).
+    #[inline(always)]
+    pub(super) fn test_giants(&mut self, bvh: &Bvh, ray: &Ray) {
+        let interval = Interval::new(self.slab.t_min, self.slab.t_max);
+        for (sphere, id) in &bvh.giants {
+            if let Some(t) = sphere.intersect(ray, interval)
+                && (t < self.closest || (t == self.closest && *id < self.found))
+            {
+                self.closest = t;
+                self.found = *id;
+            }
+        }
     }
 
-    /// The ray as the slab tests take it, bounded by the closest hit so far.
-    #[inline(always)]
-    fn slab_ray(&self) -> SlabRay {
-        SlabRay {
-            t_max: self.closest,
-            ..self.slab
-        }
+    pub(super) fn result(&self) -> Option<(f32, PrimitiveId)> {
+        hit_of(self.closest, self.found)
     }
 
     /// Tests the spheres of `pack`, keeping a hit that beats the closest so far.
@@ -107,16 +98,21 @@ impl<I: Isa> Traversal<I> {
 
     /// The walk of a flat tree (see `FLAT_MAX_PACKS`): every group of pack boxes tested
     /// first (independent tests, which overlap), then the packs whose boxes the ray meets,
-    /// in order, each unless the closest hit so far is nearer than its box.
+    /// in order, each unless the closest hit so far is nearer than its box, then the giants.
+    ///
+    /// The box tests take the whole interval, not the closest hit so far, so they wait on
+    /// no sphere test and start as soon as the ray is known; the giants come last for the
+    /// same reason (their square root and division, and the ground's early exits, stay off
+    /// the packs' chain). Either order finds the same hit.
     #[inline(always)]
-    pub(super) fn flat(&mut self, bvh: &Bvh) {
+    pub(super) fn flat(&mut self, bvh: &Bvh, ray: &Ray) {
         let isa = self.lanes.t_min.isa();
         let groups = &bvh.flat[..bvh.flat.len().min(FLAT_MAX_GROUPS)];
-        let ray = self.slab_ray();
+        let slab = self.slab;
         let mut hits = [0u32; FLAT_MAX_GROUPS];
         let mut t_near = [[0.0f32; FLAT_GROUP]; FLAT_MAX_GROUPS];
         for (g, boxes) in groups.iter().enumerate() {
-            let (meets, near) = isa.slab16(&boxes.planes, &ray);
+            let (meets, near) = isa.slab16(&boxes.planes, &slab);
             hits[g] = meets & boxes.mask;
             t_near[g] = near;
         }
@@ -130,6 +126,7 @@ impl<I: Isa> Traversal<I> {
                 }
             }
         }
+        self.test_giants(bvh, ray);
     }
 
     /// Visits the current node: tests its leaf children's spheres at once and picks the
