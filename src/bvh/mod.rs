@@ -190,14 +190,12 @@ impl Bvh {
         }
         let mut walk = Traversal::new(isa, ray, interval, hints);
         if flat && !self.flat.is_empty() {
-            walk.flat(self, ray);
-        } else {
-            walk.test_giants(self, ray);
-            if !self.nodes.is_empty() {
-                let entries = stack.entries(need);
-                while !walk.step(self, entries) {}
-            }
+            walk.flat(self);
+        } else if !self.nodes.is_empty() {
+            let entries = stack.entries(need);
+            while !walk.step(self, entries) {}
         }
+        walk.test_giants(self, ray);
         walk.result()
     }
 }

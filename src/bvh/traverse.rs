@@ -1,6 +1,6 @@
-//! One ray's walk through the hierarchy: the giants first, then node by node, leaves as soon
-//! as their parent is tested, inner children nearest first; or, for a small tree on a path
-//! with sixteen-lane box tests, every pack's box at once, then the packs hit, then the giants.
+//! One ray's walk through the hierarchy: node by node, leaves as soon as their parent is
+//! tested, inner children nearest first; or, for a small tree on a path with sixteen-lane box
+//! tests, every pack's box at once, then the packs hit. The giants come last either way.
 
 use super::pack::SpherePack;
 use super::pack::{hit_of, lowest_lane, lowest_of, splat3};
@@ -64,8 +64,11 @@ impl<I: Isa> Traversal<I> {
         }
     }
 
-    /// Tests the giant spheres after the rest, keeping a giant's hit when it beats the
-    /// closest so far: nearer, or as near with a lower id (as the packs' ties go).
+    /// Tests the giant spheres, after the rest: keeps a giant's hit when it beats the
+    /// closest so far, nearer or as near with a lower id (as the packs' ties go). Last, so
+    /// the walk's first box tests wait on no square root and division of theirs, and the
+    /// ground's early exits stay off the walk's chain. The ground never hides a box in the
+    /// book's scenes (their boxes stand on it), so testing it first pruned nothing there.
     #[inline(always)]
     pub(super) fn test_giants(&mut self, bvh: &Bvh, ray: &Ray) {
         let interval = Interval::new(self.slab.t_min, self.slab.t_max);
@@ -98,14 +101,12 @@ impl<I: Isa> Traversal<I> {
 
     /// The walk of a flat tree (see `FLAT_MAX_PACKS`): every group of pack boxes tested
     /// first (independent tests, which overlap), then the packs whose boxes the ray meets,
-    /// in order, each unless the closest hit so far is nearer than its box, then the giants.
+    /// in order, each unless the closest hit so far is nearer than its box.
     ///
     /// The box tests take the whole interval, not the closest hit so far, so they wait on
-    /// no sphere test and start as soon as the ray is known; the giants come last for the
-    /// same reason (their square root and division, and the ground's early exits, stay off
-    /// the packs' chain). Either order finds the same hit.
+    /// no sphere test and start as soon as the ray is known.
     #[inline(always)]
-    pub(super) fn flat(&mut self, bvh: &Bvh, ray: &Ray) {
+    pub(super) fn flat(&mut self, bvh: &Bvh) {
         let isa = self.lanes.t_min.isa();
         let groups = &bvh.flat[..bvh.flat.len().min(FLAT_MAX_GROUPS)];
         let slab = self.slab;
@@ -126,7 +127,6 @@ impl<I: Isa> Traversal<I> {
                 }
             }
         }
-        self.test_giants(bvh, ray);
     }
 
     /// Visits the current node: tests its leaf children's spheres at once and picks the
