@@ -208,9 +208,40 @@ pub struct RayHints {
     /// cannot meet again (convex): its test is left out. Most bounce rays leave the sphere
     /// they bounced off this way, and its pack would otherwise pass the cheap first check
     /// for every one of them.
-    pub leaving: Option<PrimitiveId>,
+    pub leaving: Leaving,
     /// `1 / dir` (up to rounding), for a caller that has it before `dir` itself: a bounce
     /// ray's `len × (1 / raw)` is ready a division sooner than `1 / (raw / len)`, and the
     /// first box test waits for it.
     pub inv_dir: Option<Vec3>,
+}
+
+/// The sphere a ray leaves (see `RayHints::leaving`), or none: an id with a value for none
+/// rather than an `Option`, so a bounce ray's hint is made by a select, not a branch (glass
+/// makes it unpredictable which rays have one). The default is none.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Leaving(u32);
+
+impl Leaving {
+    pub const NONE: Leaving = Leaving(NO_SPHERE);
+
+    /// `sphere` where `leaves`, else none.
+    #[inline(always)]
+    pub fn sphere_if(leaves: bool, sphere: PrimitiveId) -> Self {
+        Leaving(if leaves { sphere.0 } else { NO_SPHERE })
+    }
+
+    pub fn is_some(self) -> bool {
+        self != Self::NONE
+    }
+
+    /// The id the packs' tests leave out (`NO_SPHERE`, no sphere's, for none).
+    fn id(self) -> u32 {
+        self.0
+    }
+}
+
+impl Default for Leaving {
+    fn default() -> Self {
+        Self::NONE
+    }
 }

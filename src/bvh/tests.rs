@@ -120,7 +120,7 @@ fn rays_leaving_a_sphere_find_what_brute_force_finds_without_testing_it() {
         // As the path tracer hints it: the sphere left, and 1/dir from the raw direction.
         let raw = 3.0 * d;
         let hints = RayHints {
-            leaving: Some(PrimitiveId(id as u32)),
+            leaving: Leaving::sphere_if(true, PrimitiveId(id as u32)),
             inv_dir: Some(raw.length() * (Vec3::ONE / raw)),
         };
         let fast = intersect_both_walks(&bvh, &ray, iv, &mut stack, hints);

@@ -4,7 +4,7 @@
 
 use super::pack::SpherePack;
 use super::pack::{hit_of, lowest_lane, lowest_of, splat3};
-use super::{Bvh, FLAT_GROUP, FLAT_MAX_GROUPS, LEAF, NO_HIT, NO_SPHERE, RayHints};
+use super::{Bvh, FLAT_GROUP, FLAT_MAX_GROUPS, LEAF, NO_HIT, RayHints};
 use crate::geometry::PrimitiveId;
 use crate::math::{Interval, Vec3};
 use crate::ray::Ray;
@@ -56,7 +56,7 @@ impl<I: Isa> Traversal<I> {
             slab,
             lanes: slab.lanes(isa),
             d: splat3(isa, ray.dir),
-            skip: Ids::splat(isa, hints.leaving.map_or(NO_SPHERE, |id| id.0)),
+            skip: Ids::splat(isa, hints.leaving.id()),
             closest: interval.max,
             found: NO_HIT,
             current: 0,

@@ -7,7 +7,7 @@ mod pixel;
 
 pub use pixel::{PixelEvaluator, tile_candidates};
 
-use crate::bvh::{RayHints, TraversalStack};
+use crate::bvh::{Leaving, RayHints, TraversalStack};
 use crate::geometry::Hit;
 use crate::math::{Color, Interval, Vec3};
 use crate::ray::Ray;
@@ -90,7 +90,10 @@ pub fn bounce(scene: &Scene, here: &Hit, raw: Vec3) -> (Ray, RayHints) {
     };
     let hints = RayHints {
         // A ray that leaves a sphere from outside cannot meet it again.
-        leaving: (t_min > 0.0 && here.leaves_outside(along_normal)).then_some(here.primitive),
+        leaving: Leaving::sphere_if(
+            (t_min > 0.0) & here.leaves_outside(along_normal),
+            here.primitive,
+        ),
         // From the raw direction, a division sooner than `1 / dir`.
         inv_dir: Some(len * (Vec3::ONE / raw)),
     };
