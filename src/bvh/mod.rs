@@ -84,7 +84,7 @@ pub struct Bvh {
     /// else empty.
     flat: Vec<PackBoxes>,
     /// Spheres so large (the book's ground) that any box holding them holds everything:
-    /// tested on their own before the tree, which then stays tight around the rest.
+    /// tested on their own after the tree, which then stays tight around the rest.
     giants: Vec<(Sphere, u32)>,
     /// Deepest level of inner nodes below the root (the root is level 0).
     max_level: usize,

@@ -100,12 +100,19 @@ impl SpherePack {
             }
         }
         let (t, id) = (t[lane], self.id.0[lane]);
-        // A tie with the best so far counts only against a real hit, not the interval's end.
-        if t < *closest || (*found != NO_HIT && id < *found) {
+        if beats(t, id, *closest, *found) {
             *closest = t;
             *found = id;
         }
     }
+}
+
+/// Whether a hit `(t, id)` beats `(closest, found)`, the best so far: nearer, or as near with
+/// a lower id, so every order of tests finds the same hit. A tie with the best so far counts
+/// only against a real hit, not the interval's end.
+#[inline(always)]
+pub(super) fn beats(t: f32, id: u32, closest: f32, found: u32) -> bool {
+    t < closest || (t == closest && found != NO_HIT && id < found)
 }
 
 /// The lowest set lane of a non-empty mask of `WIDTH` lanes.

@@ -3,7 +3,7 @@
 //! tests, every pack's box at once, then the packs hit. The giants come last either way.
 
 use super::pack::SpherePack;
-use super::pack::{hit_of, lowest_lane, lowest_of, splat3};
+use super::pack::{beats, hit_of, lowest_lane, lowest_of, splat3};
 use super::{Bvh, FLAT_GROUP, FLAT_MAX_GROUPS, LEAF, NO_HIT, RayHints};
 use crate::geometry::PrimitiveId;
 use crate::math::{Interval, Vec3};
@@ -64,17 +64,17 @@ impl<I: Isa> Traversal<I> {
         }
     }
 
-    /// Tests the giant spheres, after the rest: keeps a giant's hit when it beats the
-    /// closest so far, nearer or as near with a lower id (as the packs' ties go). Last, so
-    /// the walk's first box tests wait on no square root and division of theirs, and the
-    /// ground's early exits stay off the walk's chain. The ground never hides a box in the
-    /// book's scenes (their boxes stand on it), so testing it first pruned nothing there.
+    /// Tests the giant spheres, after the rest: keeps a giant's hit when it `beats` the
+    /// closest so far, as the packs do. Last, so the walk's first box tests wait on no
+    /// square root and division of theirs, and the ground's early exits stay off the walk's
+    /// chain. The ground never hides a box in the book's scenes (their boxes stand on it),
+    /// so testing it first pruned nothing there.
     #[inline(always)]
     pub(super) fn test_giants(&mut self, bvh: &Bvh, ray: &Ray) {
         let interval = Interval::new(self.slab.t_min, self.slab.t_max);
         for (sphere, id) in &bvh.giants {
             if let Some(t) = sphere.intersect(ray, interval)
-                && (t < self.closest || (t == self.closest && *id < self.found))
+                && beats(t, *id, self.closest, self.found)
             {
                 self.closest = t;
                 self.found = *id;
