@@ -78,6 +78,7 @@ pub(super) fn build(spheres: &[Sphere]) -> Bvh {
     let order: Vec<u32> = items.iter().map(|it| it.id).collect();
     let root_kids = if binary[0].count > 0 { vec![0] } else { vec![] };
     bvh.collapse(&binary, &order, spheres, 0, root_kids, 0);
+    bvh.layer = super::LayerGrid::build(spheres, &order);
     if bvh.packs.len() <= FLAT_MAX_PACKS {
         bvh.flat = pack_boxes(&bvh.packs, spheres);
     }

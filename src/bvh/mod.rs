@@ -6,10 +6,12 @@
 //!
 //! The public surface is this file: build, intersect (with optional hints), and per-tile
 //! candidate lists. `build` makes the tree, `traverse` walks it, `pack` tests eight spheres
-//! at once, `candidates` picks the spheres a bundle of rays can reach.
+//! at once, `candidates` picks the spheres a bundle of rays can reach, `layer` finds the few
+//! packs a ray in or over a thin layer of spheres can meet without walking the tree.
 
 mod build;
 mod candidates;
+mod layer;
 mod pack;
 #[cfg(test)]
 mod tests;
@@ -21,6 +23,7 @@ use crate::geometry::{PrimitiveId, Sphere};
 use crate::math::{Interval, Vec3};
 use crate::ray::Ray;
 use crate::simd::{F32x8, F32x16, Isa, Portable};
+use layer::LayerGrid;
 use pack::SpherePack;
 use traverse::Traversal;
 
@@ -88,6 +91,9 @@ pub struct Bvh {
     giants: Vec<(Sphere, u32)>,
     /// Deepest level of inner nodes below the root (the root is level 0).
     max_level: usize,
+    /// For a thin layer of spheres (the book's cover), the packs a ray in or over it can
+    /// meet, found without the walk (see `layer`).
+    layer: Option<LayerGrid>,
 }
 
 /// Scratch space for traversal, reused from ray to ray so no ray pays to clear or allocate
@@ -189,7 +195,16 @@ impl Bvh {
             *stack = self.new_stack();
         }
         let mut walk = Traversal::new(isa, ray, interval, hints);
-        if flat && !self.flat.is_empty() {
+        // Not `Option::and_then`: a closure may be left out of line, compiled for no SIMD path.
+        let layer_packs = match &self.layer {
+            Some(grid) => grid.packs_for(ray),
+            None => None,
+        };
+        if let Some(packs) = layer_packs {
+            for pack in packs {
+                walk.test_pack(pack);
+            }
+        } else if flat && !self.flat.is_empty() {
             walk.flat(self);
         } else if !self.nodes.is_empty() {
             let entries = stack.entries(need);

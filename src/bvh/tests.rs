@@ -306,3 +306,116 @@ fn stack_entries_share_no_cache_line_with_other_allocations() {
         assert!(whole.end as usize - used.end as usize >= 64);
     }
 }
+
+/// A layer of spheres like the book's cover: small spheres on a grid with random offsets
+/// and radii `radius` (spacing `spacing`), three tall ones, and the radius-1000 ground.
+fn layer_scene(rng: &mut Sampler, spacing: f32, radius: f32) -> Vec<Sphere> {
+    let mut spheres = vec![Sphere::new(
+        Vec3::new(0.0, -1000.0, 0.0),
+        1000.0,
+        MaterialId(0),
+    )];
+    for a in -11..11 {
+        for b in -11..11 {
+            let r = radius * rng.range(0.5, 1.0);
+            let c = Vec3::new(
+                spacing * (a as f32 + 0.9 * rng.uniform()),
+                r,
+                spacing * (b as f32 + 0.9 * rng.uniform()),
+            );
+            spheres.push(Sphere::new(c, r, MaterialId(1)));
+        }
+    }
+    for x in [-4.0, 0.0, 4.0] {
+        spheres.push(Sphere::new(Vec3::new(x, 1.0, 0.0), 1.0, MaterialId(2)));
+    }
+    // The book's hollow glass: a negative radius inside one of them.
+    spheres.push(Sphere::new(Vec3::new(0.0, 1.0, 0.0), -0.9, MaterialId(2)));
+    spheres
+}
+
+/// Rays of every kind the layer grid sorts: leaving a sphere's surface (hinted, as bounce
+/// rays are), leaving the ground, inside the layer in any direction (near-level too), level,
+/// from above and from below; each traced with the grid, without it, and by brute force.
+#[test]
+fn the_layer_grid_finds_what_brute_force_finds() {
+    let mut rng = Sampler::from_seed(33);
+    for (spacing, radius) in [(1.0, 0.2), (0.1, 0.02), (1.0, 0.45)] {
+        let spheres = layer_scene(&mut rng, spacing, radius);
+        let bvh = Bvh::build(&spheres);
+        let grid = bvh.layer.as_ref().expect("a layer grid for a layer scene");
+        let plain = Bvh {
+            layer: None,
+            ..bvh.clone()
+        };
+        let mut stack = TraversalStack::default();
+        let iv = Interval::new(0.0, f32::INFINITY);
+        let extent = 11.0 * spacing;
+        let mut by_grid = 0;
+        for i in 0..60_000 {
+            let mut d = rng.unit_vector();
+            let (o, hints) = match i % 6 {
+                0 | 1 => {
+                    let id = 1 + (rng.uniform() * (spheres.len() - 1) as f32) as usize;
+                    let s = &spheres[id.min(spheres.len() - 1)];
+                    let n = rng.unit_vector();
+                    let out = if s.radius > 0.0 { n } else { -n };
+                    if d.dot(out) < 0.0 {
+                        d = -d;
+                    }
+                    let hints = RayHints {
+                        leaving: Leaving::sphere_if(i % 6 == 0, PrimitiveId(id as u32)),
+                        inv_dir: None,
+                    };
+                    (s.center + s.radius * n + 1e-3 * out, hints)
+                }
+                2 => {
+                    d.y = d.y.abs();
+                    let (x, z) = (rng.range(-extent, extent), rng.range(-extent, extent));
+                    (Vec3::new(x, 1e-3, z), RayHints::default())
+                }
+                3 => {
+                    // Near level: the reach is long, or just within a cell's.
+                    d.y *= 10f32.powf(-rng.range(0.0, 6.0));
+                    d = d.normalize();
+                    let y = rng.range(0.0, 2.0 * radius);
+                    let (x, z) = (rng.range(-extent, extent), rng.range(-extent, extent));
+                    (Vec3::new(x, y, z), RayHints::default())
+                }
+                4 => {
+                    d.y = 0.0;
+                    d = d.normalize();
+                    let y = rng.range(-0.1, 2.5);
+                    let (x, z) = (rng.range(-extent, extent), rng.range(-extent, extent));
+                    (Vec3::new(x, y, z), RayHints::default())
+                }
+                _ => {
+                    let y = rng.range(-1.0, 4.0);
+                    let (x, z) = (rng.range(-15.0, 15.0), rng.range(-15.0, 15.0));
+                    (Vec3::new(x, y, z), RayHints::default())
+                }
+            };
+            let ray = Ray::new(o, d);
+            by_grid += usize::from(grid.packs_for(&ray).is_some());
+            let with_grid = intersect_both_walks(&bvh, &ray, iv, &mut stack, hints);
+            let without = intersect_both_walks(&plain, &ray, iv, &mut stack, hints);
+            let brute = intersect_brute_force(&spheres, &ray, iv);
+            assert_eq!(with_grid, brute, "{ray:?} {hints:?}");
+            assert_eq!(without, brute, "{ray:?} {hints:?}");
+        }
+        assert!(by_grid > 10_000, "only {by_grid} rays took the grid");
+    }
+}
+
+/// The grid is built only where it pays: a layer, of enough spheres.
+#[test]
+fn a_layer_grid_is_built_only_for_a_layer_of_many_spheres() {
+    let mut rng = Sampler::from_seed(34);
+    let few: Vec<Sphere> = layer_scene(&mut rng, 1.0, 0.2)
+        .into_iter()
+        .take(40)
+        .collect();
+    assert!(Bvh::build(&few).layer.is_none());
+    assert!(Bvh::build(&layer_scene(&mut rng, 1.0, 0.2)).layer.is_some());
+    assert!(Bvh::build(&[]).layer.is_none());
+}

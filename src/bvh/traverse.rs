@@ -88,7 +88,7 @@ impl<I: Isa> Traversal<I> {
 
     /// Tests the spheres of `pack`, keeping a hit that beats the closest so far.
     #[inline(always)]
-    fn test_pack(&mut self, pack: &SpherePack) {
+    pub(super) fn test_pack(&mut self, pack: &SpherePack) {
         pack.intersect(
             &self.lanes.origin,
             &self.d,
