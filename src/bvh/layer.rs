@@ -6,15 +6,15 @@
 //!
 //! - A ray that never enters the layer (above it heading up, below it heading down) can meet
 //!   only the tall spheres: one pack of them.
-//! - A ray from a point inside the layer meets layer spheres only before it climbs or falls
-//!   out of it, so only within a horizontal distance of its origin that its direction gives
-//!   (its reach). The ground plane (x, z) under the layer is cut into square cells; each cell
+//! - A ray from a point below the layer's top meets layer spheres only before it climbs
+//!   above the top or falls below the bottom, so only within a horizontal distance of its
+//!   origin that its direction gives (its reach). The ground plane (x, z) under the layer is cut into square cells; each cell
 //!   keeps two packs, of the tall spheres and the layer spheres nearest the cell, and the
 //!   distance beyond which every other layer sphere lies. A ray whose reach falls short of
 //!   its cell's needs only those packs.
 //!
-//! Either way there is no box test and no walk; the giants are tested as ever. Every other ray
-//! walks the tree. Distances are kept short of the geometry by a margin far above `f32`
+//! Either way there is no box test and no walk; the giants are tested as ever. Rays beyond
+//! their cell's reach, or outside the grid, walk the tree. Distances are kept short of the geometry by a margin far above `f32`
 //! rounding at the scene's scale, so a sphere left out cannot be hit even by rounding: the
 //! hits are the tree's, bit for bit (`bvh::tests` check them against brute force and against
 //! the tree).
@@ -173,18 +173,17 @@ impl LayerGrid {
         }
         let fx = (o.x - self.x0) * self.inv_cell;
         let fz = (o.z - self.z0) * self.inv_cell;
-        let inside = o.y > self.bottom
-            && o.y < self.top
-            && fx >= 0.0
-            && fz >= 0.0
-            && fx < self.nx as f32
-            && fz < self.nz as f32;
+        // A ray from below heading up meets no layer sphere before it reaches the layer, so
+        // its reach is taken from its origin's cell as well. (Rays falling into the layer
+        // from above rarely fell within reach: looking them up measured slower.)
+        let inside =
+            o.y < self.top && fx >= 0.0 && fz >= 0.0 && fx < self.nx as f32 && fz < self.nz as f32;
         if !inside {
             return None;
         }
         let index = (fz as usize) * self.nx + fx as usize;
         let cell = self.cells.get(index)?;
-        // How far the ray climbs or falls to leave the layer.
+        // How far the ray climbs or falls to leave the layer, from its origin.
         let exit = if d.y > 0.0 {
             self.top - o.y
         } else {
