@@ -8,16 +8,17 @@
 //!   only the tall spheres: one pack of them.
 //! - A ray from a point below the layer's top meets layer spheres only before it climbs
 //!   above the top or falls below the bottom, so only within a horizontal distance of its
-//!   origin that its direction gives (its reach). The ground plane (x, z) under the layer is cut into square cells; each cell
-//!   keeps two packs, of the tall spheres and the layer spheres nearest the cell, and the
-//!   distance beyond which every other layer sphere lies. A ray whose reach falls short of
-//!   its cell's needs only those packs.
+//!   origin that its direction gives (its reach). The ground plane (x, z) under the layer is
+//!   cut into square cells; each cell keeps two packs, of the tall spheres and the layer
+//!   spheres nearest the cell, and the distance beyond which every other layer sphere lies.
+//!   A ray whose reach falls short of its cell's needs only those packs.
 //!
 //! Either way there is no box test and no walk; the giants are tested as ever. Rays beyond
-//! their cell's reach, or outside the grid, walk the tree. Distances are kept short of the geometry by a margin far above `f32`
-//! rounding at the scene's scale, so a sphere left out cannot be hit even by rounding: the
-//! hits are the tree's, bit for bit (`bvh::tests` check them against brute force and against
-//! the tree).
+//! their cell's reach, outside the grid, or from origins far outside the scene walk the tree.
+//!
+//! Every distance is kept short of the geometry by a margin far above `f32` rounding at the
+//! scene's scale, so a sphere left out cannot be hit even by rounding: the hits are the
+//! tree's, bit for bit (`bvh::tests` check them against brute force and against the tree).
 
 use super::WIDTH;
 use super::pack::SpherePack;
@@ -56,6 +57,8 @@ pub(super) struct LayerGrid {
     /// margin).
     bottom: f32,
     top: f32,
+    /// Origins farther than this from the scene's centre on any axis walk (see `margin`).
+    far: f32,
     /// The grid's corner (least x and z) and `1 / cell width`.
     x0: f32,
     z0: f32,
@@ -83,14 +86,16 @@ impl LayerGrid {
         let layer_top = tops[MAX_TALL];
         let (tall, layer): (Vec<u32>, Vec<u32>) =
             ids.iter().partition(|&&id| top_of(id) > layer_top);
-        // The margin: far above f32 rounding at the scene's scale. A sphere left out of a
-        // pack lies this far from the ray, so its discriminant is below -margin², more than
-        // ten times the rounding of any point's squared distance within the scene.
-        let scale = ids.iter().fold(0.0f32, |m, &id| {
+        // The margin. A ray passing a sphere at distance r + margin has |g| (the centre's
+        // distance from the line) at least that, and the test computes g = f + b·d within a
+        // few 2⁻²⁴·|f| of it, where |f| (the origin's distance from the centre) is below
+        // 175·scale for the origins `packs_for` takes (within 100·scale on each axis):
+        // under 10⁻⁴·scale, a tenth of the margin, so the discriminant stays negative.
+        let scale = ids.iter().fold(1.0f32, |m, &id| {
             let s = &spheres[id as usize];
             m.max(s.center.abs().max_element() + s.radius.abs())
         });
-        let margin = 1e-3 * scale.max(1.0);
+        let margin = 1e-3 * scale;
         let (lo, hi) = layer.iter().fold(
             (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
             |(lo, hi), &id| {
@@ -151,6 +156,7 @@ impl LayerGrid {
         Some(LayerGrid {
             bottom: bottom - margin,
             top: layer_top + margin,
+            far: 100.0 * scale,
             x0: lo.x,
             z0: lo.z,
             inv_cell: 1.0 / cell,
@@ -168,6 +174,10 @@ impl LayerGrid {
     pub(super) fn packs_for(&self, ray: &Ray) -> Option<&[SpherePack]> {
         let (o, d) = (ray.origin, ray.dir);
         // Written so that NaN fails every test.
+        let within = o.abs().max_element() < self.far;
+        if !within {
+            return None;
+        }
         if (o.y >= self.top && d.y >= 0.0) || (o.y <= self.bottom && d.y <= 0.0) {
             return Some(&self.tall);
         }

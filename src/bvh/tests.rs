@@ -419,3 +419,22 @@ fn a_layer_grid_is_built_only_for_a_layer_of_many_spheres() {
     assert!(Bvh::build(&layer_scene(&mut rng, 1.0, 0.2)).layer.is_some());
     assert!(Bvh::build(&[]).layer.is_none());
 }
+
+/// Rays from far outside the scene walk the tree: the grid's margins are sized for origins
+/// within the scene's scale.
+#[test]
+fn the_layer_grid_leaves_far_origins_to_the_walk() {
+    let mut rng = Sampler::from_seed(35);
+    let bvh = Bvh::build(&layer_scene(&mut rng, 1.0, 0.2));
+    let grid = bvh.layer.as_ref().expect("a layer grid");
+    let up = |y: f32| Ray::new(Vec3::new(0.5, y, 0.5), Vec3::Y);
+    assert!(
+        grid.packs_for(&up(5.0)).is_some(),
+        "over the layer, heading up"
+    );
+    assert!(grid.packs_for(&up(1e6)).is_none(), "far above");
+    let level = Ray::new(Vec3::new(-1e6, 0.41, 0.5), Vec3::X);
+    assert!(grid.packs_for(&level).is_none(), "far away");
+    let nan = Ray::new(Vec3::new(f32::NAN, 0.1, 0.5), Vec3::Y);
+    assert!(grid.packs_for(&nan).is_none(), "not a number");
+}
