@@ -57,7 +57,8 @@ pub(super) struct LayerGrid {
     /// margin).
     bottom: f32,
     top: f32,
-    /// Origins farther than this from the scene's centre on any axis walk (see `margin`).
+    /// Origins farther than this from the scene's coordinate origin on any axis walk (see
+    /// the margin in `build`).
     far: f32,
     /// The grid's corner (least x and z) and `1 / cell width`.
     x0: f32,
@@ -67,7 +68,7 @@ pub(super) struct LayerGrid {
     nz: usize,
     cells: Vec<Cell>,
     /// The tall spheres alone, for rays that never enter the layer.
-    tall: [SpherePack; 1],
+    tall: SpherePack,
 }
 
 impl LayerGrid {
@@ -163,7 +164,7 @@ impl LayerGrid {
             nx,
             nz,
             cells,
-            tall: [SpherePack::new(spheres, &tall)],
+            tall: SpherePack::new(spheres, &tall),
         })
     }
 
@@ -179,7 +180,7 @@ impl LayerGrid {
             return None;
         }
         if (o.y >= self.top && d.y >= 0.0) || (o.y <= self.bottom && d.y <= 0.0) {
-            return Some(&self.tall);
+            return Some(std::slice::from_ref(&self.tall));
         }
         let fx = (o.x - self.x0) * self.inv_cell;
         let fz = (o.z - self.z0) * self.inv_cell;
