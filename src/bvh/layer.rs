@@ -64,8 +64,11 @@ pub(super) struct LayerGrid {
     x0: f32,
     z0: f32,
     inv_cell: f32,
+    /// Cells along x and z, as integers and as `f32` (exact: at most `MAX_CELLS`), so the
+    /// lookup converts no integer to a float.
     nx: usize,
-    nz: usize,
+    nx_f: f32,
+    nz_f: f32,
     cells: Vec<Cell>,
     /// The tall spheres alone, for rays that never enter the layer.
     tall: SpherePack,
@@ -162,7 +165,8 @@ impl LayerGrid {
             z0: lo.z,
             inv_cell: 1.0 / cell,
             nx,
-            nz,
+            nx_f: nx as f32,
+            nz_f: nz as f32,
             cells,
             tall: SpherePack::new(spheres, &tall),
         })
@@ -187,12 +191,15 @@ impl LayerGrid {
         // A ray from below heading up meets no layer sphere before it reaches the layer, so
         // its reach is taken from its origin's cell as well. (Rays falling into the layer
         // from above rarely fell within reach: looking them up measured slower.)
+        // `&`, not `&&`: one branch, not five.
         let inside =
-            o.y < self.top && fx >= 0.0 && fz >= 0.0 && fx < self.nx as f32 && fz < self.nz as f32;
+            (o.y < self.top) & (fx >= 0.0) & (fz >= 0.0) & (fx < self.nx_f) & (fz < self.nz_f);
         if !inside {
             return None;
         }
-        let index = (fz as usize) * self.nx + fx as usize;
+        // Through `i32`, which converts in fewer instructions than `usize` (both exact here:
+        // 0 ≤ fx < nx, 0 ≤ fz < nz).
+        let index = (fz as i32 as usize) * self.nx + fx as i32 as usize;
         let cell = self.cells.get(index)?;
         // How far the ray climbs or falls to leave the layer, from its origin.
         let exit = if d.y > 0.0 {
