@@ -6,6 +6,7 @@
 //! thread or tile renders the sample, so images are reproducible byte for byte.
 
 use crate::math::Vec3;
+use glam::Vec4;
 use rand_core::Rng as _;
 use rand_pcg::Pcg32;
 
@@ -135,35 +136,96 @@ impl Sampler {
 
     /// A uniform point of the unit circle from one 32-bit draw: the top 24 bits give an
     /// angle in `[0, π/4)`, and three low bits reflect it into any of the eight octants
-    /// (swap x and y, then each sign), each with probability 1/8. Only `+`, `*` and bit
-    /// operations, so every machine gives the same bits, and no data-dependent branch.
+    /// (swap x and y, then each sign), each with probability 1/8. Only `+`, `*` and table
+    /// lookups, so every machine gives the same bits, and no data-dependent branch.
+    ///
+    /// The sine and cosine series of `sin_cos_octant` run side by side in two lanes of one
+    /// vector, already in (x, y) order: the swap picks which lane gets which coefficients,
+    /// and the signs multiply in at the end (exact). The same bits as `sin_cos_octant` and
+    /// the reflections done one by one (`tests` check them against each other).
     #[inline]
     pub fn on_unit_circle(&mut self) -> (f32, f32) {
-        let bits = self.pcg.next_u32();
-        let angle = (bits >> 8) as f32 * (std::f32::consts::FRAC_PI_4 / (1u32 << 24) as f32);
-        let (sin, cos) = sin_cos_octant(angle);
-        let swap = 0u32.wrapping_sub(bits & 1);
-        let x = (cos.to_bits() & !swap) | (sin.to_bits() & swap);
-        let y = (sin.to_bits() & !swap) | (cos.to_bits() & swap);
-        (
-            f32::from_bits(x ^ ((bits & 2) << 30)),
-            f32::from_bits(y ^ ((bits & 4) << 29)),
-        )
+        circle_point(self.pcg.next_u32())
     }
 }
+
+/// The point of the unit circle that `Sampler::on_unit_circle` makes of the draw `bits`.
+#[inline]
+fn circle_point(bits: u32) -> (f32, f32) {
+    let angle = (bits >> 8) as f32 * (std::f32::consts::FRAC_PI_4 / (1u32 << 24) as f32);
+    let swap = &OCTANT_SERIES[(bits & 1) as usize];
+    let sign = OCTANT_SIGNS[((bits >> 1) & 3) as usize];
+    let a2 = Vec4::splat(angle * angle);
+    let k = &swap.steps;
+    let p = k[4] + a2 * (k[3] + a2 * (k[2] + a2 * (k[1] + a2 * k[0])));
+    // Lane by lane `1 + a2·p` (cosine) or `a + (a·a2)·p` (sine).
+    let start = swap.one + swap.angle * angle;
+    let xy = (start + (a2 * start) * p) * sign;
+    (xy.x, xy.y)
+}
+
+/// The octant sampler's series in (x, y) lane order, for one value of the swap bit.
+struct OctantSeries {
+    /// The Horner steps, highest power first: each lane's coefficient (cosine's or sine's;
+    /// sine's series has one step fewer, so its first is 0, which the next step's
+    /// `k + a2 · 0` turns into its own first coefficient exactly).
+    steps: [Vec4; 5],
+    /// `one + angle · a` gives each lane's constant term: 1 for the cosine, `a` for the sine.
+    one: Vec4,
+    angle: Vec4,
+}
+
+impl OctantSeries {
+    /// x takes the sine where `swap`, else the cosine; y the other.
+    const fn new(swap: bool) -> Self {
+        const fn pair(swap: bool, cos: f32, sin: f32) -> Vec4 {
+            if swap {
+                Vec4::new(sin, cos, 0.0, 0.0)
+            } else {
+                Vec4::new(cos, sin, 0.0, 0.0)
+            }
+        }
+        OctantSeries {
+            steps: [
+                pair(swap, SERIES_COS[4], 0.0),
+                pair(swap, SERIES_COS[3], SERIES_SIN[3]),
+                pair(swap, SERIES_COS[2], SERIES_SIN[2]),
+                pair(swap, SERIES_COS[1], SERIES_SIN[1]),
+                pair(swap, SERIES_COS[0], SERIES_SIN[0]),
+            ],
+            one: pair(swap, 1.0, 0.0),
+            angle: pair(swap, 0.0, 1.0),
+        }
+    }
+}
+
+/// By the swap bit (bit 0 of the draw).
+const OCTANT_SERIES: [OctantSeries; 2] = [OctantSeries::new(false), OctantSeries::new(true)];
+
+/// By bits 1 (x's sign) and 2 (y's sign) of the draw.
+const OCTANT_SIGNS: [Vec4; 4] = [
+    Vec4::new(1.0, 1.0, 0.0, 0.0),
+    Vec4::new(-1.0, 1.0, 0.0, 0.0),
+    Vec4::new(1.0, -1.0, 0.0, 0.0),
+    Vec4::new(-1.0, -1.0, 0.0, 0.0),
+];
+
+/// Taylor coefficients of `sin a / a` and `cos a` in powers of `a²`, past the constant term.
+const SERIES_SIN: [f32; 4] = [-1.0 / 6.0, 1.0 / 120.0, -1.0 / 5040.0, 1.0 / 362_880.0];
+const SERIES_COS: [f32; 5] = [
+    -1.0 / 2.0,
+    1.0 / 24.0,
+    -1.0 / 720.0,
+    1.0 / 40_320.0,
+    -1.0 / 3_628_800.0,
+];
 
 /// Sine and cosine of `a` in `[0, π/4]` by their Taylor series to `a⁹` and `a¹⁰`, whose
 /// truncation errors there stay below 10⁻⁹, far under `f32`'s rounding.
 #[inline]
 pub fn sin_cos_octant(a: f32) -> (f32, f32) {
-    const S: [f32; 4] = [-1.0 / 6.0, 1.0 / 120.0, -1.0 / 5040.0, 1.0 / 362_880.0];
-    const C: [f32; 5] = [
-        -1.0 / 2.0,
-        1.0 / 24.0,
-        -1.0 / 720.0,
-        1.0 / 40_320.0,
-        -1.0 / 3_628_800.0,
-    ];
+    const S: [f32; 4] = SERIES_SIN;
+    const C: [f32; 5] = SERIES_COS;
     let a2 = a * a;
     let sin = a + a * a2 * (S[0] + a2 * (S[1] + a2 * (S[2] + a2 * S[3])));
     let cos = 1.0 + a2 * (C[0] + a2 * (C[1] + a2 * (C[2] + a2 * (C[3] + a2 * C[4]))));
@@ -255,6 +317,38 @@ mod tests {
             let exact = f64::from(a);
             assert!((f64::from(sin) - exact.sin()).abs() < 1.2e-7, "sin {a}");
             assert!((f64::from(cos) - exact.cos()).abs() < 1.2e-7, "cos {a}");
+        }
+    }
+
+    /// The octant sampler done one step at a time: `sin_cos_octant`, then the swap and the
+    /// signs as bit operations.
+    fn circle_point_reference(bits: u32) -> (f32, f32) {
+        let angle = (bits >> 8) as f32 * (std::f32::consts::FRAC_PI_4 / (1u32 << 24) as f32);
+        let (sin, cos) = sin_cos_octant(angle);
+        let swap = 0u32.wrapping_sub(bits & 1);
+        let x = (cos.to_bits() & !swap) | (sin.to_bits() & swap);
+        let y = (sin.to_bits() & !swap) | (cos.to_bits() & swap);
+        (
+            f32::from_bits(x ^ ((bits & 2) << 30)),
+            f32::from_bits(y ^ ((bits & 4) << 29)),
+        )
+    }
+
+    #[test]
+    fn circle_points_equal_the_one_step_at_a_time_reference_bit_for_bit() {
+        let mut s = Sampler::from_seed(21);
+        // Every octant at the angle's ends (0, the least step, the largest) and random draws.
+        let ends = [0u32, 1, 2, 0xffff_ff00, 0x0000_0100, 0x8000_0000];
+        let edges = ends.iter().flat_map(|&e| (0..8).map(move |o| (e & !7) | o));
+        let random = (0..200_000).map(|_| s.pcg.next_u32());
+        for bits in edges.chain(random) {
+            let (x, y) = circle_point(bits);
+            let (rx, ry) = circle_point_reference(bits);
+            assert_eq!(
+                (x.to_bits(), y.to_bits()),
+                (rx.to_bits(), ry.to_bits()),
+                "{bits:#x}"
+            );
         }
     }
 
