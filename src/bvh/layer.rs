@@ -25,6 +25,7 @@ use super::pack::SpherePack;
 use crate::geometry::Sphere;
 use crate::math::Vec3;
 use crate::ray::Ray;
+use crate::simd::index_below;
 
 /// At most this many tall spheres (they share every cell's pack with the nearest layer
 /// spheres).
@@ -191,15 +192,13 @@ impl LayerGrid {
         // A ray from below heading up meets no layer sphere before it reaches the layer, so
         // its reach is taken from its origin's cell as well. (Rays falling into the layer
         // from above rarely fell within reach: looking them up measured slower.)
-        // `&`, not `&&`: one branch, not five.
-        let inside =
-            (o.y < self.top) & (fx >= 0.0) & (fz >= 0.0) & (fx < self.nx_f) & (fz < self.nz_f);
-        if !inside {
+        let (in_x, ix) = index_below(fx, self.nx_f);
+        let (in_z, iz) = index_below(fz, self.nz_f);
+        // `&`, not `&&`: one branch, not three.
+        if !((o.y < self.top) & in_x & in_z) {
             return None;
         }
-        // Through `i32`, which converts in fewer instructions than `usize` (both exact here:
-        // 0 ≤ fx < nx, 0 ≤ fz < nz).
-        let index = (fz as i32 as usize) * self.nx + fx as i32 as usize;
+        let index = iz * self.nx + ix;
         let cell = self.cells.get(index)?;
         // How far the ray climbs or falls to leave the layer, from its origin.
         let exit = if d.y > 0.0 {

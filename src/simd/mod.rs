@@ -149,6 +149,19 @@ pub fn slab8<I: Isa>(p: [&F32x8; 6], ray: &SlabLanes<I>, t_max: f32) -> (u32, [f
     (t_near.simd_le(t_far).to_bitmask(), t_near.to_array())
 }
 
+/// Whether `0 ≤ x < limit`, and if so `x` rounded toward zero (else 0): a grid cell's index
+/// along one axis. `limit` must be at most 2²⁴. One conversion instruction, where `as`
+/// (which saturates, and maps NaN to 0) takes several more on x86-64; NaN is out of range.
+#[inline(always)]
+pub fn index_below(x: f32, limit: f32) -> (bool, usize) {
+    const MAX: f32 = (1u32 << 24) as f32;
+    let inside = (x >= 0.0) & (x < limit.min(MAX));
+    let x = if inside { x } else { 0.0 };
+    // SAFETY: `x` is in [0, 2²⁴), so it is finite and its truncation fits a `u32`.
+    let index = unsafe { x.to_int_unchecked::<u32>() };
+    (inside, index as usize)
+}
+
 /// Work generic over the instruction set, for [`dispatch`] to run on a chosen path. (A
 /// closure cannot be generic over its argument's type, hence a trait.)
 pub trait Kernel {

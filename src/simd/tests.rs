@@ -188,3 +188,22 @@ fn sixteen_lane_box_tests_match_scalar_arithmetic_on_every_path() {
         assert_eq!(dispatch(path, Slabs(cases.clone())), want, "{path}");
     }
 }
+
+#[test]
+fn grid_indices_truncate_inside_the_range_and_refuse_the_rest() {
+    let cases = [
+        (0.0, 5.0, (true, 0)),
+        (-0.0, 5.0, (true, 0)),
+        (0.999, 5.0, (true, 0)),
+        (4.999, 5.0, (true, 4)),
+        (5.0, 5.0, (false, 0)),
+        (-1e-30, 5.0, (false, 0)),
+        (f32::NAN, 5.0, (false, 0)),
+        (f32::INFINITY, f32::INFINITY, (false, 0)),
+        (3e7, f32::INFINITY, (false, 0)),
+        (16_777_215.0, f32::INFINITY, (true, 16_777_215)),
+    ];
+    for (x, limit, want) in cases {
+        assert_eq!(index_below(x, limit), want, "{x} below {limit}");
+    }
+}
