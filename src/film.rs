@@ -17,13 +17,14 @@ const MAX_SAMPLE: f32 = (1u32 << 20) as f32;
 /// Converts one sample's channel to fixed point; NaN and negative values count as zero.
 #[inline]
 pub fn to_fixed(c: f32) -> u64 {
-    if c > 0.0 {
-        // Round half up; `f64::round` is a library call, this is two instructions.
-        // Through i64: x86 converts to signed integers in one instruction, unsigned in many.
-        (f64::from(c.min(MAX_SAMPLE)) * ONE + 0.5) as i64 as u64
-    } else {
-        0
-    }
+    // Selects, not branches: NaN and negatives to zero, then the clamp (each one
+    // instruction on x86, where `f32::max`/`min` take several for their NaN rule).
+    let c = if c > 0.0 { c } else { 0.0 };
+    let c = if c < MAX_SAMPLE { c } else { MAX_SAMPLE };
+    // Round half up; `f64::round` is a library call, this is two instructions (zero stays
+    // zero). Through i64: x86 converts to signed integers in one instruction, unsigned in
+    // many.
+    (f64::from(c) * ONE + 0.5) as i64 as u64
 }
 
 /// `count` zero sums, written now rather than left to the allocator's zero pages: a page
@@ -353,6 +354,16 @@ mod tests {
         assert_eq!(to_fixed(f32::NAN), 0);
         assert_eq!(to_fixed(-3.0), 0);
         assert_eq!(to_fixed(f32::INFINITY), (1u64 << 20) << FRAC_BITS);
+        assert_eq!(to_fixed(f32::NEG_INFINITY), 0);
+        assert_eq!(to_fixed(0.0), 0);
+        assert_eq!(to_fixed(-0.0), 0);
+        // Half a unit of the last place rounds up; just under it, down.
+        let half = 0.5 / (1u64 << FRAC_BITS) as f32;
+        assert_eq!(to_fixed(half), 1);
+        assert_eq!(to_fixed(half * (1.0 - f32::EPSILON)), 0);
+        assert_eq!(to_fixed(3.0 * half), 2);
+        assert_eq!(to_fixed(f32::MIN_POSITIVE), 0);
+        assert_eq!(to_fixed(MAX_SAMPLE * 2.0), to_fixed(MAX_SAMPLE));
     }
 
     #[test]
