@@ -24,7 +24,6 @@ use super::WIDTH;
 use super::pack::SpherePack;
 use crate::geometry::Sphere;
 use crate::math::Vec3;
-use crate::ray::Ray;
 use crate::simd::index_below;
 
 /// At most this many tall spheres (they share every cell's pack with the nearest layer
@@ -173,12 +172,13 @@ impl LayerGrid {
         })
     }
 
-    /// The packs that hold every sphere of the tree `ray` can hit: the tall spheres when the
-    /// ray never enters the layer, its cell's packs when it leaves the layer (up or down)
-    /// within the cell's reach; else `None`.
+    /// The packs that hold every sphere of the tree a ray from `o` along `d` can hit: the
+    /// tall spheres when the ray never enters the layer, its cell's packs when it leaves the
+    /// layer (up or down) within the cell's reach; else `None`. `d` need not be unit, nor
+    /// exactly the ray's direction: only its signs and ratios count, and a few units of
+    /// rounding in them move the reach far less than the margin.
     #[inline(always)]
-    pub(super) fn packs_for(&self, ray: &Ray) -> Option<&[SpherePack]> {
-        let (o, d) = (ray.origin, ray.dir);
+    pub(super) fn packs_for(&self, o: Vec3, d: Vec3) -> Option<&[SpherePack]> {
         // Written so that NaN fails every test.
         let within = o.abs().max_element() < self.far;
         if !within {

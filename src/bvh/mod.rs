@@ -197,7 +197,7 @@ impl Bvh {
         let mut walk = Traversal::new(isa, ray, interval, hints);
         // Not `Option::and_then`: a closure may be left out of line, compiled for no SIMD path.
         let layer_packs = match &self.layer {
-            Some(grid) => grid.packs_for(ray),
+            Some(grid) => grid.packs_for(ray.origin, hints.heading.unwrap_or(ray.dir)),
             None => None,
         };
         if let Some(packs) = layer_packs {
@@ -228,6 +228,11 @@ pub struct RayHints {
     /// ray's `len × (1 / raw)` is ready a division sooner than `1 / (raw / len)`, and the
     /// first box test waits for it.
     pub inv_dir: Option<Vec3>,
+    /// A positive multiple of the direction (up to rounding), for a caller that has it
+    /// before the direction itself: a bounce ray's raw direction, ready a square root and a
+    /// division sooner. The layer grid's choice depends only on the direction's signs and
+    /// ratios, so it can be made while the direction is still being normalised.
+    pub heading: Option<Vec3>,
 }
 
 /// The sphere a ray leaves (see `RayHints::leaving`), or none: an id with a value for none

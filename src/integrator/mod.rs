@@ -96,6 +96,7 @@ pub fn bounce(scene: &Scene, here: &Hit, raw: Vec3) -> (Ray, RayHints) {
         ),
         // From the raw direction, a division sooner than `1 / dir`.
         inv_dir: Some(len * (Vec3::ONE / raw)),
+        heading: Some(raw),
     };
     (Ray::new(here.p + t_min * side, dir), hints)
 }
