@@ -8,9 +8,9 @@
 //! - `portable`: any CPU of the architecture (`wide`'s SSE2 halves on x86-64, NEON on
 //!   aarch64, plain arrays elsewhere);
 //! - `avx2`: x86-64 with AVX2, BMI1/2, LZCNT and POPCNT; one AVX instruction per operation;
-//! - `avx512`: the same eight-lane code compiled with AVX-512 F/VL/BW/DQ enabled as well (mask
-//!   registers, 32 vector registers), and sixteen-lane box tests (`Isa::slab16`), with which
-//!   a small tree is walked flat.
+//! - `avx512`: the same eight-lane code compiled with AVX-512 F/VL/BW/DQ enabled as well (32
+//!   vector registers), its comparisons made straight into mask registers, and sixteen-lane
+//!   box tests (`Isa::slab16`), with which a small tree is walked flat.
 //!
 //! Every operation is exact IEEE arithmetic with the same rule on every path (no fused
 //! multiply-add, `min`/`max` as the SSE instructions define them), so every path gives the
