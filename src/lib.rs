@@ -12,8 +12,10 @@
 //! - [`integrator`] evaluates a tile's pixels: each sample's film position, camera ray and
 //!   random numbers come from the sample's own seeded [`sampling::Sampler`], and its radiance
 //!   from the scene's shading mode (the book's early stages, or a path).
-//! - [`film`] turns the exact fixed-point sums into PNG, PPM or EXR, written atomically;
-//!   [`partial`] stores a job's state as a part file (shards, checkpoints) and merges parts.
+//! - [`film`] holds the exact fixed-point sums; [`tonemap`] turns a sum into a pixel's value
+//!   and [`image_file`] a film into PNG, PPM or EXR; [`partial`] stores a job's state as a
+//!   part file (shards, checkpoints) and merges parts; [`atomic_file`] writes every file
+//!   whole or not at all.
 //!
 //! The same scene, settings and seed give the same bytes whatever the thread count, tile
 //! size, shard split or interruption. [`math`], [`ray`] and [`error`] serve them all;
@@ -25,12 +27,14 @@
 
 #![deny(unsafe_code)]
 
+pub mod atomic_file;
 pub mod bvh;
 pub mod camera;
 pub mod compare;
 pub mod error;
 pub mod film;
 pub mod geometry;
+pub mod image_file;
 pub mod integrator;
 pub mod job;
 pub mod material;
@@ -42,5 +46,6 @@ pub mod sampling;
 pub mod scene;
 pub mod shard;
 pub mod simd;
+pub mod tonemap;
 
 pub use error::{Error, Result};

@@ -6,10 +6,10 @@ mod common;
 use common::*;
 use glam::DVec3;
 use tessera::camera::Camera;
-use tessera::film::encode_8bit;
 use tessera::math::Vec3;
 use tessera::sampling::Sampler;
 use tessera::scene::{Overrides, Scene};
+use tessera::tonemap::encode_8bit;
 
 /// The book's sky for a unit direction, in f64.
 fn sky(d: DVec3) -> DVec3 {

@@ -22,7 +22,9 @@ fn small_cover() -> tessera::scene::Scene {
 fn same_bytes_for_any_thread_count_and_tile_size() {
     let scene = small_cover();
     let (reference, ref_stats) = render_with(&scene, 1, 16);
-    let png = reference.encode(tessera::film::Format::Png, 2.0).unwrap();
+    let png = reference
+        .encode(tessera::image_file::Format::Png, 2.0)
+        .unwrap();
     for threads in [1, 2, 3, 8] {
         for tile in [8, 16, 64] {
             let (film, stats) = render_with(&scene, threads, tile);
@@ -31,7 +33,10 @@ fn same_bytes_for_any_thread_count_and_tile_size() {
                 "{threads} threads, tile {tile} changed the image"
             );
             assert_eq!(stats.rays, ref_stats.rays, "{threads} threads, tile {tile}");
-            assert_eq!(film.encode(tessera::film::Format::Png, 2.0).unwrap(), png);
+            assert_eq!(
+                film.encode(tessera::image_file::Format::Png, 2.0).unwrap(),
+                png
+            );
         }
     }
 }

@@ -14,7 +14,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use settings::{BenchMode, RenderSettings};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
-use tessera::film::Format;
+use tessera::image_file::Format;
 use tessera::render::RenderStats;
 
 /// Parses the command line, or prints help or a usage error and exits.

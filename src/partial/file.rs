@@ -209,7 +209,7 @@ fn encode(render: &RenderId, state: &JobState) -> Vec<u8> {
 
 /// Writes `state` of the render `render` to `path` as a part file, atomically.
 pub fn save(path: &Path, render: &RenderId, state: &JobState) -> Result<()> {
-    crate::film::write_atomically_with(path, &mut |out| write_part(out, render, state))
+    crate::atomic_file::write_atomically_with(path, &mut |out| write_part(out, render, state))
 }
 
 impl Part {

@@ -15,7 +15,7 @@ use anyhow::{Context, Result};
 use host::{Build, Host};
 use report::{Method, Report, Row, SCHEMA, Spread, Validation, WorkloadInfo};
 use std::collections::BTreeSet;
-use tessera::film::write_atomically;
+use tessera::atomic_file::write_atomically;
 use tessera::render::{self, RenderStats};
 use workload::{Workload, hash_text};
 
