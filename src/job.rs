@@ -125,8 +125,26 @@ impl JobState {
 
     /// Adds the sums of tile `index` (the pixels `tile`), which now has every sample.
     pub fn add_tile(&mut self, index: usize, tile: &PixelRect, sums: &[[u64; 3]]) {
+        self.add_samples(index, tile, sums, self.job.samples.len());
+    }
+
+    /// Adds the sums of tile `index` (the pixels `tile`) over the samples that follow its
+    /// `done` ones, after which it has `done_after` of the job's samples.
+    pub fn add_samples(
+        &mut self,
+        index: usize,
+        tile: &PixelRect,
+        sums: &[[u64; 3]],
+        done_after: u32,
+    ) {
+        debug_assert!(done_after >= self.done[index] && done_after <= self.job.samples.len());
         add_sums(&mut self.sums, self.job.region, sums, *tile);
-        self.done[index] = self.job.samples.len();
+        self.done[index] = done_after;
+    }
+
+    /// The fewest samples any tile has: every pixel of the region has at least this many.
+    pub fn min_done(&self) -> u32 {
+        self.done.iter().copied().min().unwrap_or(0)
     }
 
     /// The finished image of the region. Panics if the job is not complete.

@@ -160,6 +160,25 @@ impl PixelRect {
         u64::from(self.width.div_ceil(edge)) * u64::from(self.height.div_ceil(edge))
     }
 
+    /// Tile `index` of `tiles(edge)`, made without making the others.
+    pub fn tile(&self, edge: u32, index: usize) -> Option<PixelRect> {
+        let edge = edge.max(1);
+        let across = self.width.div_ceil(edge) as usize;
+        if index as u64 >= self.tile_count(edge) || across == 0 {
+            return None;
+        }
+        let (x0, y0) = (
+            self.x0 + (index % across) as u32 * edge,
+            self.y0 + (index / across) as u32 * edge,
+        );
+        Some(PixelRect {
+            x0,
+            y0,
+            width: edge.min(self.x0 + self.width - x0),
+            height: edge.min(self.y0 + self.height - y0),
+        })
+    }
+
     /// Tiles of at most `edge × edge` pixels covering the rectangle, row-major.
     pub fn tiles(&self, edge: u32) -> Vec<PixelRect> {
         let edge = edge.max(1);
@@ -287,7 +306,8 @@ mod tests {
             };
             let mut hits = vec![0u8; (w * h) as usize];
             assert_eq!(rect.tile_count(e), rect.tiles(e).len() as u64);
-            for t in rect.tiles(e) {
+            for (i, t) in rect.tiles(e).into_iter().enumerate() {
+                assert_eq!(rect.tile(e, i), Some(t));
                 assert!(rect.contains(&t));
                 for y in t.y0..t.y0 + t.height {
                     for x in t.x0..t.x0 + t.width {
@@ -296,6 +316,7 @@ mod tests {
                 }
             }
             assert!(hits.iter().all(|&n| n == 1), "{rect:?}/{e}");
+            assert_eq!(rect.tile(e, rect.tile_count(e) as usize), None);
         }
     }
 

@@ -159,3 +159,157 @@ fn fast_tile_tracer_equals_tracing_each_sample_alone() {
     assert!(listed >= 4, "only {listed} tiles had candidate lists");
     assert!(tile_candidates(&scene, &tiles[5]).is_none());
 }
+
+/// A watcher that records what it is told, and stops the job once a pass is done if asked.
+struct Recorder<'a> {
+    stop_after_pass: Option<(usize, &'a std::sync::atomic::AtomicBool)>,
+    passes: Vec<u32>,
+    spp_seen: Vec<u32>,
+    work: (u64, u64),
+    folds: usize,
+}
+
+impl tessera::render::Watch for Recorder<'_> {
+    fn started(&mut self, state: &tessera::job::JobState, p: &tessera::render::Progress) {
+        self.passes = p.passes.to_vec();
+        self.spp_seen.push(state.min_done());
+    }
+    fn folded(
+        &mut self,
+        state: &tessera::job::JobState,
+        folded: &[usize],
+        p: &tessera::render::Progress,
+    ) {
+        self.folds += folded.len();
+        self.spp_seen.push(state.min_done());
+        self.work = (p.work_done, p.work_total);
+        if let Some((pass, stop)) = self.stop_after_pass
+            && p.pass > pass
+        {
+            stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        }
+    }
+}
+
+fn render_progressive(
+    scene: &tessera::scene::Scene,
+    state: &mut tessera::job::JobState,
+    threads: usize,
+    recorder: &mut Recorder,
+    stop: &std::sync::atomic::AtomicBool,
+) {
+    let options = tessera::render::RenderOptions {
+        threads: Some(threads),
+        tile: state.tile,
+        ..Default::default()
+    };
+    let control = tessera::render::Control {
+        stop,
+        on_samples: &|_| {},
+        on_snapshot: None,
+        progressive: true,
+        watch: Some(recorder),
+    };
+    tessera::render::render_job(scene, &options, state, control).unwrap();
+}
+
+#[test]
+fn progressive_passes_give_the_same_sums_as_whole_tiles() {
+    use std::sync::atomic::AtomicBool;
+    use tessera::job::{Job, JobState};
+    let mut scene = small_cover();
+    scene.settings.samples_per_pixel = 13;
+    let reference = render(&scene);
+    for threads in [1, 2, 3] {
+        for tile in [8, 16] {
+            let stop = AtomicBool::new(false);
+            let mut state = JobState::new(Job::whole(&scene), tile);
+            let mut recorder = Recorder {
+                stop_after_pass: None,
+                passes: Vec::new(),
+                spp_seen: Vec::new(),
+                work: (0, 0),
+                folds: 0,
+            };
+            render_progressive(&scene, &mut state, threads, &mut recorder, &stop);
+            assert_eq!(recorder.passes, [1, 4, 13]);
+            assert_eq!(
+                recorder.folds,
+                state.done.len() * 3,
+                "one fold per tile per pass"
+            );
+            assert!(recorder.spp_seen.is_sorted(), "{:?}", recorder.spp_seen);
+            assert_eq!(recorder.work.0, recorder.work.1, "all the work is done");
+            assert!(
+                state.into_film() == reference,
+                "{threads} threads, tile {tile}: progressive passes changed the image"
+            );
+        }
+    }
+}
+
+#[test]
+fn a_progressive_render_stopped_between_passes_resumes_to_the_same_sums() {
+    use std::sync::atomic::AtomicBool;
+    use tessera::job::{Job, JobState};
+    let mut scene = small_cover();
+    scene.settings.samples_per_pixel = 21;
+    let reference = render(&scene);
+    let stop = AtomicBool::new(false);
+    let mut state = JobState::new(Job::whole(&scene), 8);
+    let mut recorder = Recorder {
+        stop_after_pass: Some((1, &stop)),
+        passes: Vec::new(),
+        spp_seen: Vec::new(),
+        work: (0, 0),
+        folds: 0,
+    };
+    render_progressive(&scene, &mut state, 2, &mut recorder, &stop);
+    assert!(!state.is_complete(), "stopped early");
+    let counts: std::collections::BTreeSet<u32> = state.done.iter().copied().collect();
+    assert!(counts.iter().all(|d| (4..21).contains(d)), "{counts:?}");
+    // Resumed tile at a time, then progressively from a state whose tiles differ.
+    let mut resumed = state.clone();
+    render_progressive(
+        &scene,
+        &mut resumed,
+        2,
+        &mut Recorder {
+            stop_after_pass: None,
+            passes: Vec::new(),
+            spp_seen: Vec::new(),
+            work: (0, 0),
+            folds: 0,
+        },
+        &AtomicBool::new(false),
+    );
+    assert!(resumed.into_film() == reference);
+    let mut whole_tiles = state;
+    let options = tessera::render::RenderOptions {
+        threads: Some(1),
+        tile: 8,
+        ..Default::default()
+    };
+    let control = tessera::render::Control {
+        stop: &AtomicBool::new(false),
+        on_samples: &|_| {},
+        on_snapshot: None,
+        progressive: false,
+        watch: None,
+    };
+    tessera::render::render_job(&scene, &options, &mut whole_tiles, control).unwrap();
+    assert!(whole_tiles.into_film() == reference);
+}
+
+#[test]
+fn passes_double_up_to_the_samples() {
+    use tessera::render::passes;
+    assert_eq!(passes(1), [1]);
+    assert_eq!(passes(2), [1, 2]);
+    assert_eq!(passes(4), [1, 4]);
+    assert_eq!(passes(5), [1, 4, 5]);
+    assert_eq!(passes(500), [1, 4, 16, 64, 256, 500]);
+    assert_eq!(passes(1024), [1, 4, 16, 64, 256, 1024]);
+    assert_eq!(passes(u32::MAX).len(), 17);
+    assert_eq!(passes(0), [0]);
+}

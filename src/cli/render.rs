@@ -100,6 +100,8 @@ pub fn run(settings: RenderSettings) -> Result<()> {
         on_snapshot: checkpoint
             .as_ref()
             .map(|c| (&mut save as Snapshot, c.every)),
+        progressive: false,
+        watch: None,
     };
     let stats = render::render_job(&scene, &options, &mut state, control)
         .context("could not start the thread pool")?;

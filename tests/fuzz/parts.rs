@@ -45,6 +45,8 @@ fn seed_parts(scene: &Scene) -> Vec<Part> {
             stop: &stop,
             on_samples: &|_| {},
             on_snapshot: None,
+            progressive: false,
+            watch: None,
         };
         render::render_job(scene, &options, &mut state, control).unwrap();
         parts.push(Part::of(scene, state, 4));
