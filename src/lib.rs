@@ -17,6 +17,9 @@
 //!   part file (shards, checkpoints) and merges parts; [`atomic_file`] writes every file
 //!   whole or not at all.
 //!
+//! - [`preview`] watches a running job from the folding thread (a picture kept tile by
+//!   tile, published about once a second) and serves it to a browser.
+//!
 //! The same scene, settings and seed give the same bytes whatever the thread count, tile
 //! size, shard split or interruption. [`math`], [`ray`] and [`error`] serve them all;
 //! [`compare`] measures the difference of two images.
@@ -40,6 +43,7 @@ pub mod job;
 pub mod material;
 pub mod math;
 pub mod partial;
+pub mod preview;
 pub mod ray;
 pub mod render;
 pub mod sampling;

@@ -29,6 +29,7 @@ const LAYERS: &[&str] = &[
     "integrator",
     "render",
     "partial",
+    "preview",
 ];
 
 /// The library source files under `dir`, with the top-level module each belongs to.

@@ -109,6 +109,34 @@ pub struct RenderArgs {
     /// No progress bar and no summary line.
     #[arg(long, short)]
     pub quiet: bool,
+    #[command(flatten)]
+    pub preview: PreviewArgs,
+}
+
+/// How to watch a render.
+#[derive(Args)]
+pub struct PreviewArgs {
+    /// Watch the render in a web browser: serves a live viewer at ADDR:PORT (default
+    /// 127.0.0.1 on a free port; `--preview=PORT` or `--preview=ADDR:PORT` to choose) and
+    /// prints its address. The image is the same as without.
+    #[arg(
+        long,
+        value_name = "ADDR:PORT",
+        num_args = 0..=1,
+        require_equals = true,
+        default_missing_value = "127.0.0.1:0"
+    )]
+    pub preview: Option<String>,
+    /// Keep serving the final image after the render ends, until Ctrl-C.
+    #[arg(long, requires = "preview")]
+    pub preview_hold: bool,
+    /// Write the image so far to this PNG file every --preview-every seconds (atomically),
+    /// for machines where nobody can open a port; any viewer that reloads files shows it.
+    #[arg(long, value_name = "PNG")]
+    pub preview_file: Option<PathBuf>,
+    /// Seconds between writes of --preview-file [default: 2].
+    #[arg(long, value_name = "SECS")]
+    pub preview_every: Option<f64>,
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]

@@ -4,6 +4,7 @@
 
 mod args;
 mod bench;
+mod preview;
 mod render;
 mod settings;
 

@@ -1,6 +1,7 @@
 //! `tessera render`: resumes or starts the job, renders it with a progress bar, saves
 //! checkpoints on the way and on Ctrl-C or SIGTERM, then writes the image or part and a summary.
 
+use super::preview::Session;
 use super::settings::{CheckpointSettings, Output, RenderSettings};
 use super::{note, progress_bar, summary};
 use anyhow::{Context, Result};
@@ -10,7 +11,8 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use tessera::job::{Job, JobState};
 use tessera::partial::{self, Part, RenderId};
-use tessera::render::{self, Control, RenderStats, Snapshot};
+use tessera::preview::{About, RunState};
+use tessera::render::{self, Control, RenderOptions, RenderStats, Snapshot, Watch};
 use tessera::scene::Scene;
 
 /// A render's checkpoint file: saved now and then, and at the end. A save that fails (a full
@@ -70,6 +72,9 @@ pub fn run(settings: RenderSettings) -> Result<()> {
         render,
         output,
         checkpoint,
+        preview,
+        job_label,
+        scene_file,
         quiet,
     } = settings;
     let mut state = match &checkpoint {
@@ -84,6 +89,18 @@ pub fn run(settings: RenderSettings) -> Result<()> {
         }
     }
     let bar = progress_bar(state.remaining_samples(), quiet);
+    let mut preview = if preview.is_on() {
+        let about = about(&scene_file, &scene, &options, &state, job_label, &output);
+        Some(Session::start(
+            preview,
+            about,
+            &state,
+            scene.settings.gamma,
+            &bar,
+        )?)
+    } else {
+        None
+    };
     let mut saver = checkpoint.as_ref().map(|settings| Checkpoint {
         settings,
         render: &render,
@@ -100,12 +117,15 @@ pub fn run(settings: RenderSettings) -> Result<()> {
         on_snapshot: checkpoint
             .as_ref()
             .map(|c| (&mut save as Snapshot, c.every)),
-        progressive: false,
-        watch: None,
+        progressive: preview.is_some(),
+        watch: preview.as_mut().map(|p| &mut p.previewer as &mut dyn Watch),
     };
     let stats = render::render_job(&scene, &options, &mut state, control)
         .context("could not start the thread pool")?;
     bar.finish_and_clear();
+    if let Some(preview) = preview.take_if(|_| !state.is_complete()) {
+        preview.end(&state, RunState::Interrupted).close();
+    }
     if let Some(saver) = &saver {
         saver.save_at_end(&state)?;
         if !state.is_complete() {
@@ -118,6 +138,7 @@ pub fn run(settings: RenderSettings) -> Result<()> {
         }
     }
     let what = describe(&scene, &state, &output);
+    let preview = preview.map(|p| p.end(&state, RunState::Finished));
     match &output {
         Output::Part(path) => partial::save(path, &render, &state)?,
         Output::Image(path) => state.into_film().save(path, scene.settings.gamma)?,
@@ -125,7 +146,41 @@ pub fn run(settings: RenderSettings) -> Result<()> {
     if !quiet {
         report(&scene, &output, &what, &stats);
     }
+    if let Some(preview) = preview {
+        preview.close();
+    }
     Ok(())
+}
+
+/// What the viewer says the render is.
+fn about(
+    scene_file: &Path,
+    scene: &Scene,
+    options: &RenderOptions,
+    state: &JobState,
+    job: String,
+    output: &Output,
+) -> About {
+    let s = &scene.settings;
+    let r = state.job.region;
+    let path = scene_file;
+    About {
+        scene: (path.file_stem()).map_or("scene".into(), |n| n.to_string_lossy().into_owned()),
+        scene_file: path.display().to_string(),
+        width: s.width,
+        height: s.height,
+        spp: s.samples_per_pixel,
+        max_depth: s.max_depth,
+        seed: s.seed,
+        shading: format!("{:?}", s.shading).to_lowercase(),
+        threads: options.threads.unwrap_or_else(rayon::current_num_threads),
+        tile: state.tile,
+        simd: options.simd.name().to_owned(),
+        region: [r.x0, r.y0, r.width, r.height],
+        samples: [state.job.samples.start, state.job.samples.end],
+        job,
+        output: output.path().display().to_string(),
+    }
 }
 
 /// The state saved in checkpoint `path`, checked against this render and extended to `job`.

@@ -2,14 +2,16 @@
 //! against each other and against the scene, and every output checked writable, before any
 //! work starts.
 
-use super::args::{BenchArgs, RenderArgs, SceneArgs, SimdArg, SplitArg};
+use super::args::{BenchArgs, PreviewArgs, RenderArgs, SceneArgs, SimdArg, SplitArg};
 use super::bench::workload::{self, Workload};
 use anyhow::{Result, bail};
+use std::net::{SocketAddr, TcpListener};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 use tessera::atomic_file::check_writable;
 use tessera::image_file::Format;
 use tessera::job::Job;
+use tessera::math::PixelRect;
 use tessera::partial::RenderId;
 use tessera::render::{self, RenderOptions};
 use tessera::scene::{Overrides, Scene};
@@ -39,6 +41,115 @@ pub struct CheckpointSettings {
     pub every: Duration,
 }
 
+/// Seconds between writes of the preview file, unless `--preview-every` says otherwise.
+const PREVIEW_EVERY_SECS: f64 = 2.0;
+
+/// How a render is watched: a live viewer, a preview file, both or neither.
+#[derive(Default)]
+pub struct PreviewSettings {
+    /// The viewer's listener, bound before the render starts.
+    pub listener: Option<TcpListener>,
+    /// Serve the final frame after the render until Ctrl-C.
+    pub hold: bool,
+    /// The preview file and the time between its writes.
+    pub file: Option<(PathBuf, Duration)>,
+}
+
+impl PreviewSettings {
+    pub fn is_on(&self) -> bool {
+        self.listener.is_some() || self.file.is_some()
+    }
+
+    /// Checks `--preview`, `--preview-hold`, `--preview-file` and `--preview-every`, and
+    /// binds the viewer.
+    fn new(args: &PreviewArgs) -> Result<Self> {
+        let file = match &args.preview_file {
+            Some(path) => {
+                if Format::from_path(path)? != Format::Png {
+                    bail!("--preview-file must name a .png file");
+                }
+                check_writable(path)?;
+                let every = seconds(
+                    "--preview-every",
+                    args.preview_every.unwrap_or(PREVIEW_EVERY_SECS),
+                )?;
+                if every.is_zero() {
+                    bail!("--preview-every must be more than 0 seconds");
+                }
+                Some((path.clone(), every))
+            }
+            None => None,
+        };
+        if file.is_none() && args.preview_every.is_some() {
+            bail!("--preview-every needs --preview-file");
+        }
+        let listener = match &args.preview {
+            Some(spec) => Some(bind_preview(spec)?),
+            None => None,
+        };
+        Ok(Self {
+            listener,
+            hold: args.preview_hold,
+            file,
+        })
+    }
+}
+
+/// A number of seconds from the command line, checked.
+fn seconds(flag: &str, secs: f64) -> Result<Duration> {
+    if !(secs >= 0.0 && secs.is_finite()) {
+        bail!("{flag} must be a number of seconds, 0 or more");
+    }
+    // More seconds than a Duration holds (about 585 billion years) means never.
+    Ok(Duration::try_from_secs_f64(secs).unwrap_or(Duration::MAX))
+}
+
+/// The address `--preview=SPEC` names: `ADDR:PORT` or `[IPv6]:PORT` with an IP address,
+/// `localhost:PORT`, or a bare `PORT` (on 127.0.0.1). Names are not looked up: a viewer
+/// listens on this machine's own addresses.
+fn preview_address(spec: &str) -> Result<SocketAddr> {
+    let spec = spec.trim();
+    if let Ok(port) = spec.parse::<u16>() {
+        return Ok(SocketAddr::from(([127, 0, 0, 1], port)));
+    }
+    if let Ok(addr) = spec.parse::<SocketAddr>() {
+        return Ok(addr);
+    }
+    match spec.rsplit_once(':') {
+        Some((host, port)) if host.eq_ignore_ascii_case("localhost") => {
+            if let Ok(port) = port.parse::<u16>() {
+                return Ok(SocketAddr::from(([127, 0, 0, 1], port)));
+            }
+        }
+        _ => {}
+    }
+    bail!(
+        "--preview: `{spec}` is not an address; write ADDR:PORT (127.0.0.1:8080), \
+         [::1]:8080, localhost:8080 or a port alone"
+    )
+}
+
+/// Binds the viewer's listener now, so that an address in use, one that is not this
+/// machine's or a port without permission is an error before the render starts.
+fn bind_preview(spec: &str) -> Result<TcpListener> {
+    let addr = preview_address(spec)?;
+    TcpListener::bind(addr).map_err(|e| {
+        use std::io::ErrorKind;
+        let why = match e.kind() {
+            ErrorKind::AddrInUse => {
+                "is in use by another program; choose another port, or leave it out for a free one"
+                    .to_owned()
+            }
+            ErrorKind::PermissionDenied => {
+                format!("needs a permission this user lacks (ports below 1024 need root): {e}")
+            }
+            ErrorKind::AddrNotAvailable => format!("is not an address of this machine: {e}"),
+            _ => format!("cannot be listened on: {e}"),
+        };
+        anyhow::anyhow!("--preview: {addr} {why}")
+    })
+}
+
 /// A render, ready to run.
 pub struct RenderSettings {
     pub scene: Scene,
@@ -49,17 +160,26 @@ pub struct RenderSettings {
     pub render: RenderId,
     pub output: Output,
     pub checkpoint: Option<CheckpointSettings>,
+    pub preview: PreviewSettings,
+    /// What the job is, in a few words: the whole image, a crop, a shard or samples.
+    pub job_label: String,
+    /// The scene file as given.
+    pub scene_file: PathBuf,
     pub quiet: bool,
 }
 
 impl RenderSettings {
     pub fn new(args: RenderArgs) -> Result<Self> {
-        let options = render_options(args.scene.threads, args.tile, args.scene.simd.path()?)?;
-        if !(args.checkpoint_every >= 0.0 && args.checkpoint_every.is_finite()) {
-            bail!("--checkpoint-every must be a number of seconds, 0 or more");
+        // `--preview 8080` takes 8080 as the scene file: say what was meant.
+        let scene_arg = args.scene.scene.to_string_lossy();
+        if !args.scene.scene.exists() && preview_address(&scene_arg).is_ok() {
+            bail!(
+                "`{scene_arg}` looks like an address, not a scene file; to choose the viewer's \
+                 address write --preview={scene_arg}"
+            );
         }
-        // More seconds than a Duration holds (about 585 billion years) means never.
-        let every = Duration::try_from_secs_f64(args.checkpoint_every).unwrap_or(Duration::MAX);
+        let options = render_options(args.scene.threads, args.tile, args.scene.simd.path()?)?;
+        let every = seconds("--checkpoint-every", args.checkpoint_every)?;
         let scene = load(&args.scene, args.depth, args.seed)?;
         let shard = match &args.shard {
             Some(spec) => Some(Shard::parse(spec, |k| std::env::var(k).ok())?),
@@ -71,6 +191,17 @@ impl RenderSettings {
             SplitArg::Rows => Split::Rows,
         };
         let job = shard::job(&scene, shard, split, samples)?;
+        let job_label = match (shard, samples) {
+            (Some(s), _) => format!("shard {}/{}", s.index, s.count),
+            (None, Some(r)) => format!("samples {}..{}", r.start, r.end),
+            (None, None)
+                if job.region != PixelRect::full(scene.settings.width, scene.settings.height) =>
+            {
+                let r = job.region;
+                format!("crop {}x{} at ({}, {})", r.width, r.height, r.x0, r.y0)
+            }
+            (None, None) => "whole image".to_owned(),
+        };
         // Every part is a piece of the image of the scene's samples per pixel.
         let target = scene.settings.samples_per_pixel;
         if let Some(r) = samples
@@ -103,6 +234,8 @@ impl RenderSettings {
         {
             check_writable(&c.path)?;
         }
+        // Last, so that the port is taken only once everything else is known to be right.
+        let preview = PreviewSettings::new(&args.preview)?;
         Ok(Self {
             render: RenderId::of(&scene, target),
             scene,
@@ -110,6 +243,9 @@ impl RenderSettings {
             job,
             output,
             checkpoint,
+            preview,
+            job_label,
+            scene_file: args.scene.scene,
             quiet: args.quiet,
         })
     }

@@ -1,0 +1,187 @@
+// tessera's live viewer: follows the render's status by server-sent events (or, failing
+// that, by polling /status), draws each new frame once it has loaded (so the old one stays
+// until then: no flicker), and outlines the tiles being rendered.
+"use strict";
+
+const $ = (id) => document.getElementById(id);
+const image = $("image");
+const tiles = $("tiles");
+let shown = 0;        // the frame version drawn
+let loading = false;  // a frame is on its way
+let wanted = 0;       // the newest frame version announced
+let last = null;      // the newest status
+let polling = null;
+let pending = null;   // a status waiting for its frame to load
+
+function clock(seconds) {
+  if (seconds == null || !isFinite(seconds)) return "–";
+  const s = Math.max(0, Math.round(seconds));
+  const h = Math.floor(s / 3600), m = Math.floor((s % 3600) / 60), r = s % 60;
+  const two = (n) => String(n).padStart(2, "0");
+  return h > 0 ? `${h}:${two(m)}:${two(r)}` : `${m}:${two(r)}`;
+}
+
+function number(n, digits) {
+  return n == null || !isFinite(n) ? "–" : n.toFixed(digits);
+}
+
+// Loads the newest frame: only the rows that changed since the frame shown, when the server
+// has that patch, else the whole frame.
+async function loadFrame() {
+  if (loading || wanted <= shown) return;
+  loading = true;
+  let again = false;
+  try {
+    const since = shown > 0 ? `&since=${shown}` : "";
+    const r = await fetch(`/frame.png?v=${wanted}${since}`, { cache: "no-store" });
+    if (!r.ok) throw new Error(`frame: ${r.status}`);
+    const version = Number(r.headers.get("x-frame-version"));
+    const rows = (r.headers.get("x-frame-rows") || "").split(",").map((a) => a.split("-").map(Number));
+    const [width, height] = (r.headers.get("x-frame-size") || "").split(",").map(Number);
+    const bitmap = await createImageBitmap(await r.blob());
+    const whole = rows.length === 1 && rows[0][0] === 0 && rows[0][1] === height;
+    if (!whole && (image.width !== width || image.height !== height || shown === 0)) {
+      throw new Error("a patch for a frame this page does not hold");
+    }
+    // The status that announced this frame is shown with it: one repaint, not two.
+    if (pending) {
+      showText(pending);
+      pending = null;
+    }
+    if (whole && (image.width !== width || image.height !== height)) {
+      image.width = width;
+      image.height = height;
+    }
+    // The PNG holds the rows stacked in order.
+    const ctx = image.getContext("2d");
+    let from = 0;
+    for (const [start, end] of rows) {
+      ctx.drawImage(bitmap, 0, from, width, end - start, 0, start, width, end - start);
+      from += end - start;
+    }
+    bitmap.close();
+    shown = version;
+    $("frame").classList.remove("empty");
+    $("waiting").hidden = true;
+    drawTiles();
+    again = wanted > shown;
+  } catch (e) {
+    // Shown at once instead; the next status brings the next try.
+    if (pending) showText(pending);
+    pending = null;
+  } finally {
+    loading = false;
+  }
+  if (again) setTimeout(loadFrame, 0);
+}
+
+// Outlines the tiles being rendered: a few boxes laid over where the image is drawn.
+function drawTiles() {
+  const boxes = last && last.state === "rendering" ? last.tiles : [];
+  const frame = $("frame").getBoundingClientRect();
+  const box = image.getBoundingClientRect();
+  const zoom = Math.min(box.width / image.width, box.height / image.height) || 1;
+  const left = box.left - frame.left + (box.width - image.width * zoom) / 2;
+  const top = box.top - frame.top + (box.height - image.height * zoom) / 2;
+  const unit = zoom / (last ? last.frame.scale || 1 : 1);
+  while (tiles.children.length > boxes.length) tiles.lastChild.remove();
+  while (tiles.children.length < boxes.length) tiles.appendChild(document.createElement("div"));
+  boxes.forEach(([x, y, w, h], i) => {
+    const s = tiles.children[i].style;
+    s.left = `${left + x * unit}px`;
+    s.top = `${top + y * unit}px`;
+    s.width = `${w * unit}px`;
+    s.height = `${h * unit}px`;
+  });
+}
+
+// Takes a new status: its text is shown at once, or with its frame when it brings one.
+function show(status) {
+  last = status;
+  wanted = Math.max(wanted, status.frame.version);
+  if (status.frame.version > shown && !loading) {
+    pending = status;
+  } else {
+    pending = null; // this text is newer than a pending one
+    showText(status);
+  }
+  loadFrame();
+}
+
+function showText(status) {
+  const a = status.about;
+  $("scene").textContent = a.scene;
+  document.title = `${status.percent.toFixed(0)}% · ${a.scene} · tessera`;
+  const job = a.job === "whole image" ? "" : ` · ${a.job}`;
+  $("settings").textContent =
+    `${a.width}×${a.height} · ${a.spp} spp · depth ${a.max_depth} · seed ${a.seed} · ` +
+    `${a.shading} · ${a.threads} thread${a.threads === 1 ? "" : "s"} · ${a.simd}${job} → ` +
+    a.output;
+  const state = $("state");
+  state.textContent = status.state;
+  state.className = `state ${status.state}`;
+  document.body.classList.toggle("finished", status.state === "finished");
+  $("spp").textContent =
+    status.spp_done === status.spp_max
+      ? `${status.spp_done} / ${status.spp_total}`
+      : `${status.spp_done}–${status.spp_max} / ${status.spp_total}`;
+  $("percent").textContent = `${number(status.percent, 1)}%`;
+  $("fill").style.width = `${Math.min(100, status.percent)}%`;
+  $("progress").setAttribute("aria-valuenow", status.percent.toFixed(0));
+  $("pass").textContent = `${status.pass} of ${status.passes}`;
+  $("elapsed").textContent = clock(status.elapsed_s);
+  $("eta").textContent = status.state === "rendering" ? clock(status.eta_s) : "–";
+  $("sps").textContent = number(status.samples_per_sec / 1e6, 2) + " M";
+  $("mrays").textContent = number(status.mrays_per_sec, 1);
+  $("scale").textContent = status.frame.scale > 1 ? `shown at 1/${status.frame.scale} size` : "";
+  $("download").hidden = status.state !== "finished";
+  drawTiles();
+}
+
+function poll() {
+  if (polling) return;
+  polling = setInterval(async () => {
+    try {
+      const r = await fetch("/status", { cache: "no-store" });
+      if (r.ok) show(await r.json());
+    } catch (e) {
+      lost();
+    }
+  }, 1000);
+}
+
+function lost() {
+  const state = $("state");
+  if (last && last.state === "finished") {
+    state.textContent = "finished · viewer closed";
+  } else {
+    state.textContent = "connection lost";
+    state.className = "state lost";
+  }
+}
+
+function listen() {
+  if (!("EventSource" in window)) return poll();
+  const events = new EventSource("/events");
+  let errors = 0;
+  events.addEventListener("status", (e) => {
+    errors = 0;
+    show(JSON.parse(e.data));
+  });
+  events.onerror = () => {
+    errors += 1;
+    if (errors >= 3) {
+      events.close();
+      lost();
+      if (!last || last.state === "rendering") poll();
+    }
+  };
+}
+
+$("stage").addEventListener("click", () => {
+  $("stage").classList.toggle("actual");
+  drawTiles();
+});
+window.addEventListener("resize", drawTiles);
+$("frame").classList.add("empty");
+listen();

@@ -1,0 +1,309 @@
+//! Watching a render as it happens: the folding thread keeps a picture of the job
+//! ([`frame`]) and publishes it with the run's status about once a second to a [`Hub`],
+//! from which the web viewer ([`server`]) and the preview file take the latest snapshot.
+//! Nothing here is on a worker's path, and nothing here changes the image.
+
+pub mod frame;
+pub mod server;
+
+use crate::job::JobState;
+use crate::render::{Progress, Watch};
+use bytes::Bytes;
+use frame::{Frame, FrameBuilder};
+use serde::Serialize;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// The longest time between two snapshots while a render runs. A pass that ends publishes
+/// at once, so the first pass's image appears as soon as it is done.
+pub const PUBLISH_EVERY: Duration = Duration::from_millis(1000);
+
+/// Where a render stands.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RunState {
+    Rendering,
+    Finished,
+    Interrupted,
+}
+
+/// What a render is, as the viewer shows it: fixed for the run.
+#[derive(Clone, Debug, Serialize)]
+pub struct About {
+    /// The scene's name (its file's stem) and file as given.
+    pub scene: String,
+    pub scene_file: String,
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub max_depth: u32,
+    pub seed: u64,
+    pub shading: String,
+    pub threads: usize,
+    pub tile: u32,
+    pub simd: String,
+    /// The job's pixels `[x, y, width, height]` and sample indices `[start, end]`.
+    pub region: [u32; 4],
+    pub samples: [u32; 2],
+    /// What this process renders: the whole image, a crop, a shard or a sample range.
+    pub job: String,
+    /// Where the result goes.
+    pub output: String,
+}
+
+/// The run's status at one moment, as `/status` and the event stream send it.
+#[derive(Clone, Debug, Serialize)]
+pub struct Status {
+    pub state: RunState,
+    pub about: Arc<About>,
+    /// Samples per pixel that every pixel of the job has, the most any has, and the job's
+    /// total, all counted from the job's first sample index.
+    pub spp_done: u32,
+    pub spp_max: u32,
+    pub spp_total: u32,
+    /// The pass being rendered (1-based; `passes` when finished) and its end in samples.
+    pub pass: usize,
+    pub passes: usize,
+    pub pass_spp: u32,
+    /// Percent of the job done, by estimated work (a tile of ground weighs more than sky).
+    pub percent: f64,
+    pub elapsed_s: f64,
+    /// Seconds left at the rate so far, by estimated work; `None` before any tile is done.
+    pub eta_s: Option<f64>,
+    pub samples_per_sec: f64,
+    pub mrays_per_sec: f64,
+    pub frame: FrameInfo,
+    /// The tiles being rendered now, `[x, y, width, height]` in the job's pixels.
+    pub tiles: Vec<[u32; 4]>,
+}
+
+/// The frame a status goes with.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct FrameInfo {
+    pub version: u64,
+    pub width: u32,
+    pub height: u32,
+    pub scale: u32,
+}
+
+/// One published moment: the status (and its JSON, made once for every viewer) and the frame.
+#[derive(Debug)]
+pub struct Snapshot {
+    /// Counts snapshots; every one has a new status, not always a new frame.
+    pub seq: u64,
+    pub status: Status,
+    pub status_json: Bytes,
+    pub frame: Arc<Frame>,
+}
+
+/// The latest snapshot, for any number of readers on any threads. Publishing replaces it
+/// and never waits for a reader: readers hold it only to clone its `Arc`.
+pub struct Hub {
+    latest: tokio::sync::watch::Sender<Arc<Snapshot>>,
+}
+
+impl Hub {
+    fn new(first: Snapshot) -> Self {
+        Self {
+            latest: tokio::sync::watch::Sender::new(Arc::new(first)),
+        }
+    }
+
+    /// The latest snapshot.
+    pub fn latest(&self) -> Arc<Snapshot> {
+        Arc::clone(&self.latest.borrow())
+    }
+
+    /// A receiver that wakes when a new snapshot is published.
+    pub fn subscribe(&self) -> tokio::sync::watch::Receiver<Arc<Snapshot>> {
+        self.latest.subscribe()
+    }
+
+    fn publish(&self, snapshot: Snapshot) {
+        self.latest.send_replace(Arc::new(snapshot));
+    }
+}
+
+/// Watches a job for the preview: keeps its frame up to date as tiles are folded and
+/// publishes snapshots to its hub.
+pub struct Previewer {
+    hub: Arc<Hub>,
+    about: Arc<About>,
+    builder: FrameBuilder,
+    frame: Arc<Frame>,
+    dirty: bool,
+    seq: u64,
+    last_publish: Instant,
+    last_pass: usize,
+    /// The fraction of the job's samples already done when this run started (a resume).
+    done_before: f64,
+    status: Option<Status>,
+}
+
+impl Previewer {
+    /// A previewer of `state`'s job, its picture tone-mapped with `gamma`.
+    pub fn new(about: About, state: &JobState, gamma: f32) -> Self {
+        let mut builder = FrameBuilder::new(state, gamma);
+        builder.update_all(state);
+        // The first frame is all new: there is no frame before it to patch.
+        let frame = Arc::new(Frame {
+            changed: None,
+            ..builder.frame(1)
+        });
+        let about = Arc::new(about);
+        let done_before = state.finished_samples() as f64 / state.total_samples().max(1) as f64;
+        let status = status_of(
+            &about,
+            state,
+            &frame,
+            None,
+            done_before,
+            RunState::Rendering,
+        );
+        let hub = Arc::new(Hub::new(snapshot(0, status, Arc::clone(&frame))));
+        Self {
+            hub,
+            about,
+            builder,
+            frame,
+            dirty: false,
+            seq: 0,
+            last_publish: Instant::now(),
+            last_pass: 0,
+            done_before,
+            status: None,
+        }
+    }
+
+    /// The hub the previewer publishes to.
+    pub fn hub(&self) -> Arc<Hub> {
+        Arc::clone(&self.hub)
+    }
+
+    fn publish(&mut self, state: &JobState, progress: Option<&Progress>, run: RunState) {
+        if self.dirty {
+            self.frame = Arc::new(self.builder.frame(self.frame.version + 1));
+            self.dirty = false;
+        }
+        let mut status = status_of(
+            &self.about,
+            state,
+            &self.frame,
+            progress,
+            self.done_before,
+            run,
+        );
+        if progress.is_none()
+            && let Some(last) = &self.status
+        {
+            // The end keeps the run's own figures; only the state and the frame are new.
+            status = Status {
+                state: run,
+                frame: status.frame,
+                spp_done: status.spp_done,
+                spp_max: status.spp_max,
+                percent: if run == RunState::Finished {
+                    100.0
+                } else {
+                    last.percent
+                },
+                eta_s: (run == RunState::Finished).then_some(0.0),
+                tiles: Vec::new(),
+                ..last.clone()
+            };
+        }
+        self.seq += 1;
+        self.status = Some(status.clone());
+        self.hub
+            .publish(snapshot(self.seq, status, Arc::clone(&self.frame)));
+        self.last_publish = Instant::now();
+    }
+
+    /// Publishes the end of the run: `Finished` or `Interrupted`, with the final frame.
+    pub fn finish(&mut self, state: &JobState, run: RunState) {
+        self.publish(state, None, run);
+    }
+}
+
+impl Watch for Previewer {
+    fn started(&mut self, state: &JobState, progress: &Progress) {
+        self.publish(state, Some(progress), RunState::Rendering);
+    }
+
+    fn folded(&mut self, state: &JobState, folded: &[usize], progress: &Progress) {
+        for &index in folded {
+            self.builder.update_tile(state, index);
+        }
+        self.dirty |= !folded.is_empty();
+        if progress.pass != self.last_pass || self.last_publish.elapsed() >= PUBLISH_EVERY {
+            self.last_pass = progress.pass;
+            self.publish(state, Some(progress), RunState::Rendering);
+        }
+    }
+}
+
+fn snapshot(seq: u64, status: Status, frame: Arc<Frame>) -> Snapshot {
+    let json = serde_json::to_vec(&status).expect("a status serializes");
+    Snapshot {
+        seq,
+        status,
+        status_json: Bytes::from(json),
+        frame,
+    }
+}
+
+fn status_of(
+    about: &Arc<About>,
+    state: &JobState,
+    frame: &Frame,
+    progress: Option<&Progress>,
+    done_before: f64,
+    run: RunState,
+) -> Status {
+    let spp_total = state.job.samples.len();
+    let (mut status, secs) = (
+        Status {
+            state: run,
+            about: Arc::clone(about),
+            spp_done: state.min_done().min(spp_total),
+            spp_max: state.done.iter().copied().max().unwrap_or(0).min(spp_total),
+            spp_total,
+            pass: 1,
+            passes: 1,
+            pass_spp: spp_total,
+            percent: 100.0 * done_before,
+            elapsed_s: 0.0,
+            eta_s: None,
+            samples_per_sec: 0.0,
+            mrays_per_sec: 0.0,
+            frame: FrameInfo {
+                version: frame.version,
+                width: frame.width,
+                height: frame.height,
+                scale: frame.scale,
+            },
+            tiles: Vec::new(),
+        },
+        progress.map_or(0.0, |p| p.elapsed.as_secs_f64()),
+    );
+    let Some(p) = progress else {
+        return status;
+    };
+    let fraction = p.work_done as f64 / p.work_total.max(1) as f64;
+    status.pass = (p.pass + 1).min(p.passes.len());
+    status.passes = p.passes.len();
+    status.pass_spp = p.passes.get(p.pass).copied().unwrap_or(spp_total);
+    status.percent = 100.0 * (done_before + (1.0 - done_before) * fraction);
+    status.elapsed_s = secs;
+    status.eta_s = (p.work_done > 0).then(|| secs * (1.0 - fraction) / fraction);
+    if secs > 0.0 {
+        status.samples_per_sec = p.samples as f64 / secs;
+        status.mrays_per_sec = p.rays as f64 / secs / 1e6;
+    }
+    let region = state.job.region;
+    status.tiles = (p.active.tiles().into_iter())
+        .filter_map(|i| region.tile(state.tile, i))
+        .map(|t| [t.x0 - region.x0, t.y0 - region.y0, t.width, t.height])
+        .collect();
+    status
+}

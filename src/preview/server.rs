@@ -1,0 +1,527 @@
+//! The web viewer's server: hyper on a single-threaded tokio runtime of its own thread,
+//! serving the page and its assets (compiled in), the status, the current frame and an event
+//! stream of statuses, and nothing else. Everything a client sends is hostile input: the
+//! limits below bound what any client can make it hold or do, and no client can reach the
+//! render, which only ever replaces the hub's snapshot.
+
+use super::{Hub, Snapshot};
+use bytes::Bytes;
+use http_body_util::{BodyExt, Full, channel::Channel};
+use hyper::body::Incoming;
+use hyper::header::{self, HeaderValue};
+use hyper::{Method, Request, Response, StatusCode};
+use hyper_util::rt::{TokioIo, TokioTimer};
+use std::convert::Infallible;
+use std::net::SocketAddr;
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+
+/// Connections served at once; a browser tab uses one to three. Further ones are answered
+/// 503 and closed.
+pub const MAX_CLIENTS: usize = 8;
+/// The most a request's line and headers may take; more is answered 431 (hyper's smallest
+/// read buffer).
+pub const MAX_HEADER_BYTES: usize = 8192;
+/// Headers in one request; more is answered 431.
+const MAX_HEADERS: usize = 32;
+/// A request's headers must arrive within this, and an idle connection closes after it.
+const HEADER_TIMEOUT: Duration = Duration::from_secs(5);
+/// A connection is asked to close after this, and closed at most `GRACE` later: a client
+/// that stops reading holds a place for no longer. Browsers reconnect by themselves.
+const CONNECTION_LIFETIME: Duration = Duration::from_secs(60);
+const GRACE: Duration = Duration::from_secs(5);
+/// An event stream ends after this (before the connection's lifetime); the page's
+/// EventSource reconnects after `retry`.
+const STREAM_LIFETIME: Duration = Duration::from_secs(45);
+/// Requests a connection may make per second, with a burst of `BURST`; faster ones are
+/// delayed, so a flood costs the machine a bounded amount of work.
+const REQUESTS_PER_SEC: f64 = 20.0;
+const BURST: f64 = 40.0;
+/// Refusals (503s) in flight at once, and the pause after each: a flood of connections is
+/// answered at a bounded rate, the rest wait in the kernel's queue.
+const MAX_REFUSALS: usize = 16;
+const REFUSAL_PAUSE: Duration = Duration::from_millis(5);
+
+const INDEX_HTML: &str = include_str!("assets/index.html");
+const VIEWER_CSS: &str = include_str!("assets/viewer.css");
+const VIEWER_JS: &str = include_str!("assets/viewer.js");
+
+/// The address a listener is bound to is reachable from other machines.
+pub fn is_public(addr: &SocketAddr) -> bool {
+    !addr.ip().is_loopback()
+}
+
+/// What the server has done, for its owner and tests.
+#[derive(Default)]
+pub struct ServerStats {
+    /// Connections being served now.
+    pub clients: AtomicUsize,
+    /// The newest frame version sent to any client (0: none).
+    pub frame_served: AtomicU64,
+    /// Connections refused because too many were open.
+    pub refused: AtomicU64,
+}
+
+/// A running viewer server; `stop` ends it.
+pub struct Server {
+    addr: SocketAddr,
+    stats: Arc<ServerStats>,
+    shutdown: tokio::sync::watch::Sender<bool>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Server {
+    /// Serves `hub`'s snapshots on `listener` (already bound, so that a bad address is an
+    /// error before a render starts) from a thread of its own.
+    pub fn start(listener: std::net::TcpListener, hub: Arc<Hub>) -> std::io::Result<Server> {
+        let addr = listener.local_addr()?;
+        listener.set_nonblocking(true)?;
+        let runtime = tokio::runtime::Builder::new_current_thread()
+            .enable_io()
+            .enable_time()
+            .build()?;
+        let listener = {
+            let _context = runtime.enter();
+            tokio::net::TcpListener::from_std(listener)?
+        };
+        let stats = Arc::new(ServerStats::default());
+        let (shutdown, stopping) = tokio::sync::watch::channel(false);
+        let shared = Arc::new(Shared {
+            hub,
+            addr,
+            stats: Arc::clone(&stats),
+            png: Mutex::new(None),
+            patch: Mutex::new(None),
+            stopping,
+        });
+        let thread = std::thread::Builder::new()
+            .name("preview-server".into())
+            .spawn(move || {
+                runtime.block_on(accept_loop(listener, shared));
+                // Dropping the runtime here closes every connection still open.
+            })?;
+        Ok(Server {
+            addr,
+            stats,
+            shutdown,
+            thread: Some(thread),
+        })
+    }
+
+    /// The address it listens on (the port chosen, when 0 was asked for).
+    pub fn addr(&self) -> SocketAddr {
+        self.addr
+    }
+
+    pub fn stats(&self) -> &ServerStats {
+        &self.stats
+    }
+
+    /// Stops accepting, closes every connection and waits for the server's thread.
+    pub fn stop(mut self) {
+        self.halt();
+    }
+
+    fn halt(&mut self) {
+        let _ = self.shutdown.send(true);
+        if let Some(thread) = self.thread.take() {
+            let _ = thread.join();
+        }
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        self.halt();
+    }
+}
+
+/// What every connection's tasks share.
+struct Shared {
+    hub: Arc<Hub>,
+    addr: SocketAddr,
+    stats: Arc<ServerStats>,
+    /// The newest frame's PNGs, made once for every client that asks: the whole frame and
+    /// the patch from the frame before, each with its frame version.
+    png: Mutex<Option<(u64, Bytes)>>,
+    patch: Mutex<Option<(u64, Bytes)>>,
+    stopping: tokio::sync::watch::Receiver<bool>,
+}
+
+async fn accept_loop(listener: tokio::net::TcpListener, shared: Arc<Shared>) {
+    let mut stopping = shared.stopping.clone();
+    let refusals = Arc::new(AtomicUsize::new(0));
+    loop {
+        let accepted = tokio::select! {
+            accepted = listener.accept() => accepted,
+            _ = stopping.changed() => return,
+        };
+        let Ok((stream, _)) = accepted else {
+            // Out of file descriptors, say: wait rather than spin.
+            tokio::time::sleep(Duration::from_millis(50)).await;
+            continue;
+        };
+        let _ = stream.set_nodelay(true);
+        if shared.stats.clients.load(Ordering::Relaxed) >= MAX_CLIENTS {
+            shared.stats.refused.fetch_add(1, Ordering::Relaxed);
+            if refusals.load(Ordering::Relaxed) < MAX_REFUSALS {
+                refusals.fetch_add(1, Ordering::Relaxed);
+                let refusals = Arc::clone(&refusals);
+                tokio::spawn(async move {
+                    let _ = tokio::time::timeout(GRACE, refuse(stream)).await;
+                    refusals.fetch_sub(1, Ordering::Relaxed);
+                });
+            }
+            tokio::time::sleep(REFUSAL_PAUSE).await;
+            continue;
+        }
+        let client = Client::enter(&shared.stats);
+        tokio::spawn(serve(stream, Arc::clone(&shared), client));
+    }
+}
+
+/// A connection being served: counted while it lives.
+struct Client(Arc<ServerStats>);
+
+impl Client {
+    fn enter(stats: &Arc<ServerStats>) -> Self {
+        stats.clients.fetch_add(1, Ordering::Relaxed);
+        Self(Arc::clone(stats))
+    }
+}
+
+impl Drop for Client {
+    fn drop(&mut self) {
+        self.0.clients.fetch_sub(1, Ordering::Relaxed);
+    }
+}
+
+/// Answers a connection over the limit with 503 and closes it, reading (and dropping) what
+/// the client sent first so that closing does not reset the connection under the answer.
+async fn refuse(mut stream: tokio::net::TcpStream) {
+    let body = "too many viewers are connected; try again shortly\n";
+    let answer = format!(
+        "HTTP/1.1 503 Service Unavailable\r\ncontent-type: text/plain; charset=utf-8\r\n\
+         content-length: {}\r\nretry-after: 2\r\nconnection: close\r\n\r\n{body}",
+        body.len()
+    );
+    if stream.write_all(answer.as_bytes()).await.is_err() {
+        return;
+    }
+    let _ = stream.shutdown().await;
+    let mut sink = [0u8; 4096];
+    let mut left = 64 * 1024;
+    while left > 0 {
+        match stream.read(&mut sink).await {
+            Ok(0) | Err(_) => break,
+            Ok(n) => left -= n.min(left),
+        }
+    }
+}
+
+async fn serve(stream: tokio::net::TcpStream, shared: Arc<Shared>, client: Client) {
+    let bucket = Arc::new(Mutex::new(Bucket::new()));
+    let service = {
+        let shared = Arc::clone(&shared);
+        hyper::service::service_fn(move |request| {
+            let (shared, bucket) = (Arc::clone(&shared), Arc::clone(&bucket));
+            async move {
+                let wait = bucket.lock().map_or(Duration::ZERO, |mut b| b.take());
+                if !wait.is_zero() {
+                    tokio::time::sleep(wait).await;
+                }
+                Ok::<_, Infallible>(respond(&shared, &request))
+            }
+        })
+    };
+    let connection = hyper::server::conn::http1::Builder::new()
+        .timer(TokioTimer::new())
+        .header_read_timeout(HEADER_TIMEOUT)
+        .max_buf_size(MAX_HEADER_BYTES)
+        .max_headers(MAX_HEADERS)
+        .keep_alive(true)
+        .serve_connection(TokioIo::new(stream), service);
+    tokio::pin!(connection);
+    let mut stopping = shared.stopping.clone();
+    tokio::select! {
+        _ = connection.as_mut() => {}
+        _ = tokio::time::sleep(CONNECTION_LIFETIME) => {
+            connection.as_mut().graceful_shutdown();
+            let _ = tokio::time::timeout(GRACE, connection.as_mut()).await;
+        }
+        _ = stopping.changed() => {}
+    }
+    drop(client);
+}
+
+/// A token bucket of requests: `take` says how long to wait before serving the next one.
+struct Bucket {
+    tokens: f64,
+    at: Instant,
+}
+
+impl Bucket {
+    fn new() -> Self {
+        Self {
+            tokens: BURST,
+            at: Instant::now(),
+        }
+    }
+
+    fn take(&mut self) -> Duration {
+        let now = Instant::now();
+        let refill = now.duration_since(self.at).as_secs_f64() * REQUESTS_PER_SEC;
+        self.tokens = (self.tokens + refill).min(BURST) - 1.0;
+        self.at = now;
+        if self.tokens >= 0.0 {
+            Duration::ZERO
+        } else {
+            Duration::from_secs_f64(-self.tokens / REQUESTS_PER_SEC)
+        }
+    }
+}
+
+type Body = http_body_util::combinators::BoxBody<Bytes, Infallible>;
+
+fn respond(shared: &Arc<Shared>, request: &Request<Incoming>) -> Response<Body> {
+    if request.method() != Method::GET && request.method() != Method::HEAD {
+        let mut r = text(StatusCode::METHOD_NOT_ALLOWED, "only GET and HEAD\n");
+        r.headers_mut()
+            .insert(header::ALLOW, HeaderValue::from_static("GET, HEAD"));
+        return r;
+    }
+    if !host_allowed(shared.addr, request) {
+        return text(
+            StatusCode::MISDIRECTED_REQUEST,
+            "this viewer answers only to its own address\n",
+        );
+    }
+    let uri = request.uri();
+    match uri.path() {
+        "/" | "/index.html" => asset(INDEX_HTML, "text/html; charset=utf-8"),
+        "/viewer.css" => asset(VIEWER_CSS, "text/css; charset=utf-8"),
+        "/viewer.js" => asset(VIEWER_JS, "text/javascript; charset=utf-8"),
+        "/status" => {
+            let latest = shared.hub.latest();
+            dynamic(
+                Full::new(latest.status_json.clone()).boxed(),
+                "application/json",
+            )
+        }
+        "/frame.png" => frame(shared, uri.query()),
+        "/events" => events(shared),
+        _ => text(StatusCode::NOT_FOUND, "not found\n"),
+    }
+}
+
+/// With the server on a loopback address, only requests naming a loopback host are
+/// answered: a web page elsewhere that points its own name at 127.0.0.1 (DNS rebinding)
+/// cannot read the render. On another address, the user chose to be reachable.
+fn host_allowed(addr: SocketAddr, request: &Request<Incoming>) -> bool {
+    if is_public(&addr) {
+        return true;
+    }
+    let Some(host) = request
+        .headers()
+        .get(header::HOST)
+        .and_then(|h| h.to_str().ok())
+    else {
+        return false;
+    };
+    let Ok(authority) = host.parse::<hyper::http::uri::Authority>() else {
+        return false;
+    };
+    if authority.port_u16().is_some_and(|p| p != addr.port()) {
+        return false;
+    }
+    let name = authority
+        .host()
+        .trim_start_matches('[')
+        .trim_end_matches(']');
+    name.eq_ignore_ascii_case("localhost")
+        || name
+            .parse::<std::net::IpAddr>()
+            .is_ok_and(|ip| ip.is_loopback())
+}
+
+/// The most row ranges a patch may have; a frame changed in more places is sent whole.
+const MAX_PATCH_RANGES: usize = 32;
+
+/// The latest frame as a PNG: the whole of it, or with `since=V` from a viewer that holds
+/// frame V just before it, only the rows that changed, stacked. `x-frame-rows: a-b,c-d`
+/// says which rows the PNG holds, in order; `x-frame-size` gives the frame's size.
+fn frame(shared: &Arc<Shared>, query: Option<&str>) -> Response<Body> {
+    let latest = shared.hub.latest();
+    let frame = &latest.frame;
+    let version = frame.version;
+    let param = |name: &str| {
+        (query.into_iter().flat_map(|q| q.split('&'))).find_map(|kv| match kv.split_once('=') {
+            Some((k, v)) if k == name => Some(v),
+            None if kv == name => Some(""),
+            _ => None,
+        })
+    };
+    let since = param("since").and_then(|v| v.parse::<u64>().ok());
+    let patch = (frame.changed.as_ref())
+        .filter(|_| since.is_some_and(|s| s.checked_add(1) == Some(version)))
+        .filter(|rows| !rows.is_empty() && rows.len() <= MAX_PATCH_RANGES);
+    let whole = [[0, frame.height]];
+    let (rows, cache) = match patch {
+        Some(rows) => (rows.as_slice(), &shared.patch),
+        None => (&whole[..], &shared.png),
+    };
+    let png = {
+        let mut cache = cache.lock().unwrap_or_else(|e| e.into_inner());
+        match &*cache {
+            Some((v, png)) if *v == version => png.clone(),
+            _ => {
+                let png = Bytes::from(frame.png_of_rows(rows));
+                *cache = Some((version, png.clone()));
+                png
+            }
+        }
+    };
+    shared
+        .stats
+        .frame_served
+        .fetch_max(version, Ordering::Relaxed);
+    let mut r = dynamic(Full::new(png).boxed(), "image/png");
+    let headers = r.headers_mut();
+    headers.insert("x-frame-version", HeaderValue::from(version));
+    let ranges: Vec<String> = rows.iter().map(|[a, b]| format!("{a}-{b}")).collect();
+    let digits = |text: String| HeaderValue::from_str(&text).expect("digits, '-' and ','");
+    headers.insert("x-frame-rows", digits(ranges.join(",")));
+    headers.insert(
+        "x-frame-size",
+        digits(format!("{},{}", frame.width, frame.height)),
+    );
+    if param("download").is_some() {
+        let name = format!("{}.png", safe_name(&latest.status.about.scene));
+        if let Ok(v) = HeaderValue::from_str(&format!("attachment; filename=\"{name}\"")) {
+            headers.insert(header::CONTENT_DISPOSITION, v);
+        }
+    }
+    r
+}
+
+/// A file name made of the scene's name, letters, digits, '-' and '_' only.
+fn safe_name(scene: &str) -> String {
+    let name: String = (scene.chars())
+        .filter(|c| c.is_ascii_alphanumeric() || *c == '-' || *c == '_')
+        .take(64)
+        .collect();
+    if name.is_empty() {
+        "render".to_owned()
+    } else {
+        name
+    }
+}
+
+/// The event stream: every new snapshot's status as an `status` event, from the latest one
+/// on. The stream holds only the latest snapshot, so a client that reads slowly gets fewer
+/// events, never a backlog.
+fn events(shared: &Arc<Shared>) -> Response<Body> {
+    let (mut sender, body) = Channel::<Bytes, Infallible>::new(1);
+    let mut snapshots = shared.hub.subscribe();
+    snapshots.mark_changed();
+    let mut stopping = shared.stopping.clone();
+    tokio::spawn(async move {
+        let deadline = tokio::time::sleep(STREAM_LIFETIME);
+        tokio::pin!(deadline);
+        let mut message = Some(Bytes::from_static(b"retry: 1000\n\n"));
+        loop {
+            if let Some(m) = message.take() {
+                tokio::select! {
+                    sent = sender.send_data(m) => if sent.is_err() { return },
+                    _ = &mut deadline => return,
+                    _ = stopping.changed() => return,
+                }
+            }
+            tokio::select! {
+                changed = snapshots.changed() => if changed.is_err() { return },
+                _ = &mut deadline => return,
+                _ = stopping.changed() => return,
+            }
+            let snapshot: Arc<Snapshot> = Arc::clone(&snapshots.borrow_and_update());
+            let mut event = Vec::with_capacity(snapshot.status_json.len() + 32);
+            event.extend_from_slice(b"event: status\ndata: ");
+            event.extend_from_slice(&snapshot.status_json);
+            event.extend_from_slice(b"\n\n");
+            message = Some(Bytes::from(event));
+        }
+    });
+    dynamic(body.boxed(), "text/event-stream")
+}
+
+fn asset(body: &'static str, content_type: &'static str) -> Response<Body> {
+    let mut r = Response::new(Full::new(Bytes::from_static(body.as_bytes())).boxed());
+    let h = r.headers_mut();
+    h.insert(header::CONTENT_TYPE, HeaderValue::from_static(content_type));
+    h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-cache"));
+    secure(h);
+    r
+}
+
+fn dynamic(body: Body, content_type: &'static str) -> Response<Body> {
+    let mut r = Response::new(body);
+    let h = r.headers_mut();
+    h.insert(header::CONTENT_TYPE, HeaderValue::from_static(content_type));
+    h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
+    secure(h);
+    r
+}
+
+fn text(status: StatusCode, message: &'static str) -> Response<Body> {
+    let mut r = dynamic(
+        Full::new(Bytes::from_static(message.as_bytes())).boxed(),
+        "text/plain; charset=utf-8",
+    );
+    *r.status_mut() = status;
+    r
+}
+
+/// Headers that keep the page to its own resources and out of other sites' frames.
+fn secure(h: &mut hyper::HeaderMap) {
+    h.insert(
+        header::CONTENT_SECURITY_POLICY,
+        HeaderValue::from_static(
+            "default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self' blob:; \
+             connect-src 'self'; frame-ancestors 'none'; base-uri 'none'; form-action 'none'",
+        ),
+    );
+    h.insert(
+        header::X_CONTENT_TYPE_OPTIONS,
+        HeaderValue::from_static("nosniff"),
+    );
+    h.insert(
+        header::REFERRER_POLICY,
+        HeaderValue::from_static("no-referrer"),
+    );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn buckets_allow_a_burst_then_pace() {
+        let mut b = Bucket::new();
+        for _ in 0..BURST as usize {
+            assert_eq!(b.take(), Duration::ZERO);
+        }
+        let wait = b.take();
+        assert!(
+            wait > Duration::ZERO && wait <= Duration::from_millis(60),
+            "{wait:?}"
+        );
+    }
+
+    #[test]
+    fn download_names_are_plain() {
+        assert_eq!(safe_name("cover"), "cover");
+        assert_eq!(safe_name("../../etc/passwd\"\r\n"), "etcpasswd");
+        assert_eq!(safe_name("é"), "render");
+    }
+}
