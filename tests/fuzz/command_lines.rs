@@ -11,7 +11,7 @@ use tessera::scene::{Overrides, Scene};
 use tessera::shard::{self, Shard};
 
 /// Flags, values that make sense with them, and values that do not. None makes a valid render
-/// longer than a moment.
+/// longer than a moment (`--preview-hold`, which waits for Ctrl-C, is left out).
 #[rustfmt::skip]
 const FLAGS: &[(&str, &[&str], &[&str])] = &[
     ("--width", &["1", "7", "12"], &["0", "-1", "x", "4294967296", "9000000", "1e3", ""]),
@@ -37,6 +37,11 @@ const FLAGS: &[(&str, &[&str], &[&str])] = &[
     ("--list", &[], &[]),
     ("--no-scaling", &[], &[]),
     ("--quiet", &[], &[]),
+    ("--preview=127.0.0.1:0", &[], &[]),
+    ("--preview=nonsense", &[], &[]),
+    ("--preview", &[], &[]),
+    ("--preview-file", &["pv.png"], &["pv.jpg", "no/dir/pv.png", "dir", ""]),
+    ("--preview-every", &["0.5", "1e300"], &["0", "-1", "nan", "x"]),
     ("--bogus", &[], &[]),
 ];
 
