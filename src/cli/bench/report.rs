@@ -1,4 +1,4 @@
-//! A benchmark result as JSON (schema `tessera-bench/1`, documented in the README): its
+//! A benchmark result as JSON (schema `tessera-bench/1`, documented in docs/benchmark-json.md): its
 //! context, measurements and validation; reading results back, and comparing two.
 
 use super::host::{Build, Host};
