@@ -201,6 +201,17 @@ fn strs(args: &[String]) -> Vec<&str> {
     args.iter().map(String::as_str).collect()
 }
 
+/// Renders `args` unwatched to `plain.png` in `dir` and checks that `watched` has its bytes.
+fn assert_unwatched_bytes(dir: &Path, mut args: Vec<String>, watched: &str) {
+    args.extend(["-o", "plain.png"].map(String::from));
+    ok(&strs(&args), dir);
+    assert_eq!(
+        std::fs::read(dir.join("plain.png")).unwrap(),
+        std::fs::read(dir.join(watched)).unwrap(),
+        "{watched} differs from a render nobody watched"
+    );
+}
+
 #[test]
 fn a_watched_render_shows_growing_frames_and_ends_with_the_batch_image() {
     let dir = temp_dir("preview-watch");
@@ -257,14 +268,9 @@ fn a_watched_render_shows_growing_frames_and_ends_with_the_batch_image() {
     let (code, stderr) = viewer.interrupt();
     assert_eq!(code, 0, "Ctrl-C ends a held viewer cleanly: {stderr}");
     assert!(stderr.contains("until Ctrl-C"), "{stderr}");
-    // The same bytes as a render nobody watched.
     let mut plain = cover_args(240, 128);
-    plain.extend(["--threads", "1", "-o", "plain.png"].map(String::from));
-    ok(&strs(&plain), &dir);
-    assert_eq!(
-        std::fs::read(dir.join("plain.png")).unwrap(),
-        std::fs::read(dir.join("watched.png")).unwrap()
-    );
+    plain.extend(["--threads", "1"].map(String::from));
+    assert_unwatched_bytes(&dir, plain, "watched.png");
 }
 
 #[test]
@@ -430,13 +436,7 @@ fn the_server_refuses_what_it_does_not_serve_while_the_render_goes_on() {
     assert_eq!(end["spp_done"], 384);
     let (code, stderr) = viewer.interrupt();
     assert_eq!(code, 0, "{stderr}");
-    let mut plain = cover_args(300, 384);
-    plain.extend(["-o", "plain.png"].map(String::from));
-    ok(&strs(&plain), &dir);
-    assert_eq!(
-        std::fs::read(dir.join("plain.png")).unwrap(),
-        std::fs::read(dir.join("limited.png")).unwrap()
-    );
+    assert_unwatched_bytes(&dir, cover_args(300, 384), "limited.png");
 }
 
 #[test]
@@ -605,13 +605,7 @@ fn ctrl_c_in_a_watched_render_saves_the_checkpoint_and_resumes_to_the_same_bytes
     let mut quiet = strs(&args);
     quiet.retain(|a| *a != "--preview");
     ok(&quiet, &dir);
-    let mut plain = cover_args(400, 256);
-    plain.extend(["-o", "plain.png"].map(String::from));
-    ok(&strs(&plain), &dir);
-    assert_eq!(
-        std::fs::read(dir.join("plain.png")).unwrap(),
-        std::fs::read(dir.join("resumed.png")).unwrap()
-    );
+    assert_unwatched_bytes(&dir, cover_args(400, 256), "resumed.png");
     let preview = image::open(dir.join("p.png")).unwrap().to_rgb8();
     let image = image::open(dir.join("resumed.png")).unwrap().to_rgb8();
     assert!(preview == image, "the last preview is the final image");

@@ -59,13 +59,16 @@ const METHODS: &[&str] = &[
     "",
     "GETGETGETGETGETGETGETGETGETGET",
 ];
-const PATHS: &[&str] = &[
+/// The paths the server serves (with any query), and others.
+const SERVED: &[&str] = &[
     "/",
     "/index.html",
     "/viewer.js",
     "/viewer.css",
     "/status",
     "/frame.png",
+];
+const PATHS: &[&str] = &[
     "/frame.png?download",
     "/frame.png?v=12&download",
     "/status?",
@@ -107,6 +110,8 @@ fn generate(g: &mut Gen, addr: SocketAddr) -> Case {
     let method = g.pick(METHODS);
     let path = if g.chance(5) {
         "/".repeat(1 + g.below(20_000))
+    } else if g.chance(40) {
+        g.pick(SERVED).to_owned()
     } else {
         g.pick(PATHS).to_owned()
     };
@@ -167,21 +172,13 @@ fn generate(g: &mut Gen, addr: SocketAddr) -> Case {
         plain = false;
         bytes = (0..g.below(4096)).map(|_| g.below(256) as u8).collect();
     }
-    let served = [
-        "/",
-        "/index.html",
-        "/viewer.js",
-        "/viewer.css",
-        "/status",
-        "/frame.png",
-    ];
     let bare = path.split('?').next().unwrap_or("");
     let expect = plain.then(|| {
         if method != "GET" && method != "HEAD" {
             405
         } else if !host_ok {
             421
-        } else if served.contains(&bare) {
+        } else if SERVED.contains(&bare) {
             200
         } else {
             404
@@ -270,7 +267,7 @@ fn generated_requests_get_a_meant_answer_and_the_server_keeps_answering() {
                 _ => {}
             }
             checked.set(checked.get() + 1);
-            if checked.get() % 10 == 0 && !check_alive() {
+            if checked.get().is_multiple_of(10) && !check_alive() {
                 return Err("the server stopped answering".into());
             }
             Ok(if status_code(&answer) == Some(200) {
