@@ -89,8 +89,6 @@ pub struct FrameInfo {
 /// One published moment: the status (and its JSON, made once for every viewer) and the frame.
 #[derive(Debug)]
 pub struct Snapshot {
-    /// Counts snapshots; every one has a new status, not always a new frame.
-    pub seq: u64,
     pub status: Status,
     pub status_json: Bytes,
     pub frame: Arc<Frame>,
@@ -132,7 +130,6 @@ pub struct Previewer {
     builder: FrameBuilder,
     frame: Arc<Frame>,
     dirty: bool,
-    seq: u64,
     last_publish: Instant,
     last_pass: usize,
     /// The fraction of the job's samples already done when this run started (a resume).
@@ -160,14 +157,13 @@ impl Previewer {
             done_before,
             RunState::Rendering,
         );
-        let hub = Arc::new(Hub::new(snapshot(0, status, Arc::clone(&frame))));
+        let hub = Arc::new(Hub::new(snapshot(status, Arc::clone(&frame))));
         Self {
             hub,
             about,
             builder,
             frame,
             dirty: false,
-            seq: 0,
             last_publish: Instant::now(),
             last_pass: 0,
             done_before,
@@ -212,10 +208,8 @@ impl Previewer {
                 ..last.clone()
             };
         }
-        self.seq += 1;
         self.status = Some(status.clone());
-        self.hub
-            .publish(snapshot(self.seq, status, Arc::clone(&self.frame)));
+        self.hub.publish(snapshot(status, Arc::clone(&self.frame)));
         self.last_publish = Instant::now();
     }
 
@@ -242,10 +236,9 @@ impl Watch for Previewer {
     }
 }
 
-fn snapshot(seq: u64, status: Status, frame: Arc<Frame>) -> Snapshot {
+fn snapshot(status: Status, frame: Arc<Frame>) -> Snapshot {
     let json = serde_json::to_vec(&status).expect("a status serializes");
     Snapshot {
-        seq,
         status,
         status_json: Bytes::from(json),
         frame,
