@@ -106,8 +106,6 @@ pub struct Progress<'a> {
     pub passes: &'a [u32],
     /// The tiles the workers are rendering now.
     pub active: &'a ActiveTiles,
-    /// Worker threads.
-    pub threads: usize,
 }
 
 /// The tile each worker is rendering, one cache line per worker so that workers never share
@@ -219,7 +217,6 @@ pub fn render_job(
         pass: left.iter().position(|&n| n > 0).unwrap_or(left.len()),
         passes: &ends,
         active: &active,
-        threads,
     };
     if let Some(watch) = control.watch.as_mut() {
         watch.started(state, &progress(0, 0, 0, &left_in_pass));

@@ -163,10 +163,10 @@ fn about(
 ) -> About {
     let s = &scene.settings;
     let r = state.job.region;
-    let path = scene_file;
     About {
-        scene: (path.file_stem()).map_or("scene".into(), |n| n.to_string_lossy().into_owned()),
-        scene_file: path.display().to_string(),
+        scene: (scene_file.file_stem())
+            .map_or("scene".into(), |n| n.to_string_lossy().into_owned()),
+        scene_file: scene_file.display().to_string(),
         width: s.width,
         height: s.height,
         spp: s.samples_per_pixel,

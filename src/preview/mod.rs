@@ -254,34 +254,32 @@ fn status_of(
     run: RunState,
 ) -> Status {
     let spp_total = state.job.samples.len();
-    let (mut status, secs) = (
-        Status {
-            state: run,
-            about: Arc::clone(about),
-            spp_done: state.min_done().min(spp_total),
-            spp_max: state.done.iter().copied().max().unwrap_or(0).min(spp_total),
-            spp_total,
-            pass: 1,
-            passes: 1,
-            pass_spp: spp_total,
-            percent: 100.0 * done_before,
-            elapsed_s: 0.0,
-            eta_s: None,
-            samples_per_sec: 0.0,
-            mrays_per_sec: 0.0,
-            frame: FrameInfo {
-                version: frame.version,
-                width: frame.width,
-                height: frame.height,
-                scale: frame.scale,
-            },
-            tiles: Vec::new(),
+    let mut status = Status {
+        state: run,
+        about: Arc::clone(about),
+        spp_done: state.min_done().min(spp_total),
+        spp_max: state.done.iter().copied().max().unwrap_or(0).min(spp_total),
+        spp_total,
+        pass: 1,
+        passes: 1,
+        pass_spp: spp_total,
+        percent: 100.0 * done_before,
+        elapsed_s: 0.0,
+        eta_s: None,
+        samples_per_sec: 0.0,
+        mrays_per_sec: 0.0,
+        frame: FrameInfo {
+            version: frame.version,
+            width: frame.width,
+            height: frame.height,
+            scale: frame.scale,
         },
-        progress.map_or(0.0, |p| p.elapsed.as_secs_f64()),
-    );
+        tiles: Vec::new(),
+    };
     let Some(p) = progress else {
         return status;
     };
+    let secs = p.elapsed.as_secs_f64();
     let fraction = p.work_done as f64 / p.work_total.max(1) as f64;
     status.pass = (p.pass + 1).min(p.passes.len());
     status.passes = p.passes.len();
