@@ -1,5 +1,5 @@
 //! The `tessera` binary end to end: outputs in every format, the same bytes across thread
-//! counts, `compare` and `bench`, bad command lines (exit 2, no damage on disk), and output
+//! counts, `compare` and `bench`, `--version`, bad command lines (exit 2, no damage on disk), and output
 //! that cannot be written (a full disk, a closed pipe). Bad scene files: `scene_errors.rs`.
 
 mod common;
@@ -190,6 +190,39 @@ fn bench_prints_json() {
     assert_eq!(r["threads"], 2);
     let rps = r["rays_per_sample"].as_f64().unwrap();
     assert!((2.0..3.5).contains(&rps), "rays per sample {rps}");
+}
+
+#[test]
+fn version_names_the_build_and_the_simd_paths_this_cpu_runs() {
+    let dir = temp_dir("version");
+    let o = run(&["--version"], &dir);
+    assert!(o.status.success());
+    let text = String::from_utf8_lossy(&o.stdout).into_owned();
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines[0], format!("tessera {}", env!("CARGO_PKG_VERSION")));
+    let commit = lines[1].strip_prefix("commit ").expect("a commit line");
+    assert!(
+        commit == "unknown"
+            || (commit.len() == 40 && commit.chars().all(|c| c.is_ascii_hexdigit())),
+        "{commit}"
+    );
+    assert!(lines[2].starts_with("target "), "{text}");
+    let simd = lines[3]
+        .strip_prefix("SIMD paths this CPU runs: ")
+        .expect("a SIMD line");
+    for path in tessera::simd::Path::supported() {
+        assert!(simd.contains(path.name()), "{path} missing from {simd}");
+    }
+    let auto = tessera::simd::Path::best();
+    assert!(simd.ends_with(&format!("(auto takes {auto})")), "{simd}");
+    // -V is one line: the version and the commit's first 12 digits.
+    let short = run(&["-V"], &dir);
+    let short = String::from_utf8_lossy(&short.stdout).into_owned();
+    let twelve = commit.get(..12).unwrap_or(commit);
+    assert_eq!(
+        short.trim(),
+        format!("tessera {} ({twelve})", env!("CARGO_PKG_VERSION"))
+    );
 }
 
 #[test]

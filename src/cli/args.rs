@@ -10,7 +10,6 @@ pub const DEFAULT_SCENE: &str = "scenes/cover.toml";
 #[derive(Parser)]
 #[command(
     name = "tessera",
-    version,
     about = "A deterministic multicore path tracer of Ray Tracing in One Weekend"
 )]
 pub struct Cli {

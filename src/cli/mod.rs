@@ -10,17 +10,27 @@ mod settings;
 
 use anyhow::{Context, Result};
 use args::{Cli, Command};
-use clap::Parser;
+use clap::{CommandFactory, FromArgMatches};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use settings::{BenchMode, RenderSettings};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use tessera::image_file::Format;
 use tessera::render::RenderStats;
+use tessera::simd;
 
 /// Parses the command line, or prints help or a usage error and exits.
 pub fn parse() -> Command {
-    let cli = Cli::try_parse().unwrap_or_else(|e| {
+    // `--version` says which build this is and what this CPU runs, so that a binary or an
+    // image found in a cluster can be identified.
+    let version = format!("{} ({})", env!("CARGO_PKG_VERSION"), short_commit());
+    let command = Cli::command()
+        .version(version.leak() as &str)
+        .long_version(long_version().leak() as &str);
+    let parsed = command
+        .try_get_matches()
+        .and_then(|matches| Cli::from_arg_matches(&matches));
+    let cli = parsed.unwrap_or_else(|e| {
         // Written without the panic `Cli::parse` risks on a full disk.
         match e.print() {
             Ok(()) => std::process::exit(e.exit_code()),
@@ -34,6 +44,28 @@ pub fn parse() -> Command {
         }
     });
     cli.command
+}
+
+fn short_commit() -> &'static str {
+    let commit = env!("TESSERA_GIT_COMMIT");
+    commit.get(..12).unwrap_or(commit)
+}
+
+/// `tessera --version`: the version, the commit, the target and the SIMD paths.
+fn long_version() -> String {
+    let paths: Vec<&str> = (simd::Path::supported().iter().rev())
+        .map(|p| p.name())
+        .collect();
+    format!(
+        "{}\ncommit {}\ntarget {} ({} build, {})\nSIMD paths this CPU runs: {} (auto takes {})",
+        env!("CARGO_PKG_VERSION"),
+        env!("TESSERA_GIT_COMMIT"),
+        env!("TESSERA_TARGET"),
+        env!("TESSERA_PROFILE"),
+        env!("TESSERA_RUSTC_VERSION"),
+        paths.join(", "),
+        simd::Path::best().name(),
+    )
 }
 
 /// Runs `command`.
