@@ -72,6 +72,45 @@ fn parallel_sample_shards_merge_to_the_single_render() {
 }
 
 #[test]
+fn a_directory_of_parts_merges_as_its_part_files() {
+    // As a Kubernetes merge job runs it: no shell to expand `*.part`, checkpoints and other
+    // files beside the parts.
+    let dir = temp_dir("shards-directory");
+    let scene = cover();
+    ok(&small(&scene, &["-o", "single.png"]), &dir);
+    std::fs::create_dir_all(dir.join("parts")).unwrap();
+    std::fs::create_dir_all(dir.join("empty")).unwrap();
+    for i in 0..3 {
+        let spec = format!("{i}/3");
+        let out = format!("parts/shard-{i}.part");
+        let checkpoint = format!("parts/shard-{i}.ckpt");
+        ok(
+            &small(
+                &scene,
+                &["--shard", &spec, "--checkpoint", &checkpoint, "-o", &out],
+            ),
+            &dir,
+        );
+    }
+    std::fs::write(dir.join("parts/notes.txt"), "not a part").unwrap();
+    ok(&["merge", "parts", "-o", "merged.png"], &dir);
+    assert_eq!(bytes(&dir, "merged.png"), bytes(&dir, "single.png"));
+    let empty = run(&["merge", "empty", "-o", "out.png"], &dir);
+    assert_eq!(empty.status.code(), Some(2));
+    assert!(
+        stderr(&empty).contains("empty: no .part files"),
+        "{}",
+        stderr(&empty)
+    );
+    // A part named twice (the directory and the file) overlaps, as any repeated part does.
+    let twice = run(
+        &["merge", "parts", "parts/shard-0.part", "-o", "out.png"],
+        &dir,
+    );
+    assert!(stderr(&twice).contains("overlaps"), "{}", stderr(&twice));
+}
+
+#[test]
 fn row_shards_and_sample_ranges_merge_to_the_single_render() {
     let dir = temp_dir("shards-rows");
     let scene = cover();

@@ -27,7 +27,8 @@ pub enum Command {
     /// Combine partial renders (shards, sample ranges) into one image, byte-identical to a
     /// single render of the same scene and settings.
     Merge {
-        /// Partial render files written by `render --shard` or `--samples`.
+        /// Partial render files written by `render --shard` or `--samples`; a directory
+        /// stands for every `.part` file in it.
         #[arg(required = true)]
         parts: Vec<PathBuf>,
         /// Output image (.png, .ppm or .exr).

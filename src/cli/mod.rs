@@ -80,7 +80,8 @@ pub fn run(command: Command) -> Result<()> {
 
 fn merge(paths: &[PathBuf], output: &Path) -> Result<()> {
     Format::from_path(output)?;
-    let (film, gamma) = tessera::partial::merge_files(paths)?;
+    let paths = part_files(paths)?;
+    let (film, gamma) = tessera::partial::merge_files(&paths)?;
     film.save(output, gamma)?;
     note(format_args!(
         "{}: merged {} parts, {}x{}, {} spp",
@@ -91,6 +92,35 @@ fn merge(paths: &[PathBuf], output: &Path) -> Result<()> {
         film.samples_per_pixel
     ));
     Ok(())
+}
+
+/// The part files `paths` name: a directory stands for every `*.part` file in it (sorted),
+/// as a shared volume holds a job's parts where no shell expands `*.part`.
+fn part_files(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    let mut files = Vec::new();
+    for path in paths {
+        if !path.is_dir() {
+            files.push(path.clone());
+            continue;
+        }
+        let entries = std::fs::read_dir(path)
+            .with_context(|| format!("{}: could not list the directory", path.display()))?;
+        let mut parts = Vec::new();
+        for entry in entries {
+            let entry = entry
+                .with_context(|| format!("{}: could not list the directory", path.display()))?;
+            let file = entry.path();
+            if file.extension().is_some_and(|e| e == "part") && file.is_file() {
+                parts.push(file);
+            }
+        }
+        if parts.is_empty() {
+            anyhow::bail!("{}: no .part files in the directory", path.display());
+        }
+        parts.sort();
+        files.extend(parts);
+    }
+    Ok(files)
 }
 
 fn compare(a: &Path, b: &Path) -> Result<()> {
