@@ -71,8 +71,9 @@ fn a_quick_result_is_valid_and_carries_build_host_and_workload() {
     let supported = build["simd_supported"].as_array().unwrap();
     assert!(supported.contains(&build["simd"]));
     let host = &r["host"];
-    let cpus = host["logical_cpus"].as_u64().unwrap() as usize;
+    let cpus = host["cpus_usable"].as_u64().unwrap() as usize;
     assert!(cpus >= 1);
+    assert!(host["logical_cpus"].as_u64().unwrap() as usize >= cpus);
     if cfg!(target_os = "linux") {
         for field in ["cpu_model", "memory_bytes", "kernel", "load_average", "os"] {
             assert!(!host[field].is_null(), "host.{field}");

@@ -1,7 +1,9 @@
 //! The context of a benchmark result: the build (version, commit, compiler, SIMD path) and
-//! the host (CPU, cores, memory, OS, kernel, load), read from `/proc` and `/etc` on Linux;
-//! what cannot be read is left empty rather than guessed.
+//! the host (CPU, cores, memory, OS, kernel, load, and the container and CPU limit it ran
+//! under), read from `/proc`, `/sys` and `/etc` on Linux; what cannot be read is left empty
+//! rather than guessed.
 
+use super::confinement::{self, read_file};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeSet;
 use tessera::simd;
@@ -22,7 +24,24 @@ pub struct Build {
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct Host {
     pub cpu_model: Option<String>,
+    /// The machine's online CPUs.
     pub logical_cpus: usize,
+    /// The CPUs this process may use: the default thread count, which follows a container's
+    /// CPU limit and the affinity (`std::thread::available_parallelism`). Absent (0) in
+    /// results from before it was recorded.
+    #[serde(default)]
+    pub cpus_usable: usize,
+    /// The container runtime the run was in, where one was recognised.
+    #[serde(default)]
+    pub container: Option<String>,
+    /// The CPUs the cgroup's quota allowed (quota ÷ period, e.g. `--cpus=1.5`); absent
+    /// without a quota.
+    #[serde(default)]
+    pub cpu_quota: Option<f64>,
+    /// The CPUs the affinity allowed, when fewer than the machine's (`--cpuset-cpus`,
+    /// `taskset`, a Slurm cgroup).
+    #[serde(default)]
+    pub cpus_allowed: Option<usize>,
     pub physical_cores: Option<usize>,
     pub memory_bytes: Option<u64>,
     pub os: Option<String>,
@@ -48,10 +67,6 @@ impl Build {
     }
 }
 
-fn read(path: &str) -> Option<String> {
-    std::fs::read_to_string(path).ok()
-}
-
 /// The value of `key` in a `key : value` listing such as /proc/cpuinfo.
 fn field<'a>(line: &'a str, key: &str) -> Option<&'a str> {
     let (k, v) = line.split_once(':')?;
@@ -60,7 +75,7 @@ fn field<'a>(line: &'a str, key: &str) -> Option<&'a str> {
 
 impl Host {
     pub fn this() -> Self {
-        let cpuinfo = read("/proc/cpuinfo").unwrap_or_default();
+        let cpuinfo = read_file("/proc/cpuinfo").unwrap_or_default();
         let cpu_model = cpuinfo
             .lines()
             .find_map(|l| field(l, "model name"))
@@ -76,16 +91,16 @@ impl Host {
                 cores.insert((package.clone(), v.to_owned()));
             }
         }
-        let memory_bytes = read("/proc/meminfo").and_then(|m| {
+        let memory_bytes = read_file("/proc/meminfo").and_then(|m| {
             let kb = m.lines().find_map(|l| field(l, "MemTotal"))?;
             Some(kb.trim_end_matches("kB").trim().parse::<u64>().ok()? * 1024)
         });
-        let os = read("/etc/os-release").and_then(|t| {
+        let os = read_file("/etc/os-release").and_then(|t| {
             let line = t.lines().find(|l| l.starts_with("PRETTY_NAME="))?;
             Some(line["PRETTY_NAME=".len()..].trim_matches('"').to_owned())
         });
-        let kernel = read("/proc/sys/kernel/osrelease").map(|k| format!("Linux {}", k.trim()));
-        let load_average = read("/proc/loadavg").and_then(|t| {
+        let kernel = read_file("/proc/sys/kernel/osrelease").map(|k| format!("Linux {}", k.trim()));
+        let load_average = read_file("/proc/loadavg").and_then(|t| {
             let v: Vec<f64> = t
                 .split_whitespace()
                 .take(3)
@@ -93,9 +108,16 @@ impl Host {
                 .collect();
             Some([*v.first()?, *v.get(1)?, *v.get(2)?])
         });
+        let cpus_usable = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let logical_cpus = confinement::online_cpus(&read_file).unwrap_or(cpus_usable);
+        let var = |name: &str| std::env::var(name).ok();
         Self {
             cpu_model,
-            logical_cpus: std::thread::available_parallelism().map_or(1, |n| n.get()),
+            logical_cpus,
+            cpus_usable,
+            container: confinement::container(&read_file, &var),
+            cpu_quota: confinement::cpu_quota(&read_file),
+            cpus_allowed: confinement::allowed_cpus(&read_file).filter(|&n| n < logical_cpus),
             physical_cores: (!cores.is_empty()).then_some(cores.len()),
             memory_bytes,
             os: os.or_else(|| Some(std::env::consts::OS.to_owned())),

@@ -5,6 +5,7 @@
 //! results side by side; `--chart` draws them.
 
 mod chart;
+mod confinement;
 mod host;
 mod report;
 pub mod workload;
@@ -182,6 +183,31 @@ fn validate(workload: &Workload, images: BTreeSet<String>) -> Validation {
     }
 }
 
+/// Where the run was confined (a container, a CPU quota, an affinity), as `host`'s last words.
+fn confinement_text(h: &Host) -> String {
+    let mut limits = Vec::new();
+    if let Some(quota) = h.cpu_quota {
+        limits.push(format!("a quota of {quota:.2} CPUs"));
+    }
+    if let Some(n) = h.cpus_allowed {
+        limits.push(format!("an affinity of {n} CPUs"));
+    }
+    let mut t = h
+        .container
+        .as_ref()
+        .map_or(String::new(), |c| format!("\n  in a {c} container"));
+    if !limits.is_empty() {
+        t.push_str(if t.is_empty() {
+            "\n  under "
+        } else {
+            " under "
+        });
+        t.push_str(&limits.join(" and "));
+        t.push_str(&format!(": {} usable", h.cpus_usable));
+    }
+    t
+}
+
 /// The report for people.
 fn text(r: &Report) -> String {
     let w = &r.workload;
@@ -191,7 +217,7 @@ fn text(r: &Report) -> String {
         w.name, w.scene, w.width, w.height, w.spp, w.max_depth, w.seed, w.id
     );
     t.push_str(&format!(
-        "build {} {} ({}), SIMD {}\nhost {}, {} CPUs{}{}, load {}\n",
+        "build {} {} ({}), SIMD {}\nhost {}, {} CPUs{}{}, load {}{}\n",
         r.build.version,
         r.build.commit.chars().take(12).collect::<String>(),
         r.build.rustc,
@@ -206,6 +232,7 @@ fn text(r: &Report) -> String {
         )),
         h.load_average
             .map_or("unknown".into(), |l| format!("{:.2}", l[0])),
+        confinement_text(h),
     ));
     t.push_str(&format!(
         "median of {} after {} warm-up: {:.2} s wall, {:.3} M samples/s, {:.2} Mrays/s, \
