@@ -1,6 +1,7 @@
 //! One binary for every CPU: each SIMD path this CPU runs gives the same bytes, and the
 //! release binary runs on an emulated x86-64 without AVX (`qemu-x86_64 -cpu qemu64`, from
-//! Debian's `qemu-user`), where it picks the portable path, with the same bytes again.
+//! Debian's `qemu-user`), where it picks the portable path, with the same bytes again. So do
+//! an aarch64 build under emulation and the static (musl) build of the container image.
 
 mod common;
 
@@ -192,6 +193,38 @@ fn an_aarch64_build_renders_the_same_bytes() {
         assert!(
             std::fs::read(&native).unwrap() == std::fs::read(&emulated).unwrap(),
             "{scene}: aarch64 differs from x86-64"
+        );
+    }
+}
+
+/// The static (musl) build the container image holds (`TESSERA_STATIC_BIN`, which `.ci/run`
+/// builds with deploy/container/build.sh) gives this build's bytes on the cover and every
+/// figure scene.
+#[test]
+fn the_static_build_renders_the_same_bytes() {
+    let name = "the_static_build_renders_the_same_bytes";
+    let Some(static_bin) = std::env::var_os("TESSERA_STATIC_BIN").map(PathBuf::from) else {
+        skip(
+            name,
+            "TESSERA_STATIC_BIN is not set (.ci/run builds one with deploy/container/build.sh)",
+        );
+        return;
+    };
+    assert!(
+        static_bin.is_file(),
+        "TESSERA_STATIC_BIN={} is not a file",
+        static_bin.display()
+    );
+    let static_bin = static_bin.to_str().unwrap();
+    let dir = temp_dir("static");
+    let bin = env!("CARGO_BIN_EXE_tessera");
+    for (scene, flags) in scenes() {
+        let (ours, theirs) = (dir.join("this.png"), dir.join("static.png"));
+        render(&[bin], &scene, &flags, &ours);
+        render(&[static_bin], &scene, &flags, &theirs);
+        assert!(
+            std::fs::read(&ours).unwrap() == std::fs::read(&theirs).unwrap(),
+            "{scene}: the static build differs"
         );
     }
 }

@@ -1,0 +1,36 @@
+#!/usr/bin/env bash
+# Builds tessera's container image without pulling anything: first the static binary
+# (target x86_64-unknown-linux-musl, cargo profile `container`), then the image from
+# deploy/container/Containerfile, labelled with the version, the commit and the source.
+# Prints the image's two tags, the version's first:
+#
+#   tessera:0.1.0
+#   tessera:0.1.0-<commit>
+#
+# ENGINE=docker builds with Docker instead of Podman; SOURCE sets the source label (default:
+# the git remote `origin`). Further arguments go to the engine's `build`.
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+engine=${ENGINE:-podman}
+target=x86_64-unknown-linux-musl
+if command -v rustup >/dev/null && ! rustup target list --installed | grep -qx "$target"; then
+  rustup target add "$target" >&2
+fi
+cargo build --locked --profile container --target "$target" >&2
+
+version=$(sed -n 's/^version = "\(.*\)"$/\1/p' Cargo.toml | head -n 1)
+revision=$(git rev-parse HEAD 2>/dev/null || echo unknown)
+source=${SOURCE:-$(git config --get remote.origin.url 2>/dev/null || echo unknown)}
+# The commit's time, not the build's, so that the same commit builds the same image.
+epoch=$(git log -1 --format=%ct 2>/dev/null || echo 0)
+created=$(date -u -d "@$epoch" +%Y-%m-%dT%H:%M:%SZ)
+tags=("tessera:$version")
+[ "$revision" != unknown ] && tags+=("tessera:$version-${revision:0:12}")
+
+args=(-f deploy/container/Containerfile
+  --build-arg "VERSION=$version" --build-arg "REVISION=$revision"
+  --build-arg "SOURCE=$source" --build-arg "CREATED=$created")
+for tag in "${tags[@]}"; do args+=(-t "$tag"); done
+[ "$engine" = podman ] && args+=(--timestamp "$epoch")
+"$engine" build "${args[@]}" "$@" . >&2
+printf '%s\n' "${tags[@]}"
