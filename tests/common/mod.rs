@@ -110,6 +110,36 @@ pub fn skip(test: &str, why: &str) {
     let _ = writeln!(std::io::stderr(), "skipped {test}: {why}");
 }
 
+/// Flags this machine's Podman needs and a cluster does not: the runtime that works with
+/// this kernel's cgroups, and limits within what the sandbox lets a container set.
+pub const PODMAN_FLAGS: &[&str] = &[
+    "--runtime",
+    "runc",
+    "--ulimit",
+    "nofile=1024:1024",
+    "--ulimit",
+    "nproc=4096:4096",
+];
+
+/// The container image under test (`TESSERA_IMAGE`, which `.ci/run` builds with
+/// deploy/container/build.sh), if Podman runs here and has it; otherwise why not.
+pub fn container_image() -> Result<String, String> {
+    let podman = |args: &[&str]| Command::new("podman").args(args).output();
+    if let Err(e) = podman(&["--version"]) {
+        return Err(format!(
+            "podman cannot run ({e}): install Debian's podman and runc"
+        ));
+    }
+    let image = std::env::var("TESSERA_IMAGE").map_err(|_| {
+        "TESSERA_IMAGE is not set: build the image with deploy/container/build.sh (.ci/run does)"
+            .to_owned()
+    })?;
+    match podman(&["image", "exists", &image]) {
+        Ok(o) if o.status.success() => Ok(image),
+        _ => Err(format!("TESSERA_IMAGE={image} is not an image Podman has")),
+    }
+}
+
 /// A valid small scene (16×9, one red sphere), for tests to break one line at a time.
 pub const GOOD: &str = r#"[image]
 width = 16
