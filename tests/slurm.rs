@@ -1,6 +1,6 @@
 //! The Slurm scripts in `deploy/slurm/` against a real Slurm cluster: an array of shards and
-//! its merge give the bytes of a single render, also when a task is requeued mid-render and
-//! when the array has one task.
+//! its merge give the bytes of a single render, also when a task is requeued mid-render,
+//! when the array has one task, and when tessera runs from the container image.
 //!
 //! The cluster is whatever `sinfo` reaches (`SLURM_CONF`); `deploy/slurm/local-cluster.sh
 //! start` makes a single-node one, as `.ci/run` does. Without one the tests are skipped, saying
@@ -55,6 +55,8 @@ impl Drop for Jobs {
 struct SlurmRender {
     dir: PathBuf,
     extra: String,
+    /// More variables for submit.sh (CONTAINER, …).
+    env: Vec<(String, String)>,
 }
 
 impl SlurmRender {
@@ -62,6 +64,7 @@ impl SlurmRender {
         Self {
             dir: temp_dir(&format!("slurm-{name}")),
             extra: extra.to_owned(),
+            env: Vec::new(),
         }
     }
 
@@ -75,6 +78,7 @@ impl SlurmRender {
             .env("OUTDIR", self.dir.join("parts"))
             .env("IMAGE", self.dir.join("merged.png"))
             .env("TESSERA", env!("CARGO_BIN_EXE_tessera"))
+            .envs(self.env.iter().map(|(k, v)| (k, v)))
             .output()
             .expect("run submit.sh");
         assert!(o.status.success(), "submit.sh: {}", text(&o.stderr));
@@ -210,6 +214,28 @@ fn an_array_of_one_task_works() {
     let mut jobs = Jobs(Vec::new());
     let render = SlurmRender::new("one", "--width 90 --spp 6");
     let (_, merge) = render.submit(1, &mut jobs);
+    wait_for(&render, &merge);
+    render.assert_merged_equals_single();
+}
+
+#[test]
+fn an_array_can_run_tessera_from_the_container_image() {
+    if !cluster_answers() {
+        return;
+    }
+    let image = match container_image() {
+        Ok(image) => image,
+        Err(why) => return skip("an_array_can_run_tessera_from_the_container_image", &why),
+    };
+    let mut jobs = Jobs(Vec::new());
+    let mut render = SlurmRender::new("container", "--width 120 --spp 16");
+    render.env = vec![
+        ("CONTAINER".into(), image),
+        ("PODMAN_FLAGS".into(), PODMAN_FLAGS.join(" ")),
+        // No binary to fall back on: the image must do the work.
+        ("TESSERA".into(), "/nonexistent/tessera".into()),
+    ];
+    let (_, merge) = render.submit(2, &mut jobs);
     wait_for(&render, &merge);
     render.assert_merged_equals_single();
 }

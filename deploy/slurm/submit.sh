@@ -3,6 +3,9 @@
 #   usage: deploy/slurm/submit.sh N [sbatch options...]
 #   e.g.   SCENE=scenes/cover.toml EXTRA="--spp 4000" IMAGE=cover.exr deploy/slurm/submit.sh 16
 #
+# CONTAINER=IMAGE runs tessera from that container image (deploy/container/) with Podman on
+# the nodes, through podman-tessera, instead of the binary TESSERA.
+#
 # Each task gets CPUS_PER_TASK CPUs; by default as many as the smallest node has, taken from
 # Slurm (`sinfo`), so a task fills a node whatever its size. sbatch options given after N
 # (e.g. --partition, --cpus-per-task) override these. Prints the two job ids:
@@ -17,6 +20,10 @@ case $n in
 esac
 export SCENE=${SCENE:-scenes/cover.toml} OUTDIR=${OUTDIR:-parts} EXTRA=${EXTRA:-}
 export IMAGE=${IMAGE:-render.png} TESSERA=${TESSERA:-tessera}
+if [ -n "${CONTAINER:-}" ]; then
+  TESSERA="$(cd "$here" && pwd)/podman-tessera"
+  export CONTAINER
+fi
 cpus=${CPUS_PER_TASK:-$(sinfo -h -N -o %c | tr -d '+' | sort -n | head -n 1)}
 [ -n "$cpus" ] || { echo "submit.sh: sinfo lists no nodes" >&2 && exit 2; }
 array=$(sbatch --parsable --export=ALL --array=0-$((n - 1)) --cpus-per-task="$cpus" \
