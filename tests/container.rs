@@ -468,24 +468,10 @@ fn the_default_thread_count_follows_the_cpu_limit() {
         );
     }
     // The bench's host block says where it ran and under what limit.
-    let o = run_image(
-        &image,
-        &["--cpus=1", "-v", &volume],
-        &[
-            "bench",
-            "scenes/cover.toml",
-            "--width",
-            "40",
-            "--spp",
-            "1",
-            "--repeat",
-            "1",
-            "--warmup",
-            "0",
-            "--no-scaling",
-            "--json",
-        ],
-    );
+    let bench = "bench scenes/cover.toml --width 40 --spp 1 --repeat 1 --warmup 0 --no-scaling";
+    let mut args: Vec<&str> = bench.split(' ').collect();
+    args.push("--json");
+    let o = run_image(&image, &["--cpus=1", "-v", &volume], &args);
     assert!(o.status.success(), "{}", text(&o.stderr));
     let result: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let host = &result["host"];
