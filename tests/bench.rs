@@ -52,7 +52,7 @@ fn a_quick_result_is_valid_and_carries_build_host_and_workload() {
     let printed: Value = serde_json::from_slice(&o.stdout).unwrap();
     let r = json(&dir.join("r.json"));
     assert_eq!(printed, r, "--out writes what --json prints");
-    assert_eq!(r["schema"], "tessera-bench/1");
+    assert_eq!(r["schema"], "tessera-bench/2");
     assert_eq!(r["validation"]["status"], "valid");
     assert_eq!(r["validation"]["images"].as_array().unwrap().len(), 1);
     assert_eq!(r["workload"]["name"], "quick");
@@ -74,6 +74,11 @@ fn a_quick_result_is_valid_and_carries_build_host_and_workload() {
     let cpus = host["cpus_usable"].as_u64().unwrap() as usize;
     assert!(cpus >= 1);
     assert!(host["logical_cpus"].as_u64().unwrap() as usize >= cpus);
+    let machine = host["machine_id"].as_str().unwrap();
+    assert!(
+        machine.starts_with("m-") && machine.len() == 18,
+        "{machine}"
+    );
     if cfg!(target_os = "linux") {
         for field in ["cpu_model", "memory_bytes", "kernel", "load_average", "os"] {
             assert!(!host[field].is_null(), "host.{field}");
@@ -189,7 +194,7 @@ fn bad_results_and_workloads_are_refused_with_status_2() {
     let a = std::fs::read_to_string(dir.join("a.json")).unwrap();
     std::fs::write(
         dir.join("future.json"),
-        a.replace("tessera-bench/1", "tessera-bench/9"),
+        a.replace("tessera-bench/2", "tessera-bench/9"),
     )
     .unwrap();
     std::fs::write(

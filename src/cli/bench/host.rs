@@ -48,6 +48,20 @@ pub struct Host {
     pub kernel: Option<String>,
     /// The 1, 5 and 15 minute load averages when the benchmark started.
     pub load_average: Option<[f64; 3]>,
+    /// Names the machine without naming a person: a hash of /etc/machine-id, or where there
+    /// is none (a container) of the CPU model, CPU and core counts and memory. Absent in
+    /// `tessera-bench/1` results (see `Report::machine_id`).
+    #[serde(default)]
+    pub machine_id: Option<String>,
+    /// Whether simultaneous multithreading (Hyper-Threading) is on.
+    #[serde(default)]
+    pub smt: Option<bool>,
+    /// The CPU's base clock (cpufreq's base_frequency, or an Intel model name's "@ 2.60GHz").
+    #[serde(default)]
+    pub cpu_base_mhz: Option<f64>,
+    /// The CPU's highest clock (cpufreq's cpuinfo_max_freq).
+    #[serde(default)]
+    pub cpu_max_mhz: Option<f64>,
 }
 
 impl Build {
@@ -111,18 +125,124 @@ impl Host {
         let cpus_usable = std::thread::available_parallelism().map_or(1, |n| n.get());
         let logical_cpus = confinement::online_cpus(&read_file).unwrap_or(cpus_usable);
         let var = |name: &str| std::env::var(name).ok();
+        let physical_cores = (!cores.is_empty()).then_some(cores.len());
+        let smt = read_file("/sys/devices/system/cpu/smt/active")
+            .and_then(|t| match t.trim() {
+                "1" => Some(true),
+                "0" => Some(false),
+                _ => None,
+            })
+            .or_else(|| physical_cores.map(|c| logical_cpus > c));
+        let khz = |path: &str| {
+            let khz: f64 = read_file(path)?.trim().parse().ok()?;
+            (khz.is_finite() && khz > 0.0).then_some(khz / 1000.0)
+        };
+        let cpu_base_mhz =
+            khz("/sys/devices/system/cpu/cpu0/cpufreq/base_frequency").or_else(|| {
+                cpu_model
+                    .as_deref()
+                    .and_then(model_name_ghz)
+                    .map(|g| g * 1000.0)
+            });
+        let cpu_max_mhz = khz("/sys/devices/system/cpu/cpu0/cpufreq/cpuinfo_max_freq");
+        let machine_id = machine_id(
+            read_file("/etc/machine-id").or_else(|| read_file("/var/lib/dbus/machine-id")),
+            &Facts {
+                cpu_model: cpu_model.as_deref(),
+                logical_cpus,
+                physical_cores,
+                memory_bytes,
+            },
+        );
         Self {
+            machine_id: Some(machine_id),
+            smt,
+            cpu_base_mhz,
+            cpu_max_mhz,
             cpu_model,
             logical_cpus,
             cpus_usable,
             container: confinement::container(&read_file, &var),
             cpu_quota: confinement::cpu_quota(&read_file),
             cpus_allowed: confinement::allowed_cpus(&read_file).filter(|&n| n < logical_cpus),
-            physical_cores: (!cores.is_empty()).then_some(cores.len()),
+            physical_cores,
             memory_bytes,
             os: os.or_else(|| Some(std::env::consts::OS.to_owned())),
             kernel,
             load_average,
         }
+    }
+}
+
+/// The clock an Intel model name states: "… CPU @ 2.60GHz" is 2.6.
+fn model_name_ghz(model: &str) -> Option<f64> {
+    let (_, after) = model.rsplit_once('@')?;
+    let ghz: f64 = after.trim().strip_suffix("GHz")?.trim().parse().ok()?;
+    (ghz.is_finite() && ghz > 0.0 && ghz < 100.0).then_some(ghz)
+}
+
+/// What identifies a machine where it has no machine id.
+pub struct Facts<'a> {
+    pub cpu_model: Option<&'a str>,
+    pub logical_cpus: usize,
+    pub physical_cores: Option<usize>,
+    pub memory_bytes: Option<u64>,
+}
+
+/// A machine's id: `m-` and 16 hex digits of a hash of its /etc/machine-id (salted, so the
+/// id itself is not disclosed), or of its hardware facts (memory in whole GiB, as the
+/// kernel reports a little less or more from boot to boot) where it has none.
+pub fn machine_id(system_id: Option<String>, facts: &Facts) -> String {
+    let id = system_id
+        .map(|t| t.trim().to_owned())
+        .filter(|t| !t.is_empty());
+    let text = match id {
+        Some(id) => format!("tessera machine id\0{id}"),
+        None => format!(
+            "tessera machine facts\0{}\0{}\0{:?}\0{:?}",
+            facts.cpu_model.unwrap_or(""),
+            facts.logical_cpus,
+            facts.physical_cores,
+            facts.memory_bytes.map(|b| (b + (1 << 29)) >> 30)
+        ),
+    };
+    format!("m-{:016x}", xxhash_rust::xxh3::xxh3_64(text.as_bytes()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn intel_model_names_give_their_base_clock() {
+        let xeon = "Intel(R) Xeon(R) Platinum 8375C CPU @ 2.90GHz";
+        assert_eq!(model_name_ghz(xeon), Some(2.9));
+        assert_eq!(model_name_ghz("AMD EPYC 9R45 96-Core Processor"), None);
+        assert_eq!(model_name_ghz("weird @ lots GHz"), None);
+        assert_eq!(model_name_ghz("@ 1e99GHz"), None);
+    }
+
+    #[test]
+    fn machine_ids_name_a_machine_without_revealing_it() {
+        let facts = Facts {
+            cpu_model: Some("AMD EPYC"),
+            logical_cpus: 2,
+            physical_cores: Some(2),
+            memory_bytes: Some(24 << 30),
+        };
+        let system = "3d1219c7aaaabbbbccccddddeeeeffff";
+        let a = machine_id(Some(format!("{system}\n")), &facts);
+        assert_eq!(a, machine_id(Some(system.into()), &facts));
+        assert!(a.starts_with("m-") && a.len() == 18, "{a}");
+        assert!(!a.contains("3d1219c7"));
+        assert_ne!(a, machine_id(Some("another".into()), &facts));
+        // Without a system id: the facts, with memory to the GiB.
+        let b = machine_id(None, &facts);
+        let slightly_less = Facts {
+            memory_bytes: Some((24 << 30) - (40 << 20)),
+            ..facts
+        };
+        assert_eq!(b, machine_id(Some(" \n".into()), &slightly_less));
+        assert_ne!(b, a);
     }
 }

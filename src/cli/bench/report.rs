@@ -1,5 +1,6 @@
-//! A benchmark result as JSON (schema `tessera-bench/1`, documented in docs/benchmark-json.md): its
-//! context, measurements and validation; reading results back, and comparing two.
+//! A benchmark result as JSON (schema `tessera-bench/2`, documented in docs/benchmark-json.md): its
+//! context, measurements and validation; reading results back (from a stranger's machine as
+//! much as our own: sizes, types and values are checked), and comparing two.
 
 use super::host::{Build, Host};
 use anyhow::{Context, Result, bail};
@@ -7,10 +8,16 @@ use serde::{Deserialize, Serialize};
 use std::io::Read;
 use std::path::Path;
 
-/// The schema this build writes and reads.
-pub const SCHEMA: &str = "tessera-bench/1";
+/// The schema this build writes.
+pub const SCHEMA: &str = "tessera-bench/2";
+/// The schemas this build reads: `/1` lacks the host's machine id, clocks and SMT state.
+pub const READS: [&str; 2] = ["tessera-bench/1", SCHEMA];
 /// The largest result file read: real ones are a few kilobytes.
-const MAX_FILE: u64 = 16 << 20;
+pub const MAX_FILE: u64 = 1 << 20;
+/// The longest text field accepted (a CPU model, a commit, a scene name).
+const MAX_TEXT: usize = 256;
+/// The most threads a result may claim; more is no machine's.
+const MAX_THREADS: usize = 1 << 16;
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -111,34 +118,170 @@ pub struct Validation {
 }
 
 impl Report {
-    /// Reads a result file, refusing anything that is not a result of this schema.
+    /// Reads a result file, refusing anything that is not a sound result of a schema this
+    /// build reads.
     pub fn read(path: &Path) -> Result<Self> {
-        let what = || format!("{}", path.display());
-        let file =
-            std::fs::File::open(path).with_context(|| format!("could not open {}", what()))?;
-        let mut text = String::new();
+        let what = path.display().to_string();
+        let file = std::fs::File::open(path).with_context(|| format!("could not open {what}"))?;
+        let mut bytes = Vec::new();
         file.take(MAX_FILE + 1)
-            .read_to_string(&mut text)
-            .with_context(|| format!("could not read {} (is it a JSON text file?)", what()))?;
-        if text.len() as u64 > MAX_FILE {
+            .read_to_end(&mut bytes)
+            .with_context(|| format!("could not read {what}"))?;
+        Self::parse(&bytes, &what)
+    }
+
+    /// A result from the bytes of a file named `what`.
+    pub fn parse(bytes: &[u8], what: &str) -> Result<Self> {
+        if bytes.len() as u64 > MAX_FILE {
             bail!(
-                "{}: larger than {} MiB: not a tessera bench result",
-                what(),
-                MAX_FILE >> 20
+                "{what}: larger than {} KiB: not a tessera bench result",
+                MAX_FILE >> 10
             );
         }
-        let value: serde_json::Value = serde_json::from_str(&text)
-            .map_err(|e| anyhow::anyhow!("{}: not JSON: {e}", what()))?;
+        let text = std::str::from_utf8(bytes)
+            .map_err(|_| anyhow::anyhow!("{what}: not UTF-8 text: not a tessera bench result"))?;
+        // serde_json refuses nesting deeper than 128 before it could exhaust the stack.
+        let value: serde_json::Value =
+            serde_json::from_str(text).map_err(|e| anyhow::anyhow!("{what}: not JSON: {e}"))?;
         match value.get("schema").and_then(|s| s.as_str()) {
-            Some(SCHEMA) => {}
+            Some(s) if READS.contains(&s) => {}
             Some(other) => bail!(
-                "{}: schema `{other}`, this tessera reads `{SCHEMA}`",
-                what()
+                "{what}: schema `{}`: this tessera reads {} (a newer tessera wrote it?)",
+                other.escape_debug().take(64).collect::<String>(),
+                READS.join(" and ")
             ),
-            None => bail!("{}: not a tessera bench result (no `schema` field)", what()),
+            None => bail!("{what}: not a tessera bench result (no `schema` field)"),
         }
-        serde_json::from_value(value)
-            .map_err(|e| anyhow::anyhow!("{}: not a valid `{SCHEMA}` result: {e}", what()))
+        let report: Report = serde_json::from_value(value)
+            .map_err(|e| anyhow::anyhow!("{what}: not a valid result: {e}"))?;
+        report
+            .check()
+            .map_err(|why| anyhow::anyhow!("{what}: not a sound result: {why}"))?;
+        Ok(report)
+    }
+
+    /// Refuses what no real run produces: absurd counts, times and speeds, overlong text,
+    /// a headline missing from its table, a validation that contradicts itself.
+    pub fn check(&self) -> Result<(), String> {
+        let texts = [
+            ("build.version", Some(&self.build.version)),
+            ("build.commit", Some(&self.build.commit)),
+            ("build.rustc", Some(&self.build.rustc)),
+            ("build.target", Some(&self.build.target)),
+            ("build.profile", Some(&self.build.profile)),
+            ("build.simd", Some(&self.build.simd)),
+            ("host.cpu_model", self.host.cpu_model.as_ref()),
+            ("host.os", self.host.os.as_ref()),
+            ("host.kernel", self.host.kernel.as_ref()),
+            ("host.container", self.host.container.as_ref()),
+            ("host.machine_id", self.host.machine_id.as_ref()),
+            ("workload.name", Some(&self.workload.name)),
+            ("workload.scene", Some(&self.workload.scene)),
+            ("workload.id", Some(&self.workload.id)),
+            ("validation.status", Some(&self.validation.status)),
+        ];
+        for (name, text) in texts {
+            if text.is_some_and(|t| t.chars().count() > MAX_TEXT) {
+                return Err(format!("{name} is longer than {MAX_TEXT} characters"));
+            }
+        }
+        if self.build.simd_supported.len() > 16 || self.validation.images.len() > 1024 {
+            return Err("a list is longer than any run makes".into());
+        }
+        let count = |name: &str, n: usize, max: usize| {
+            if (1..=max).contains(&n) {
+                Ok(())
+            } else {
+                Err(format!("{name} is {n}, not 1 to {max}"))
+            }
+        };
+        count("host.logical_cpus", self.host.logical_cpus, MAX_THREADS)?;
+        count("method.threads", self.method.threads, MAX_THREADS)?;
+        count("method.repeat", self.method.repeat as usize, 1_000_000)?;
+        count("workload.width", self.workload.width as usize, 1 << 16)?;
+        count("workload.height", self.workload.height as usize, 1 << 16)?;
+        count("workload.spp", self.workload.spp as usize, 1 << 24)?;
+        count("scaling rows", self.scaling.len(), 64)?;
+        for row in self.scaling.iter().chain([&self.result]) {
+            count("a row's threads", row.threads, MAX_THREADS)?;
+            if row.runs.len() > 1_000_000 {
+                return Err("a row has more runs than any bench makes".into());
+            }
+            let positive = |name: &str, x: f64| {
+                if x.is_finite() && x > 0.0 {
+                    Ok(())
+                } else {
+                    Err(format!(
+                        "{} threads: {name} is {x}, not a positive number",
+                        row.threads
+                    ))
+                }
+            };
+            for (name, s) in [
+                ("samples/s", row.samples_per_sec),
+                ("Mrays/s", row.mrays_per_sec),
+                ("wall time", row.wall_s),
+            ] {
+                positive(name, s.min)?;
+                positive(name, s.median)?;
+                positive(name, s.max)?;
+                if !(s.min <= s.median && s.median <= s.max) {
+                    return Err(format!(
+                        "{} threads: {name}'s min, median and max are out of order",
+                        row.threads
+                    ));
+                }
+            }
+            positive("rays per sample", row.rays_per_sample)?;
+            for x in row
+                .runs
+                .iter()
+                .copied()
+                .chain(row.speedup)
+                .chain(row.efficiency)
+            {
+                positive("a run or speedup", x)?;
+            }
+        }
+        if !self
+            .scaling
+            .iter()
+            .any(|r| r.threads == self.result.threads)
+            || self.result.threads != self.method.threads
+        {
+            return Err("the headline's thread count is not in the scaling table".into());
+        }
+        let v = &self.validation;
+        let consistent = match v.status.as_str() {
+            "valid" => {
+                v.expected.is_some()
+                    && v.images.len() == 1
+                    && v.images.first() == v.expected.as_ref()
+            }
+            "invalid" => {
+                v.expected.is_some()
+                    && (v.images.len() != 1 || v.images.first() != v.expected.as_ref())
+            }
+            "unvalidated" => v.expected.is_none(),
+            _ => false,
+        };
+        if !consistent {
+            return Err(format!(
+                "validation `{}` does not agree with its image hashes",
+                v.status.escape_debug()
+            ));
+        }
+        // 2020-01-01 to a day from now: tessera did not exist before, and clocks drift.
+        let now = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(u64::MAX, |d| d.as_secs());
+        let started = self.method.started_unix_s;
+        if !(1_577_836_800..=now.saturating_add(86_400)).contains(&started) {
+            return Err(format!(
+                "method.started_unix_s {started} is not a time a run took place"
+            ));
+        }
+        Ok(())
     }
 
     /// A short label: workload, CPU, SIMD path and commit.
