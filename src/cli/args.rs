@@ -37,6 +37,51 @@ pub enum Command {
     },
     /// Print the RMSE and PSNR between two images of equal size (PNG, PPM, EXR or JPEG).
     Compare { a: PathBuf, b: PathBuf },
+    /// The benchmark results kept in the local database: list them, import others'.
+    Results(ResultsArgs),
+}
+
+/// The results database's place, shared by `bench` and `results`.
+#[derive(Args)]
+pub struct DbArg {
+    /// The results database [default: $XDG_DATA_HOME/tessera/results.db, else
+    /// ~/.local/share/tessera/results.db].
+    #[arg(long, global = true, env = "TESSERA_DB", value_name = "PATH")]
+    pub db: Option<PathBuf>,
+}
+
+#[derive(Args)]
+pub struct ResultsArgs {
+    #[command(flatten)]
+    pub db: DbArg,
+    #[command(subcommand)]
+    pub command: ResultsCommand,
+}
+
+#[derive(Subcommand)]
+pub enum ResultsCommand {
+    /// The runs, newest first: when, machine, CPU, build, workload, threads, samples/s with
+    /// their spread, validation.
+    List {
+        /// Only this workload (`quick`, `cover`, `custom`).
+        #[arg(long)]
+        workload: Option<String>,
+        /// Only this machine: a machine id's start, or part of a CPU model.
+        #[arg(long)]
+        machine: Option<String>,
+        /// Only builds of this commit (its start).
+        #[arg(long)]
+        commit: Option<String>,
+        /// At most this many runs.
+        #[arg(long, value_name = "N")]
+        limit: Option<u32>,
+    },
+    /// Add results (JSON files of `bench --out`) from other machines; a result already in
+    /// the database is not added twice, and one bad file adds nothing.
+    Import {
+        #[arg(required = true, value_name = "FILE")]
+        files: Vec<PathBuf>,
+    },
 }
 
 #[derive(Args)]
@@ -179,6 +224,11 @@ pub struct BenchArgs {
     /// Also write the JSON result to FILE (atomically).
     #[arg(long, value_name = "FILE")]
     pub out: Option<PathBuf>,
+    #[command(flatten)]
+    pub db: DbArg,
+    /// Do not record the result in the results database.
+    #[arg(long)]
+    pub no_save: bool,
     /// Compare two JSON results of the same workload, thread count by thread count.
     #[arg(long, num_args = 2, value_names = ["OLD", "NEW"], conflicts_with_all = ["scene", "workload"])]
     pub compare: Option<Vec<PathBuf>>,

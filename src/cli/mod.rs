@@ -6,12 +6,14 @@ mod args;
 mod bench;
 mod preview;
 mod render;
+mod results;
 mod settings;
 
 use anyhow::{Context, Result};
 use args::{Cli, Command};
 use clap::{CommandFactory, FromArgMatches};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use results::ResultsMode;
 use settings::{BenchMode, RenderSettings};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
@@ -75,6 +77,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Bench(args) => bench::run(BenchMode::new(args)?),
         Command::Merge { parts, output } => merge(&parts, &output),
         Command::Compare { a, b } => compare(&a, &b),
+        Command::Results(args) => results::run(ResultsMode::new(args)?),
     }
 }
 

@@ -2,8 +2,12 @@
 //! against each other and against the scene, and every output checked writable, before any
 //! work starts.
 
-use super::args::{BenchArgs, PreviewArgs, RenderArgs, SceneArgs, SimdArg, SplitArg};
+use super::args::{
+    BenchArgs, PreviewArgs, RenderArgs, ResultsArgs, ResultsCommand, SceneArgs, SimdArg, SplitArg,
+};
 use super::bench::workload::{self, Workload};
+use super::results::ResultsMode;
+use super::results::db::{self, Filter};
 use anyhow::{Result, bail};
 use std::net::{SocketAddr, TcpListener};
 use std::path::{Path, PathBuf};
@@ -284,6 +288,8 @@ pub struct Measure {
     pub out: Option<PathBuf>,
     /// The SIMD path of every render.
     pub simd: simd::Path,
+    /// The results database to record the result in; `None`: not recorded.
+    pub save: Option<SaveTo>,
 }
 
 impl BenchMode {
@@ -339,6 +345,14 @@ impl BenchMode {
             .take_while(|&n| n < cpus)
             .collect();
         scaling.push(cpus);
+        let save = match (args.no_save, args.db.db) {
+            (true, _) => None,
+            (false, Some(path)) => Some(SaveTo { path, chosen: true }),
+            (false, None) => db::default_path().map(|path| SaveTo {
+                path,
+                chosen: false,
+            }),
+        };
         Ok(Self::Measure(Box::new(Measure {
             workload,
             threads,
@@ -348,7 +362,40 @@ impl BenchMode {
             json: args.json,
             out: args.out,
             simd,
+            save,
         })))
+    }
+}
+
+/// Where `bench` records its result.
+pub struct SaveTo {
+    pub path: PathBuf,
+    /// Named by `--db` or `TESSERA_DB`: a database that cannot be used is an error. The
+    /// default one is only a warning when it cannot be created (a read-only home, a
+    /// container); one that exists but cannot be used is an error all the same.
+    pub chosen: bool,
+}
+
+impl ResultsMode {
+    pub fn new(args: ResultsArgs) -> Result<Self> {
+        let db = db::resolve(args.db.db)?;
+        Ok(match args.command {
+            ResultsCommand::List {
+                workload,
+                machine,
+                commit,
+                limit,
+            } => Self::List {
+                db,
+                filter: Filter {
+                    workload,
+                    machine,
+                    commit,
+                    limit,
+                },
+            },
+            ResultsCommand::Import { files } => Self::Import { db, files },
+        })
     }
 }
 

@@ -25,9 +25,17 @@ pub fn cover() -> String {
     scene_path("cover.toml").to_string_lossy().into_owned()
 }
 
-/// A command running the `tessera` binary under test.
+/// A command running the `tessera` binary under test. Benchmarks record their results in
+/// a database of this test process (`TESSERA_DB`), never in the user's own.
 pub fn tessera() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_tessera"))
+    let mut command = Command::new(env!("CARGO_BIN_EXE_tessera"));
+    command.env("TESSERA_DB", test_results_db());
+    command
+}
+
+/// The results database of this test process.
+pub fn test_results_db() -> PathBuf {
+    std::env::temp_dir().join(format!("tessera-test-{}-results.db", std::process::id()))
 }
 
 /// Runs tessera with `args` in `dir`.

@@ -42,6 +42,11 @@ const FLAGS: &[(&str, &[&str], &[&str])] = &[
     ("--preview", &[], &[]),
     ("--preview-file", &["pv.png"], &["pv.jpg", "no/dir/pv.png", "dir", ""]),
     ("--preview-every", &["0.5", "1e300"], &["0", "-1", "nan", "x"]),
+    ("--db", &["res.db", "res2.db"], &["no/dir/r.db", "dir", "good.toml", "a.png", ""]),
+    ("--no-save", &[], &[]),
+    ("--machine", &["m-", "amd"], &["", "%", "\u{1b}"]),
+    ("--commit", &["0", "abc"], &["", "_"]),
+    ("--limit", &["1", "5"], &["-1", "x", "99999999999"]),
     ("--bogus", &[], &[]),
 ];
 
@@ -98,6 +103,19 @@ fn cli_workspace() -> PathBuf {
     for out in ["a.png", "a.exr", "a.ppm"] {
         tessera(&["render", "good.toml", "-q", "-o", out]);
     }
+    // A result for `results import`.
+    tessera(&[
+        "bench",
+        "tiny-cover.toml",
+        "--repeat",
+        "1",
+        "--warmup",
+        "0",
+        "--no-scaling",
+        "--no-save",
+        "--out",
+        "r.json",
+    ]);
     tessera(&[
         "render",
         "good.toml",
@@ -127,11 +145,19 @@ fn cli_workspace() -> PathBuf {
 fn command_line(g: &mut Gen) -> Vec<String> {
     let command = g.pick(&[
         "render", "render", "render", "render", "bench", "merge", "compare", "help", "renderr", "",
+        "results",
     ]);
     let mut args = vec![command.to_owned()];
+    if command == "results" {
+        args.push(
+            g.pick(&["list", "list", "import", "import", "rank", ""])
+                .to_owned(),
+        );
+    }
     let positionals = match command {
         "merge" => 1 + g.below(4),
         "compare" => g.below(4),
+        "results" => g.below(3),
         // Always a scene: `bench` alone runs the standard quick workload (seconds), which
         // tests/bench.rs covers.
         "bench" => 1,
@@ -141,6 +167,7 @@ fn command_line(g: &mut Gen) -> Vec<String> {
         let sensible = match command {
             "render" | "bench" => g.pick(&["good.toml", "tiny-cover.toml"]),
             "merge" => g.pick(&["p0.part", "p1.part"]),
+            "results" => g.pick(&["r.json", "a.png", "junk.toml"]),
             _ => g.pick(&["a.png", "a.exr", "a.ppm"]),
         };
         let any = g.pick(POSITIONALS);

@@ -7,11 +7,12 @@
 mod chart;
 mod confinement;
 mod host;
-mod report;
+pub mod report;
 pub mod workload;
 
 use super::print_out;
-use super::settings::{BenchMode, Measure, render_options};
+use super::results::db::ResultsDb;
+use super::settings::{BenchMode, Measure, SaveTo, render_options};
 use anyhow::{Context, Result};
 use host::{Build, Host};
 use report::{Method, Report, Row, SCHEMA, Spread, Validation, WorkloadInfo};
@@ -78,6 +79,8 @@ fn measure(m: Measure) -> Result<()> {
     let started_unix_s = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.as_secs());
+    // Opened before the renders, so that a database it cannot use stops it at once.
+    let mut db = open_results_db(m.save.as_ref())?;
     // Read before the renders load the machine.
     let host = Host::this();
     let mut images = BTreeSet::new();
@@ -144,6 +147,10 @@ fn measure(m: Measure) -> Result<()> {
         write_atomically(out, json.as_bytes())?;
     }
     print_out(&if m.json { json } else { text(&report) })?;
+    if let Some((db, path)) = &mut db {
+        db.add_all(std::slice::from_ref(&report), "bench")?;
+        super::note(format_args!("tessera: recorded in {}", path.display()));
+    }
     if report.validation.status == "invalid" {
         // A wrong image makes the speed meaningless: fail, after the result is written for
         // inspection. (Status 2 is kept for bad input.)
@@ -153,6 +160,24 @@ fn measure(m: Measure) -> Result<()> {
         std::process::exit(1);
     }
     Ok(())
+}
+
+/// The results database `save` names, opened; `None` when not saving, or when the default
+/// database cannot be created (said as a warning).
+fn open_results_db(save: Option<&SaveTo>) -> Result<Option<(ResultsDb, &std::path::Path)>> {
+    let Some(save) = save else {
+        return Ok(None);
+    };
+    match ResultsDb::open(&save.path) {
+        Ok(db) => Ok(Some((db, &save.path))),
+        Err(e) if !save.chosen && !save.path.exists() => {
+            super::note(format_args!(
+                "tessera: warning: the result will not be recorded ({e:#}); choose a database with --db or TESSERA_DB, or pass --no-save"
+            ));
+            Ok(None)
+        }
+        Err(e) => Err(e),
+    }
 }
 
 /// The measurement of `runs` at `threads`.

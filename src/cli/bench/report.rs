@@ -284,6 +284,23 @@ impl Report {
         Ok(())
     }
 
+    /// The machine that ran it: the result's own id, or for a `tessera-bench/1` result, the
+    /// one its hardware facts give.
+    pub fn machine_id(&self) -> String {
+        self.host.machine_id.clone().unwrap_or_else(|| {
+            let h = &self.host;
+            super::host::machine_id(
+                None,
+                &super::host::Facts {
+                    cpu_model: h.cpu_model.as_deref(),
+                    logical_cpus: h.logical_cpus,
+                    physical_cores: h.physical_cores,
+                    memory_bytes: h.memory_bytes,
+                },
+            )
+        })
+    }
+
     /// A short label: workload, CPU, SIMD path and commit.
     pub fn label(&self) -> String {
         let commit: String = self.build.commit.chars().take(8).collect();

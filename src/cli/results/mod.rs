@@ -1,0 +1,150 @@
+//! `tessera results`: the benchmark results kept in the local database (`db`): listing
+//! them, and importing results other machines made. Every text that came from a result is
+//! shown escaped, as a result file may come from anyone.
+
+pub mod db;
+
+use super::bench::report::Report;
+use super::print_out;
+use anyhow::Result;
+use db::{Added, Filter, ResultsDb};
+use std::path::PathBuf;
+
+/// What `tessera results` was asked to do.
+pub enum ResultsMode {
+    List { db: PathBuf, filter: Filter },
+    Import { db: PathBuf, files: Vec<PathBuf> },
+}
+
+pub fn run(mode: ResultsMode) -> Result<()> {
+    match mode {
+        ResultsMode::List { db, filter } => {
+            let db = ResultsDb::open(&db)?;
+            print_out(&list(&db.runs(&filter)?))
+        }
+        ResultsMode::Import { db, files } => {
+            // Every file is read and checked before anything is added: one bad file adds
+            // nothing.
+            let reports = (files.iter())
+                .map(|f| Report::read(f))
+                .collect::<Result<Vec<_>>>()?;
+            let mut db = ResultsDb::open(&db)?;
+            let added = db.add_all(&reports, "import")?;
+            let new = added.iter().filter(|a| matches!(a, Added::New(_))).count();
+            print_out(&format!(
+                "imported {new} new result{}, {} already present\n",
+                if new == 1 { "" } else { "s" },
+                added.len() - new
+            ))
+        }
+    }
+}
+
+/// `text` safe to print to a terminal: control characters (an escape sequence could
+/// rewrite the screen) are shown as `\u{…}` escapes, and it is cut to `width` characters.
+pub fn terminal_safe(text: &str, width: usize) -> String {
+    let mut out = String::new();
+    for (i, c) in text.chars().enumerate() {
+        if i == width {
+            out.push('…');
+            break;
+        }
+        if c.is_control()
+            || matches!(c, '\u{200b}'..='\u{200f}' | '\u{202a}'..='\u{202e}' | '\u{2066}'..='\u{2069}')
+        {
+            out.extend(c.escape_unicode());
+        } else {
+            out.push(c);
+        }
+    }
+    out
+}
+
+/// A Unix time as a UTC date and time, `2026-12-01 19:27`.
+pub fn utc(unix_s: i64) -> String {
+    let days = unix_s.div_euclid(86_400);
+    let secs = unix_s.rem_euclid(86_400);
+    // Howard Hinnant's days-to-civil algorithm.
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z.rem_euclid(146_097);
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let day = doy - (153 * mp + 2) / 5 + 1;
+    let month = if mp < 10 { mp + 3 } else { mp - 9 };
+    let year = yoe + era * 400 + i64::from(month <= 2);
+    format!(
+        "{year:04}-{month:02}-{day:02} {:02}:{:02}",
+        secs / 3600,
+        secs % 3600 / 60
+    )
+}
+
+/// The runs as a table, newest first.
+fn list(runs: &[db::Run]) -> String {
+    if runs.is_empty() {
+        return "no results\n".into();
+    }
+    let mut t = format!(
+        "{:>5}  {:<16}  {:<18}  {:<36}  {:<24}  {:<8}  {:>7}  {:<26}  {}\n",
+        "run",
+        "when (UTC)",
+        "machine",
+        "CPU",
+        "build",
+        "workload",
+        "threads",
+        "M samples/s [min-max]",
+        "validation"
+    );
+    for r in runs {
+        let commit: String = r.commit.chars().take(8).collect();
+        let build = format!("{} {} {}", r.version, commit, r.simd);
+        let sps = format!(
+            "{:.3} [{:.3}-{:.3}]",
+            r.sps[0] / 1e6,
+            r.sps[1] / 1e6,
+            r.sps[2] / 1e6
+        );
+        let cpu = format!(
+            "{} ({} CPUs)",
+            r.cpu_model.as_deref().unwrap_or("unknown CPU"),
+            r.logical_cpus
+        );
+        t.push_str(&format!(
+            "{:>5}  {:<16}  {:<18}  {:<36}  {:<24}  {:<8}  {:>7}  {:<26}  {}\n",
+            r.id,
+            utc(r.started_unix_s),
+            terminal_safe(&r.machine_id, 18),
+            terminal_safe(&cpu, 36),
+            terminal_safe(&build, 24),
+            terminal_safe(&r.workload, 8),
+            r.threads,
+            sps,
+            terminal_safe(&r.validation, 12)
+        ));
+    }
+    t
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dates_are_utc_calendar_dates() {
+        assert_eq!(utc(0), "1970-01-01 00:00");
+        assert_eq!(utc(951_782_400), "2000-02-29 00:00");
+        assert_eq!(utc(1_796_145_000), "2026-12-01 17:10");
+        assert_eq!(utc(-1), "1969-12-31 23:59");
+    }
+
+    #[test]
+    fn control_characters_are_escaped_for_terminals() {
+        assert_eq!(terminal_safe("AMD EPYC", 20), "AMD EPYC");
+        assert_eq!(terminal_safe("x\u{1b}[31mred", 20), "x\\u{1b}[31mred");
+        assert_eq!(terminal_safe("a\nb\u{202e}c", 20), "a\\u{a}b\\u{202e}c");
+        assert_eq!(terminal_safe("abcdef", 3), "abc…");
+    }
+}

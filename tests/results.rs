@@ -1,0 +1,471 @@
+//! The results database as a user meets it: `bench` records every run (in `--db`,
+//! `TESSERA_DB` or the XDG data directory), `results list` shows and filters them, `results
+//! import` adds others' results once each; hostile imports are refused with the reason and
+//! add nothing; databases it cannot use (not SQLite, damaged, another program's, a newer
+//! tessera's, on a full or read-only disk) are refused and left as they were; concurrent and
+//! killed writers lose nothing.
+
+mod common;
+
+use common::*;
+use serde_json::Value;
+use std::os::unix::fs::PermissionsExt;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+
+/// A quick custom bench of the cover, recorded in `db` (or not, with `None`), its result
+/// also written to `out`.
+fn bench(dir: &Path, db: Option<&Path>, out: &str) -> Output {
+    let mut c = tessera();
+    c.args(["bench", &cover(), "--width", "48", "--spp", "1"])
+        .args([
+            "--repeat",
+            "1",
+            "--warmup",
+            "0",
+            "--no-scaling",
+            "--out",
+            out,
+        ])
+        .current_dir(dir);
+    match db {
+        Some(db) => c.env("TESSERA_DB", db),
+        None => c.arg("--no-save"),
+    };
+    let o = c.output().unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    o
+}
+
+/// `tessera results ARGS` on `db`.
+fn results(dir: &Path, db: &Path, args: &[&str]) -> Output {
+    tessera()
+        .arg("results")
+        .args(args)
+        .env("TESSERA_DB", db)
+        .current_dir(dir)
+        .output()
+        .unwrap()
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// The runs `results list` shows (its lines less the heading).
+fn listed(dir: &Path, db: &Path, filter: &[&str]) -> Vec<String> {
+    let o = results(dir, db, &[&["list"][..], filter].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = stdout(&o);
+    if text.trim() == "no results" {
+        return Vec::new();
+    }
+    text.lines().skip(1).map(str::to_owned).collect()
+}
+
+fn json(path: &Path) -> Value {
+    serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
+}
+
+fn write_json(path: &Path, value: &Value) {
+    std::fs::write(path, serde_json::to_vec_pretty(value).unwrap()).unwrap();
+}
+
+/// Two results of this machine that are not recorded anywhere yet.
+fn two_results(dir: &Path) -> (PathBuf, PathBuf) {
+    bench(dir, None, "a.json");
+    bench(dir, None, "b.json");
+    (dir.join("a.json"), dir.join("b.json"))
+}
+
+#[test]
+fn bench_records_every_run_and_list_shows_and_filters_them() {
+    let dir = temp_dir("results-record");
+    let db = dir.join("r.db");
+    bench(&dir, Some(&db), "one.json");
+    let o = bench(&dir, Some(&db), "two.json");
+    assert!(stderr(&o).contains("recorded in"), "{}", stderr(&o));
+    bench(&dir, None, "unsaved.json");
+    let all = listed(&dir, &db, &[]);
+    assert_eq!(all.len(), 2, "{all:?}");
+    assert!(
+        all[0].contains("custom") && all[0].contains("unvalidated"),
+        "{}",
+        all[0]
+    );
+    let mode = std::fs::metadata(&db).unwrap().permissions().mode();
+    assert_eq!(mode & 0o777, 0o600, "the database is readable by others");
+    let one = json(&dir.join("one.json"));
+    let machine = one["host"]["machine_id"].as_str().unwrap();
+    let commit = one["build"]["commit"].as_str().unwrap();
+    assert_eq!(listed(&dir, &db, &["--machine", &machine[..6]]).len(), 2);
+    let cpu = one["host"]["cpu_model"].as_str().unwrap_or("unknown");
+    let word = cpu.split_whitespace().next().unwrap().to_lowercase();
+    assert_eq!(listed(&dir, &db, &["--machine", &word]).len(), 2);
+    assert_eq!(
+        listed(&dir, &db, &["--machine", "no-such-machine"]).len(),
+        0
+    );
+    assert_eq!(listed(&dir, &db, &["--commit", &commit[..7]]).len(), 2);
+    assert_eq!(listed(&dir, &db, &["--workload", "quick"]).len(), 0);
+    assert_eq!(listed(&dir, &db, &["--limit", "1"]).len(), 1);
+    // A LIKE pattern's own characters match only themselves.
+    assert_eq!(listed(&dir, &db, &["--commit", "%"]).len(), 0);
+}
+
+#[test]
+fn the_default_database_is_in_the_data_directory() {
+    let dir = temp_dir("results-default");
+    let run = |env: &[(&str, &Path)]| {
+        let mut c = tessera();
+        c.env_remove("TESSERA_DB").env_remove("XDG_DATA_HOME");
+        for (k, v) in env {
+            c.env(k, v);
+        }
+        c.args([
+            "bench",
+            &cover(),
+            "--width",
+            "32",
+            "--spp",
+            "1",
+            "--repeat",
+            "1",
+        ])
+        .args(["--warmup", "0", "--no-scaling"])
+        .current_dir(&dir)
+        .output()
+        .unwrap()
+    };
+    let xdg = dir.join("xdg");
+    let o = run(&[("XDG_DATA_HOME", &xdg), ("HOME", &dir.join("home"))]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let db = xdg.join("tessera/results.db");
+    assert!(db.is_file(), "{}", stderr(&o));
+    let mode = std::fs::metadata(xdg.join("tessera"))
+        .unwrap()
+        .permissions()
+        .mode();
+    assert_eq!(mode & 0o777, 0o700);
+    let o = run(&[("HOME", &dir.join("home"))]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(dir.join("home/.local/share/tessera/results.db").is_file());
+    // A data directory that cannot be made (here: under a file) only costs the record.
+    std::fs::write(dir.join("file"), "").unwrap();
+    let o = run(&[("XDG_DATA_HOME", &dir.join("file"))]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("will not be recorded"),
+        "{}",
+        stderr(&o)
+    );
+    // One named with --db or TESSERA_DB must work.
+    let o = tessera()
+        .args(["results", "--db"])
+        .arg(dir.join("file/r.db"))
+        .arg("list")
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+}
+
+#[test]
+fn imports_add_each_result_once_and_a_bad_file_adds_nothing() {
+    let dir = temp_dir("results-import");
+    let db = dir.join("r.db");
+    let (a, b) = two_results(&dir);
+    let (a, b) = (a.to_str().unwrap(), b.to_str().unwrap());
+    let o = results(&dir, &db, &["import", a, b]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(stdout(&o), "imported 2 new results, 0 already present\n");
+    let o = results(&dir, &db, &["import", b, a]);
+    assert_eq!(stdout(&o), "imported 0 new results, 2 already present\n");
+    // A result recorded by bench and then imported from its --out file is one run.
+    bench(&dir, Some(&db), "c.json");
+    let o = results(&dir, &db, &["import", "c.json"]);
+    assert_eq!(stdout(&o), "imported 0 new results, 1 already present\n");
+    std::fs::write(dir.join("bad.json"), "{}").unwrap();
+    let mut fresh = json(&dir.join("a.json"));
+    fresh["method"]["started_unix_s"] = Value::from(1_700_000_000u64);
+    write_json(&dir.join("fresh.json"), &fresh);
+    let o = results(&dir, &db, &["import", "fresh.json", "bad.json"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("bad.json"), "{}", stderr(&o));
+    assert_eq!(listed(&dir, &db, &[]).len(), 3, "a bad file let others in");
+    let o = results(&dir, &db, &["import", "fresh.json"]);
+    assert_eq!(stdout(&o), "imported 1 new result, 0 already present\n");
+}
+
+#[test]
+fn hostile_imports_are_refused_with_the_reason() {
+    let dir = temp_dir("results-hostile");
+    let db = dir.join("r.db");
+    let (a, _) = two_results(&dir);
+    let good = json(&a);
+    let text = std::fs::read_to_string(&a).unwrap();
+    let edited = |edit: &dyn Fn(&mut Value)| {
+        let mut v = good.clone();
+        edit(&mut v);
+        serde_json::to_vec(&v).unwrap()
+    };
+    let cases: Vec<(&str, Vec<u8>, &str)> = vec![
+        (
+            "huge",
+            [vec![b' '; 2 << 20], text.clone().into_bytes()].concat(),
+            "larger than",
+        ),
+        ("deep", "[".repeat(100_000).into_bytes(), "not JSON"),
+        ("binary", vec![0xff, 0xfe, 0x00, 0x7b], "not UTF-8"),
+        (
+            "infinite",
+            text.replacen("\"median\": ", "\"median\": 1e999, \"x\": ", 1)
+                .into_bytes(),
+            "not JSON",
+        ),
+        (
+            "type",
+            edited(&|v| v["method"]["threads"] = Value::from("two")),
+            "not a valid result",
+        ),
+        (
+            "unknown-field",
+            edited(&|v| v["surprise"] = Value::from(1)),
+            "not a valid result",
+        ),
+        (
+            "future",
+            edited(&|v| v["schema"] = Value::from("tessera-bench/99")),
+            "newer tessera",
+        ),
+        (
+            "billion-threads",
+            edited(&|v| {
+                v["method"]["threads"] = Value::from(1_000_000_000u64);
+                v["result"]["threads"] = Value::from(1_000_000_000u64);
+            }),
+            "not 1 to 65536",
+        ),
+        (
+            "negative-time",
+            edited(&|v| v["result"]["wall_s"]["min"] = Value::from(-1.0)),
+            "not a positive number",
+        ),
+        (
+            "unordered",
+            edited(&|v| v["result"]["samples_per_sec"]["max"] = Value::from(1.0)),
+            "out of order",
+        ),
+        (
+            "long-text",
+            edited(&|v| v["host"]["cpu_model"] = Value::from("x".repeat(10_000))),
+            "longer than",
+        ),
+        (
+            "forged-validation",
+            edited(&|v| {
+                v["validation"]["status"] = Value::from("valid");
+                v["validation"]["expected"] = Value::from("xxh3-128:00");
+            }),
+            "does not agree",
+        ),
+        (
+            "from-the-past",
+            edited(&|v| v["method"]["started_unix_s"] = Value::from(0)),
+            "not a time a run took place",
+        ),
+        (
+            "headless",
+            edited(&|v| v["scaling"] = Value::Array(Vec::new())),
+            "scaling rows is 0",
+        ),
+    ];
+    for (name, bytes, reason) in &cases {
+        let file = dir.join(format!("{name}.json"));
+        std::fs::write(&file, bytes).unwrap();
+        let o = results(&dir, &db, &["import", file.to_str().unwrap()]);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{name}: {err}");
+        assert!(err.contains(&format!("{name}.json")), "{name}: {err}");
+        assert!(err.contains(reason), "{name}: expected `{reason}` in {err}");
+        assert!(!err.contains("panicked"), "{name}: {err}");
+    }
+    assert!(!db.exists() || listed(&dir, &db, &[]).is_empty());
+}
+
+#[test]
+fn what_a_result_says_is_shown_escaped_in_the_terminal() {
+    let dir = temp_dir("results-escape");
+    let db = dir.join("r.db");
+    let (a, _) = two_results(&dir);
+    let mut v = json(&a);
+    v["host"]["cpu_model"] = Value::from("Evil\u{1b}[2J\u{1b}]0;pwned\u{7} CPU\u{202e}");
+    write_json(&dir.join("evil.json"), &v);
+    let o = results(&dir, &db, &["import", "evil.json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = results(&dir, &db, &["list"]);
+    let text = stdout(&o);
+    assert!(!text.contains('\u{1b}') && !text.contains('\u{7}') && !text.contains('\u{202e}'));
+    assert!(text.contains("Evil\\u{1b}[2J"), "{text}");
+}
+
+/// Bytes of `path`, to check a refused database was left as it was.
+fn bytes(path: &Path) -> Vec<u8> {
+    std::fs::read(path).unwrap()
+}
+
+#[test]
+fn databases_it_cannot_use_are_refused_and_left_as_they_were() {
+    let dir = temp_dir("results-refused");
+    let (a, _) = two_results(&dir);
+    let a = a.to_str().unwrap();
+    let refuse = |name: &str, reason: &str| {
+        let db = dir.join(name);
+        let before = bytes(&db);
+        for args in [&["list"][..], &["import", a]] {
+            let o = results(&dir, &db, args);
+            let err = stderr(&o);
+            assert_eq!(o.status.code(), Some(2), "{name} {args:?}: {err}");
+            assert!(err.contains(reason), "{name}: expected `{reason}` in {err}");
+        }
+        let o = tessera()
+            .args([
+                "bench",
+                &cover(),
+                "--width",
+                "16",
+                "--spp",
+                "1",
+                "--repeat",
+                "1",
+            ])
+            .env("TESSERA_DB", &db)
+            .current_dir(&dir)
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(2), "bench on {name}: {}", stderr(&o));
+        assert!(bytes(&db) == before, "{name} was changed");
+    };
+    std::fs::write(dir.join("text.db"), "my notes, not a database\n").unwrap();
+    refuse("text.db", "not an SQLite database");
+    let other = rusqlite::Connection::open(dir.join("other.db")).unwrap();
+    other
+        .execute_batch("CREATE TABLE photos (id INTEGER)")
+        .unwrap();
+    drop(other);
+    refuse("other.db", "something else");
+    let newer = rusqlite::Connection::open(dir.join("newer.db")).unwrap();
+    newer
+        .execute_batch("CREATE TABLE runs (id INTEGER); PRAGMA user_version = 99;")
+        .unwrap();
+    drop(newer);
+    refuse("newer.db", "newer tessera");
+    // A real database, damaged in the middle.
+    let good = dir.join("good.db");
+    assert!(results(&dir, &good, &["import", a]).status.success());
+    let mut damaged = bytes(&good);
+    for b in &mut damaged[4096..8192] {
+        *b = 0xa5;
+    }
+    std::fs::write(dir.join("damaged.db"), damaged).unwrap();
+    refuse("damaged.db", "damaged");
+}
+
+/// The first schema (user_version 1) as tessera 0.1.0 made it: never edit this copy.
+const FIRST_SCHEMA: &str = "CREATE TABLE runs (
+    id INTEGER PRIMARY KEY, digest TEXT NOT NULL UNIQUE, added_unix_s INTEGER NOT NULL,
+    source TEXT NOT NULL, started_unix_s INTEGER NOT NULL, machine_id TEXT NOT NULL,
+    cpu_model TEXT, logical_cpus INTEGER NOT NULL, version TEXT NOT NULL,
+    commit_id TEXT NOT NULL, simd TEXT NOT NULL, workload TEXT NOT NULL,
+    workload_id TEXT NOT NULL, threads INTEGER NOT NULL, sps_median REAL NOT NULL,
+    sps_min REAL NOT NULL, sps_max REAL NOT NULL, validation TEXT NOT NULL,
+    result TEXT NOT NULL) STRICT;
+CREATE TABLE scaling (
+    run_id INTEGER NOT NULL REFERENCES runs (id) ON DELETE CASCADE,
+    threads INTEGER NOT NULL, sps_median REAL NOT NULL, sps_min REAL NOT NULL,
+    sps_max REAL NOT NULL, PRIMARY KEY (run_id, threads)) STRICT;
+CREATE INDEX runs_by_machine ON runs (machine_id, workload_id, started_unix_s);
+PRAGMA user_version = 1;";
+
+#[test]
+fn a_database_of_the_first_schema_still_opens_with_its_runs() {
+    let dir = temp_dir("results-first-schema");
+    let db = dir.join("first.db");
+    let (a, _) = two_results(&dir);
+    let conn = rusqlite::Connection::open(&db).unwrap();
+    conn.execute_batch(FIRST_SCHEMA).unwrap();
+    conn.execute(
+        "INSERT INTO runs VALUES (1, 'd', 1, 'import', 1700000000, 'm-0', 'Old CPU', 4,
+         '0.1.0', 'abc', 'avx2', 'cover', 'id', 4, 1e6, 9e5, 1.1e6, 'valid', '{}')",
+        [],
+    )
+    .unwrap();
+    drop(conn);
+    let runs = listed(&dir, &db, &[]);
+    assert_eq!(runs.len(), 1);
+    assert!(runs[0].contains("Old CPU"), "{}", runs[0]);
+    let o = results(&dir, &db, &["import", a.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(listed(&dir, &db, &[]).len(), 2);
+}
+
+/// `n` distinct results made from `base` (each started a second apart, from `first`), as
+/// files in `dir`.
+fn variants(dir: &Path, base: &Value, first: u64, n: usize, tag: &str) -> Vec<String> {
+    (0..n)
+        .map(|i| {
+            let mut v = base.clone();
+            v["method"]["started_unix_s"] = Value::from(first + i as u64);
+            let name = format!("{tag}-{i}.json");
+            write_json(&dir.join(&name), &v);
+            name
+        })
+        .collect()
+}
+
+#[test]
+fn concurrent_writers_all_land_and_a_killed_one_loses_nothing() {
+    let dir = temp_dir("results-concurrent");
+    let db = dir.join("r.db");
+    let (a, _) = two_results(&dir);
+    let base = json(&a);
+    // Four importers and a bench at once, on a new database.
+    let mut children: Vec<std::process::Child> = (0..4)
+        .map(|k| {
+            let files = variants(&dir, &base, 1_700_000_000 + k * 1000, 25, &format!("w{k}"));
+            tessera()
+                .args(["results", "import"])
+                .args(&files)
+                .env("TESSERA_DB", &db)
+                .current_dir(&dir)
+                .stdout(Stdio::null())
+                .stderr(Stdio::piped())
+                .spawn()
+                .unwrap()
+        })
+        .collect();
+    bench(&dir, Some(&db), "bench.json");
+    for c in children.drain(..) {
+        let o = c.wait_with_output().unwrap();
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    assert_eq!(listed(&dir, &db, &[]).len(), 101);
+    // An importer killed mid-way: its transaction is all or nothing, and what was there
+    // stays.
+    let files = variants(&dir, &base, 1_710_000_000, 2000, "k");
+    let mut child = tessera()
+        .args(["results", "import"])
+        .args(&files)
+        .env("TESSERA_DB", &db)
+        .current_dir(&dir)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(150));
+    let _ = Command::new("kill")
+        .args(["-KILL", &child.id().to_string()])
+        .status();
+    let _ = child.wait();
+    let n = listed(&dir, &db, &[]).len();
+    assert!(n == 101 || n == 2101, "{n} runs after the kill");
+}
