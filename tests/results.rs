@@ -469,3 +469,114 @@ fn concurrent_writers_all_land_and_a_killed_one_loses_nothing() {
     let n = listed(&dir, &db, &[]).len();
     assert!(n == 101 || n == 2101, "{n} runs after the kill");
 }
+
+/// `base` as machine `machine` measured it at build `commit`, started at `started`, with
+/// every samples/s scaled by `speed` and spread 2% either side.
+fn as_if(base: &Value, machine: &str, commit: &str, started: u64, speed: f64) -> Value {
+    let mut v = base.clone();
+    v["host"]["machine_id"] = Value::from(machine);
+    v["build"]["commit"] = Value::from(commit);
+    v["method"]["started_unix_s"] = Value::from(started);
+    // Each row as if its runs spread 2% either side of the median.
+    let scale = |row: &mut Value| {
+        let median = row["samples_per_sec"]["median"].as_f64().unwrap() * speed;
+        for (key, x) in [("median", 1.0), ("min", 0.98), ("max", 1.02)] {
+            row["samples_per_sec"][key] = Value::from(median * x);
+        }
+    };
+    scale(&mut v["result"]);
+    for row in v["scaling"].as_array_mut().unwrap() {
+        scale(row);
+    }
+    v
+}
+
+#[test]
+fn rank_compare_history_and_export_read_the_kept_runs() {
+    let dir = temp_dir("results-analysis");
+    let db = dir.join("r.db");
+    let (a, _) = two_results(&dir);
+    let base = json(&a);
+    // Machine m-fast at twice the speed; machine m-slow over three commits, the third 30%
+    // slower (beyond any spread of one run), the second 0.1% slower (within).
+    let made = [
+        as_if(&base, "m-fast000000000000", "aaaa", 1_700_000_000, 2.0),
+        as_if(&base, "m-slow000000000000", "c1c1", 1_700_000_100, 1.0),
+        as_if(&base, "m-slow000000000000", "c2c2", 1_700_000_200, 0.999),
+        as_if(&base, "m-slow000000000000", "c3c3", 1_700_000_300, 0.7),
+    ];
+    let mut files = Vec::new();
+    for (i, v) in made.iter().enumerate() {
+        let name = format!("r{i}.json");
+        write_json(&dir.join(&name), v);
+        files.push(name);
+    }
+    let files: Vec<&str> = files.iter().map(String::as_str).collect();
+    assert!(
+        results(&dir, &db, &[&["import"][..], &files].concat())
+            .status
+            .success()
+    );
+
+    // A custom workload is unvalidated: ranked only with --all.
+    let o = results(&dir, &db, &["rank", "--workload", "custom"]);
+    assert!(stdout(&o).contains("no valid runs"), "{}", stdout(&o));
+    let o = results(&dir, &db, &["rank", "--workload", "custom", "--all"]);
+    let text = stdout(&o);
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines.len(), 1 + 4, "{text}");
+    assert!(
+        lines[1].contains("m-fast") && lines[1].trim_start().starts_with('1'),
+        "{text}"
+    );
+    assert!(
+        lines[4].contains("c3c3"),
+        "the slowest build ranks last: {text}"
+    );
+
+    let o = results(&dir, &db, &["compare", "m-slow", "m-fast"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = stdout(&o);
+    assert!(text.contains("faster, beyond the spread"), "{text}");
+    let o = results(&dir, &db, &["compare", "commit:c1c1", "commit:c2c2"]);
+    assert!(
+        stdout(&o).contains("within the runs' spread"),
+        "{}",
+        stdout(&o)
+    );
+    let o = results(&dir, &db, &["compare", "run:1", "nothing-like-this"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("selects no runs"), "{}", stderr(&o));
+
+    let o = results(
+        &dir,
+        &db,
+        &["history", "--machine", "m-slow", "--workload", "custom"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = stdout(&o);
+    let flagged: Vec<&str> = text.lines().filter(|l| l.contains("REGRESSION")).collect();
+    assert_eq!(flagged.len(), 1, "{text}");
+    assert!(flagged[0].contains("c3c3"), "{text}");
+    let o = results(
+        &dir,
+        &db,
+        &["history", "--machine", "m-", "--workload", "custom"],
+    );
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("matches 2 machines"), "{}", stderr(&o));
+
+    // Export gives every result back, one per line, and importing it adds nothing.
+    let o = results(&dir, &db, &["export", "--jsonl"]);
+    let text = stdout(&o);
+    assert_eq!(text.lines().count(), 4);
+    for (i, line) in text.lines().enumerate() {
+        std::fs::write(dir.join(format!("e{i}.json")), line).unwrap();
+    }
+    let o = results(
+        &dir,
+        &db,
+        &["import", "e0.json", "e1.json", "e2.json", "e3.json"],
+    );
+    assert_eq!(stdout(&o), "imported 0 new results, 4 already present\n");
+}

@@ -82,6 +82,44 @@ pub enum ResultsCommand {
         #[arg(required = true, value_name = "FILE")]
         files: Vec<PathBuf>,
     },
+    /// One row per machine and build: the median samples/s of its runs at their thread
+    /// count, the spread, and per thread; best first. Only `valid` runs unless --all.
+    Rank {
+        #[arg(long, default_value = "cover")]
+        workload: String,
+        /// Count unvalidated and invalid runs too.
+        #[arg(long)]
+        all: bool,
+    },
+    /// Two sets of runs thread count by thread count, each a run id, a machine (`m-…`) or a
+    /// commit (its start); `run:`, `machine:` or `commit:` before it says which.
+    Compare {
+        a: String,
+        b: String,
+        /// The workload (default: that of A's newest run).
+        #[arg(long)]
+        workload: Option<String>,
+    },
+    /// One machine's speed over commits, flagging a drop beyond the runs' own spread.
+    History {
+        /// The machine: a machine id's start, or part of a CPU model.
+        #[arg(long, required = true)]
+        machine: String,
+        #[arg(long, default_value = "cover")]
+        workload: String,
+        /// The thread count (default: that of the machine's newest run).
+        #[arg(long)]
+        threads: Option<i64>,
+        /// The SIMD path (default: that of the machine's newest run).
+        #[arg(long)]
+        simd: Option<String>,
+    },
+    /// Every result, oldest first, as JSON lines (one result per line).
+    Export {
+        /// JSON lines (the one format).
+        #[arg(long, required = true)]
+        jsonl: bool,
+    },
 }
 
 #[derive(Args)]

@@ -395,6 +395,21 @@ impl ResultsMode {
                 },
             },
             ResultsCommand::Import { files } => Self::Import { db, files },
+            ResultsCommand::Rank { workload, all } => Self::Rank { db, workload, all },
+            ResultsCommand::Compare { a, b, workload } => Self::Compare { db, a, b, workload },
+            ResultsCommand::History {
+                machine,
+                workload,
+                threads,
+                simd,
+            } => Self::History {
+                db,
+                machine,
+                workload,
+                threads,
+                simd,
+            },
+            ResultsCommand::Export { jsonl: _ } => Self::Export { db },
         })
     }
 }

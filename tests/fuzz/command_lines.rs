@@ -44,6 +44,8 @@ const FLAGS: &[(&str, &[&str], &[&str])] = &[
     ("--preview-every", &["0.5", "1e300"], &["0", "-1", "nan", "x"]),
     ("--db", &["res.db", "res2.db"], &["no/dir/r.db", "dir", "good.toml", "a.png", ""]),
     ("--no-save", &[], &[]),
+    ("--all", &[], &[]),
+    ("--jsonl", &[], &[]),
     ("--machine", &["m-", "amd"], &["", "%", "\u{1b}"]),
     ("--commit", &["0", "abc"], &["", "_"]),
     ("--limit", &["1", "5"], &["-1", "x", "99999999999"]),
@@ -149,10 +151,10 @@ fn command_line(g: &mut Gen) -> Vec<String> {
     ]);
     let mut args = vec![command.to_owned()];
     if command == "results" {
-        args.push(
-            g.pick(&["list", "list", "import", "import", "rank", ""])
-                .to_owned(),
-        );
+        let sub = [
+            "list", "list", "import", "import", "rank", "compare", "history", "export", "",
+        ];
+        args.push(g.pick(&sub).to_owned());
     }
     let positionals = match command {
         "merge" => 1 + g.below(4),
@@ -167,7 +169,7 @@ fn command_line(g: &mut Gen) -> Vec<String> {
         let sensible = match command {
             "render" | "bench" => g.pick(&["good.toml", "tiny-cover.toml"]),
             "merge" => g.pick(&["p0.part", "p1.part"]),
-            "results" => g.pick(&["r.json", "a.png", "junk.toml"]),
+            "results" => g.pick(&["r.json", "a.png", "junk.toml", "1", "m-", "commit:0"]),
             _ => g.pick(&["a.png", "a.exr", "a.ppm"]),
         };
         let any = g.pick(POSITIONALS);

@@ -87,6 +87,7 @@ pub struct Run {
     pub commit: String,
     pub simd: String,
     pub workload: String,
+    pub workload_id: String,
     pub threads: i64,
     pub sps: [f64; 3],
     pub validation: String,
@@ -297,7 +298,7 @@ impl ResultsDb {
     pub fn runs(&self, filter: &Filter) -> Result<Vec<Run>> {
         let mut stmt = self.conn.prepare(
             "SELECT id, started_unix_s, machine_id, cpu_model, logical_cpus, version, commit_id,
-                    simd, workload, threads, sps_median, sps_min, sps_max, validation
+                    simd, workload, workload_id, threads, sps_median, sps_min, sps_max, validation
              FROM runs
              WHERE (?1 IS NULL OR workload = ?1)
                AND (?2 IS NULL OR machine_id LIKE ?2 || '%' ESCAPE '\\'
@@ -333,12 +334,34 @@ impl ResultsDb {
                     commit: r.get(6)?,
                     simd: r.get(7)?,
                     workload: r.get(8)?,
-                    threads: r.get(9)?,
-                    sps: [r.get(10)?, r.get(11)?, r.get(12)?],
-                    validation: r.get(13)?,
+                    workload_id: r.get(9)?,
+                    threads: r.get(10)?,
+                    sps: [r.get(11)?, r.get(12)?, r.get(13)?],
+                    validation: r.get(14)?,
                 })
             },
         )?;
+        Ok(rows.collect::<rusqlite::Result<Vec<_>>>()?)
+    }
+}
+
+impl ResultsDb {
+    /// Each thread count's samples/s (median, min, max) of run `id`, fewest threads first.
+    pub fn scaling(&self, id: i64) -> Result<Vec<(i64, [f64; 3])>> {
+        let mut stmt = self.conn.prepare(
+            "SELECT threads, sps_median, sps_min, sps_max FROM scaling
+             WHERE run_id = ?1 ORDER BY threads",
+        )?;
+        let rows = stmt.query_map([id], |r| Ok((r.get(0)?, [r.get(1)?, r.get(2)?, r.get(3)?])))?;
+        Ok(rows.collect::<rusqlite::Result<Vec<_>>>()?)
+    }
+
+    /// Every run's result JSON, oldest first.
+    pub fn results_json(&self) -> Result<Vec<String>> {
+        let mut stmt = self
+            .conn
+            .prepare("SELECT result FROM runs ORDER BY started_unix_s, id")?;
+        let rows = stmt.query_map([], |r| r.get(0))?;
         Ok(rows.collect::<rusqlite::Result<Vec<_>>>()?)
     }
 }

@@ -1,19 +1,48 @@
 //! `tessera results`: the benchmark results kept in the local database (`db`): listing
-//! them, and importing results other machines made. Every text that came from a result is
-//! shown escaped, as a result file may come from anyone.
+//! them, importing results other machines made, ranking, comparing and following them over
+//! commits (`analysis`), and exporting them. Every text that came from a result is shown
+//! escaped, as a result file may come from anyone.
 
+mod analysis;
 pub mod db;
 
 use super::bench::report::Report;
 use super::print_out;
-use anyhow::Result;
+use anyhow::{Result, bail};
 use db::{Added, Filter, ResultsDb};
 use std::path::PathBuf;
 
 /// What `tessera results` was asked to do.
 pub enum ResultsMode {
-    List { db: PathBuf, filter: Filter },
-    Import { db: PathBuf, files: Vec<PathBuf> },
+    List {
+        db: PathBuf,
+        filter: Filter,
+    },
+    Import {
+        db: PathBuf,
+        files: Vec<PathBuf>,
+    },
+    Rank {
+        db: PathBuf,
+        workload: String,
+        all: bool,
+    },
+    Compare {
+        db: PathBuf,
+        a: String,
+        b: String,
+        workload: Option<String>,
+    },
+    History {
+        db: PathBuf,
+        machine: String,
+        workload: String,
+        threads: Option<i64>,
+        simd: Option<String>,
+    },
+    Export {
+        db: PathBuf,
+    },
 }
 
 pub fn run(mode: ResultsMode) -> Result<()> {
@@ -37,7 +66,132 @@ pub fn run(mode: ResultsMode) -> Result<()> {
                 added.len() - new
             ))
         }
+        ResultsMode::Rank { db, workload, all } => {
+            let db = ResultsDb::open(&db)?;
+            let runs = db.runs(&Filter {
+                workload: Some(workload.clone()),
+                ..Filter::default()
+            })?;
+            // A name such as `custom` covers several scenes: rank only the newest's.
+            let id = runs.first().map(|r| r.workload_id.clone());
+            let runs: Vec<_> = runs
+                .into_iter()
+                .filter(|r| Some(&r.workload_id) == id.as_ref())
+                .collect();
+            print_out(&analysis::rank_text(&analysis::rank(&runs, all), &workload))
+        }
+        ResultsMode::Compare { db, a, b, workload } => {
+            let db = ResultsDb::open(&db)?;
+            let all = db.runs(&Filter::default())?;
+            let side_a = select(&all, &a)?;
+            let workload_id = match &workload {
+                Some(name) => match all.iter().find(|r| &r.workload == name) {
+                    Some(r) => r.workload_id.clone(),
+                    None => bail!("no runs of workload `{}`", terminal_safe(name, 32)),
+                },
+                None => side_a[0].workload_id.clone(),
+            };
+            let side = |runs: Vec<&db::Run>, what: &str| -> Result<analysis::Scaling> {
+                let runs: Vec<_> = runs
+                    .into_iter()
+                    .filter(|r| r.workload_id == workload_id)
+                    .collect();
+                if runs.is_empty() {
+                    bail!("{}: no runs of that workload", terminal_safe(what, 40));
+                }
+                let rows = (runs.iter())
+                    .map(|r| db.scaling(r.id))
+                    .collect::<Result<Vec<_>>>()?;
+                Ok(analysis::pool_scaling(&rows))
+            };
+            let (pa, pb) = (side(side_a, &a)?, side(select(&all, &b)?, &b)?);
+            match analysis::compare_text(&a, &pa, &b, &pb) {
+                Some(text) => print_out(&text),
+                None => bail!("the two share no thread count"),
+            }
+        }
+        ResultsMode::History {
+            db,
+            machine,
+            workload,
+            threads,
+            simd,
+        } => {
+            let db = ResultsDb::open(&db)?;
+            let runs = db.runs(&Filter {
+                workload: Some(workload.clone()),
+                machine: Some(machine.clone()),
+                ..Filter::default()
+            })?;
+            let mut machines: Vec<&str> = runs.iter().map(|r| r.machine_id.as_str()).collect();
+            machines.sort_unstable();
+            machines.dedup();
+            let id = match machines[..] {
+                [] => bail!(
+                    "no runs of `{}` on a machine matching `{}`",
+                    terminal_safe(&workload, 32),
+                    terminal_safe(&machine, 40)
+                ),
+                [one] => one.to_owned(),
+                _ => bail!(
+                    "`{}` matches {} machines ({}): give more of a machine id",
+                    terminal_safe(&machine, 40),
+                    machines.len(),
+                    machines
+                        .iter()
+                        .map(|m| terminal_safe(m, 18))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            };
+            let threads = threads.unwrap_or(runs[0].threads);
+            let simd = simd.unwrap_or_else(|| runs[0].simd.clone());
+            let steps = analysis::history(&runs, threads, &simd);
+            if steps.is_empty() {
+                bail!(
+                    "no runs at {threads} threads on SIMD path {} on {}",
+                    terminal_safe(&simd, 16),
+                    terminal_safe(&id, 18)
+                );
+            }
+            print_out(&analysis::history_text(&steps, &id, threads, &simd))
+        }
+        ResultsMode::Export { db } => {
+            let db = ResultsDb::open(&db)?;
+            let mut text = String::new();
+            for json in db.results_json()? {
+                text.push_str(&json);
+                text.push('\n');
+            }
+            print_out(&text)
+        }
     }
+}
+
+/// The runs `what` names: `run:N` or a number (one run), `machine:ID` or `m-…` (a machine's
+/// runs, by its id's start), `commit:HEX` or hex digits (a commit's runs, by its start).
+fn select<'a>(runs: &'a [db::Run], what: &str) -> Result<Vec<&'a db::Run>> {
+    let (kind, key) = match what.split_once(':') {
+        Some((kind @ ("run" | "machine" | "commit"), key)) => (kind, key),
+        _ if !what.is_empty() && what.bytes().all(|b| b.is_ascii_digit()) => ("run", what),
+        _ if what.starts_with("m-") => ("machine", what),
+        _ => ("commit", what),
+    };
+    if key.is_empty() {
+        bail!("`{}`: nothing to select by", terminal_safe(what, 40));
+    }
+    let chosen: Vec<&db::Run> = match kind {
+        "run" => runs.iter().filter(|r| r.id.to_string() == key).collect(),
+        "machine" => runs
+            .iter()
+            .filter(|r| r.machine_id.starts_with(key))
+            .collect(),
+        _ => runs.iter().filter(|r| r.commit.starts_with(key)).collect(),
+    };
+    if chosen.is_empty() {
+        bail!("`{}` selects no runs ({kind})", terminal_safe(what, 40));
+    }
+    Ok(chosen)
 }
 
 /// `text` safe to print to a terminal: control characters (an escape sequence could

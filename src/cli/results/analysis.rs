@@ -1,0 +1,331 @@
+//! What the kept runs say together: a ranking of machines and builds, two sets of runs
+//! compared thread count by thread count, and one machine's speed over commits with the
+//! drops beyond the runs' own spread flagged. Pure functions of the runs, so they are
+//! tested without a database.
+
+use super::db::Run;
+use super::{terminal_safe, utc};
+use std::collections::BTreeMap;
+
+/// The median of `values` (not empty).
+fn median(values: &mut [f64]) -> f64 {
+    values.sort_by(f64::total_cmp);
+    let n = values.len();
+    if n % 2 == 1 {
+        values[n / 2]
+    } else {
+        (values[n / 2 - 1] + values[n / 2]) / 2.0
+    }
+}
+
+/// A set of measurements of one thing: the median of their medians, and the least minimum
+/// and greatest maximum (the spread every run saw).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Pooled {
+    pub median: f64,
+    pub min: f64,
+    pub max: f64,
+    pub runs: usize,
+}
+
+fn pool(measurements: &[[f64; 3]]) -> Option<Pooled> {
+    if measurements.is_empty() {
+        return None;
+    }
+    let mut medians: Vec<f64> = measurements.iter().map(|m| m[0]).collect();
+    Some(Pooled {
+        median: median(&mut medians),
+        min: measurements
+            .iter()
+            .map(|m| m[1])
+            .fold(f64::INFINITY, f64::min),
+        max: measurements
+            .iter()
+            .map(|m| m[2])
+            .fold(f64::NEG_INFINITY, f64::max),
+        runs: measurements.len(),
+    })
+}
+
+impl Pooled {
+    /// Whether the two spreads overlap: a difference within what the runs themselves vary.
+    pub fn overlaps(&self, other: &Pooled) -> bool {
+        self.min <= other.max && other.min <= self.max
+    }
+}
+
+fn sps(p: &Pooled) -> String {
+    format!(
+        "{:.3} [{:.3}-{:.3}]",
+        p.median / 1e6,
+        p.min / 1e6,
+        p.max / 1e6
+    )
+}
+
+fn runs(n: usize) -> String {
+    format!("{n} run{}", if n == 1 { "" } else { "s" })
+}
+
+fn build(r: &Run) -> String {
+    let commit: String = r.commit.chars().take(8).collect();
+    format!("{} {commit} {}", r.version, r.simd)
+}
+
+fn cpu(r: &Run) -> String {
+    format!(
+        "{} ({} CPUs)",
+        r.cpu_model.as_deref().unwrap_or("unknown CPU"),
+        r.logical_cpus
+    )
+}
+
+/// One line of a ranking: a machine and build, its score and spread.
+#[derive(Debug)]
+pub struct Ranked<'a> {
+    pub example: &'a Run,
+    pub score: Pooled,
+    pub threads: i64,
+}
+
+/// The runs of one workload grouped by machine and build (version, commit, SIMD path), each
+/// scored by its headline samples/s (all threads, as bench measures by default), best
+/// first. Runs not `valid` are left out unless `all`.
+pub fn rank(runs: &[Run], all: bool) -> Vec<Ranked<'_>> {
+    let mut groups: BTreeMap<(&str, &str, &str, &str, i64), Vec<&Run>> = BTreeMap::new();
+    for r in runs.iter().filter(|r| all || r.validation == "valid") {
+        let key = (
+            r.machine_id.as_str(),
+            r.version.as_str(),
+            r.commit.as_str(),
+            r.simd.as_str(),
+            r.threads,
+        );
+        groups.entry(key).or_default().push(r);
+    }
+    let mut ranked: Vec<Ranked> = groups
+        .into_values()
+        .filter_map(|runs| {
+            let score = pool(&runs.iter().map(|r| r.sps).collect::<Vec<_>>())?;
+            Some(Ranked {
+                example: runs[0],
+                score,
+                threads: runs[0].threads,
+            })
+        })
+        .collect();
+    ranked.sort_by(|a, b| b.score.median.total_cmp(&a.score.median));
+    ranked
+}
+
+pub fn rank_text(ranked: &[Ranked], workload: &str) -> String {
+    if ranked.is_empty() {
+        return format!(
+            "no valid runs of `{}` to rank (--all counts the others)\n",
+            terminal_safe(workload, 32)
+        );
+    }
+    let mut t = format!(
+        "{:>4}  {:<18}  {:<36}  {:<24}  {:>4}  {:>7}  {:<26}  {:>14}\n",
+        "rank", "machine", "CPU", "build", "runs", "threads", "M samples/s [spread]", "per thread"
+    );
+    for (i, r) in ranked.iter().enumerate() {
+        t.push_str(&format!(
+            "{:>4}  {:<18}  {:<36}  {:<24}  {:>4}  {:>7}  {:<26}  {:>14.3}\n",
+            i + 1,
+            terminal_safe(&r.example.machine_id, 18),
+            terminal_safe(&cpu(r.example), 36),
+            terminal_safe(&build(r.example), 24),
+            r.score.runs,
+            r.threads,
+            sps(&r.score),
+            r.score.median / 1e6 / r.threads.max(1) as f64,
+        ));
+    }
+    t
+}
+
+/// Each thread count's pooled samples/s over a set of runs.
+pub type Scaling = BTreeMap<i64, Pooled>;
+
+pub fn pool_scaling(rows: &[Vec<(i64, [f64; 3])>]) -> Scaling {
+    let mut by_threads: BTreeMap<i64, Vec<[f64; 3]>> = BTreeMap::new();
+    for run in rows {
+        for &(threads, m) in run {
+            by_threads.entry(threads).or_default().push(m);
+        }
+    }
+    by_threads
+        .into_iter()
+        .filter_map(|(t, ms)| Some((t, pool(&ms)?)))
+        .collect()
+}
+
+/// `b` against `a`, thread count by thread count: the ratio of pooled medians and whether
+/// it lies within the runs' spread.
+pub fn compare_text(a_name: &str, a: &Scaling, b_name: &str, b: &Scaling) -> Option<String> {
+    let mut t = format!(
+        "A: {}\nB: {}\nthreads  A M samples/s [spread]        B M samples/s [spread]        B/A\n",
+        terminal_safe(a_name, 120),
+        terminal_safe(b_name, 120)
+    );
+    let mut shared = 0;
+    for (threads, pb) in b {
+        let Some(pa) = a.get(threads) else { continue };
+        shared += 1;
+        let ratio = pb.median / pa.median;
+        let verdict = if pa.overlaps(pb) {
+            "within the runs' spread"
+        } else if ratio > 1.0 {
+            "faster, beyond the spread"
+        } else {
+            "slower, beyond the spread"
+        };
+        t.push_str(&format!(
+            "{threads:>7}  {:<28}  {:<28}  {ratio:.3}  {verdict}\n",
+            format!("{} ({})", sps(pa), runs(pa.runs)),
+            format!("{} ({})", sps(pb), runs(pb.runs)),
+        ));
+    }
+    (shared > 0).then_some(t)
+}
+
+/// One commit's place in a machine's history.
+#[derive(Debug)]
+pub struct Step {
+    pub commit: String,
+    pub first_seen: i64,
+    pub score: Pooled,
+    /// Slower than the commit before it by more than either's spread.
+    pub regression: bool,
+}
+
+/// A machine's headline speed over commits (in the order each was first measured), at
+/// `threads` on SIMD path `simd`, each commit flagged when it is slower than the one before
+/// beyond both spreads.
+pub fn history(runs: &[Run], threads: i64, simd: &str) -> Vec<Step> {
+    let mut by_commit: BTreeMap<&str, (i64, Vec<[f64; 3]>)> = BTreeMap::new();
+    for r in (runs.iter()).filter(|r| r.threads == threads && r.simd == simd) {
+        let entry = by_commit
+            .entry(r.commit.as_str())
+            .or_insert((r.started_unix_s, Vec::new()));
+        entry.0 = entry.0.min(r.started_unix_s);
+        entry.1.push(r.sps);
+    }
+    let mut steps: Vec<Step> = by_commit
+        .into_iter()
+        .filter_map(|(commit, (first_seen, ms))| {
+            Some(Step {
+                commit: commit.to_owned(),
+                first_seen,
+                score: pool(&ms)?,
+                regression: false,
+            })
+        })
+        .collect();
+    steps.sort_by_key(|s| s.first_seen);
+    for i in 1..steps.len() {
+        let (before, now) = (steps[i - 1].score, steps[i].score);
+        steps[i].regression = now.median < before.median && !now.overlaps(&before);
+    }
+    steps
+}
+
+pub fn history_text(steps: &[Step], machine: &str, threads: i64, simd: &str) -> String {
+    let mut t = format!(
+        "machine {}, {threads} threads, SIMD {}\n{:<16}  {:<12}  {:>4}  {:<26}  {:>7}\n",
+        terminal_safe(machine, 80),
+        terminal_safe(simd, 16),
+        "first run (UTC)",
+        "commit",
+        "runs",
+        "M samples/s [spread]",
+        "vs prev"
+    );
+    for (i, s) in steps.iter().enumerate() {
+        let versus = match i.checked_sub(1).map(|p| &steps[p]) {
+            Some(prev) => format!("{:.3}", s.score.median / prev.score.median),
+            None => "-".into(),
+        };
+        t.push_str(&format!(
+            "{:<16}  {:<12}  {:>4}  {:<26}  {versus:>7}{}\n",
+            utc(s.first_seen),
+            terminal_safe(&s.commit.chars().take(12).collect::<String>(), 12),
+            s.score.runs,
+            sps(&s.score),
+            if s.regression {
+                "  REGRESSION: slower beyond the runs' spread"
+            } else {
+                ""
+            }
+        ));
+    }
+    t
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(machine: &str, commit: &str, started: i64, sps: [f64; 3], valid: bool) -> Run {
+        Run {
+            id: started,
+            started_unix_s: started,
+            machine_id: machine.into(),
+            cpu_model: Some("CPU".into()),
+            logical_cpus: 4,
+            version: "0.1.0".into(),
+            commit: commit.into(),
+            simd: "avx2".into(),
+            workload: "cover".into(),
+            workload_id: "w".into(),
+            threads: 4,
+            sps,
+            validation: if valid { "valid" } else { "unvalidated" }.into(),
+        }
+    }
+
+    #[test]
+    fn a_ranking_pools_each_machine_and_build_best_first() {
+        let runs = [
+            run("m-a", "c1", 1, [10.0, 9.0, 11.0], true),
+            run("m-a", "c1", 2, [12.0, 11.0, 13.0], true),
+            run("m-a", "c1", 3, [14.0, 13.0, 15.0], true),
+            run("m-b", "c1", 4, [20.0, 19.0, 21.0], true),
+            run("m-c", "c1", 5, [99.0, 98.0, 100.0], false),
+        ];
+        let ranked = rank(&runs, false);
+        assert_eq!(ranked.len(), 2);
+        assert_eq!(ranked[0].example.machine_id, "m-b");
+        let a = ranked[1].score;
+        assert_eq!((a.median, a.min, a.max, a.runs), (12.0, 9.0, 15.0, 3));
+        assert_eq!(rank(&runs, true)[0].example.machine_id, "m-c");
+        assert!(rank_text(&rank(&[], false), "cover").contains("no valid runs"));
+    }
+
+    #[test]
+    fn history_flags_only_drops_beyond_the_spread() {
+        let runs = [
+            run("m", "c1", 10, [100.0, 95.0, 105.0], true),
+            run("m", "c2", 20, [98.0, 94.0, 103.0], true),
+            run("m", "c3", 30, [80.0, 78.0, 82.0], true),
+            run("m", "c4", 40, [90.0, 85.0, 95.0], true),
+        ];
+        let steps = history(&runs, 4, "avx2");
+        let flags: Vec<bool> = steps.iter().map(|s| s.regression).collect();
+        assert_eq!(flags, [false, false, true, false]);
+        assert!(history(&runs, 4, "avx512").is_empty());
+        let text = history_text(&steps, "m", 4, "avx2");
+        assert_eq!(text.matches("REGRESSION").count(), 1, "{text}");
+    }
+
+    #[test]
+    fn compare_needs_a_shared_thread_count() {
+        let a = pool_scaling(&[vec![(1, [1.0, 0.9, 1.1]), (2, [2.0, 1.9, 2.1])]]);
+        let b = pool_scaling(&[vec![(2, [3.0, 2.9, 3.1])]]);
+        let text = compare_text("a", &a, "b", &b).unwrap();
+        assert!(text.contains("1.500  faster, beyond the spread"), "{text}");
+        let c = pool_scaling(&[vec![(8, [3.0, 2.9, 3.1])]]);
+        assert!(compare_text("a", &a, "c", &c).is_none());
+    }
+}
