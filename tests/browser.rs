@@ -409,3 +409,124 @@ impl Drop for KillOnDrop {
         let _ = self.0.wait();
     }
 }
+
+/// The results report (`tessera results report`) as a person opens it: every line ranked,
+/// its charts drawn, a CPU model full of markup shown as text and run as nothing, and on a
+/// phone's width no sideways scrolling of the page.
+#[test]
+fn the_results_report_reads_in_a_browser_on_a_desktop_and_a_phone() {
+    let Some(binary) = chromium() else {
+        return skip(
+            "the_results_report_reads_in_a_browser",
+            "no chromium (Debian's `chromium` package; or set TESSERA_CHROMIUM)",
+        );
+    };
+    let dir = temp_dir("browser-report");
+    let db = dir.join("r.db");
+    let bench = |simd: &str, out: &str| {
+        let o = tessera()
+            .args([
+                "bench",
+                &cover(),
+                "--width",
+                "64",
+                "--spp",
+                "2",
+                "--repeat",
+                "2",
+            ])
+            .args(["--warmup", "0", "--simd", simd, "--out", out])
+            .env("TESSERA_DB", &db)
+            .current_dir(&dir)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", stderr(&o));
+    };
+    bench("portable", "portable.json");
+    bench("auto", "auto.json");
+    let mut evil: Value =
+        serde_json::from_slice(&std::fs::read(dir.join("auto.json")).unwrap()).unwrap();
+    let markup =
+        "<script>document.title='pwned'</script><img src=x onerror=\"document.title='pwned'\">";
+    evil["host"]["cpu_model"] = Value::from(markup);
+    evil["host"]["machine_id"] = Value::from("m-0123456789abcdef");
+    evil["method"]["started_unix_s"] = Value::from(1_700_000_000u64);
+    std::fs::write(dir.join("evil.json"), evil.to_string()).unwrap();
+    let ok_in = |args: &[&str]| {
+        let o = tessera()
+            .args(args)
+            .env("TESSERA_DB", &db)
+            .current_dir(&dir)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+    };
+    ok_in(&["results", "import", "evil.json"]);
+    ok_in(&[
+        "results",
+        "report",
+        "-o",
+        "report.html",
+        "--workload",
+        "custom",
+        "--all",
+    ]);
+    let page = std::fs::read_to_string(dir.join("report.html")).unwrap();
+    assert!(
+        !page.contains("<script") && !page.contains("<img"),
+        "markup got through"
+    );
+    assert!(
+        !page.contains("http://") && !page.contains("https://"),
+        "it refers elsewhere"
+    );
+
+    let url = format!("file://{}", dir.join("report.html").display());
+    let mut browser = Browser::open(&binary, &url, dir.join("profile"));
+    let loaded = "document.readyState";
+    browser.wait_for("the page", loaded, |v| v == "complete");
+    assert_eq!(
+        browser.eval("document.querySelectorAll('table.rank tbody tr').length"),
+        3
+    );
+    assert!(
+        browser
+            .eval("document.querySelectorAll('svg polyline').length")
+            .as_u64()
+            >= Some(3)
+    );
+    assert_eq!(
+        browser.eval("document.querySelectorAll('script, img').length"),
+        0
+    );
+    let title = browser.eval("document.title");
+    assert!(!title.as_str().unwrap().contains("pwned"), "{title}");
+    let text = browser.eval("document.body.innerText");
+    assert!(
+        text.as_str().unwrap().contains("<script>"),
+        "the CPU model is not shown as text"
+    );
+    let desktop = browser.screenshot();
+    println!(
+        "{}",
+        save_for_people("results-report.png", &desktop).display()
+    );
+
+    browser.call(
+        "Emulation.setDeviceMetricsOverride",
+        json!({"width": 390, "height": 844, "deviceScaleFactor": 1, "mobile": true}),
+    );
+    browser.call("Page.reload", json!({}));
+    browser.wait_for("the page again", loaded, |v| v == "complete");
+    let overflow = browser.eval("document.documentElement.scrollWidth - window.innerWidth");
+    assert!(
+        overflow.as_i64() <= Some(0),
+        "the page scrolls sideways by {overflow} px on a phone"
+    );
+    let phone = browser.screenshot();
+    assert_eq!(phone.width(), 390);
+    println!(
+        "{}",
+        save_for_people("results-report-phone.png", &phone).display()
+    );
+}

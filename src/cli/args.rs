@@ -114,6 +114,18 @@ pub enum ResultsCommand {
         #[arg(long)]
         simd: Option<String>,
     },
+    /// A self-contained HTML report (no script, nothing fetched): the ranking and charts of
+    /// samples/s by machine, speed against threads, and history over commits.
+    Report {
+        /// The HTML file to write.
+        #[arg(short, long, required = true)]
+        output: PathBuf,
+        #[arg(long, default_value = "cover")]
+        workload: String,
+        /// Count unvalidated and invalid runs too.
+        #[arg(long)]
+        all: bool,
+    },
     /// Every result, oldest first, as JSON lines (one result per line).
     Export {
         /// JSON lines (the one format).

@@ -410,6 +410,19 @@ impl ResultsMode {
                 simd,
             },
             ResultsCommand::Export { jsonl: _ } => Self::Export { db },
+            ResultsCommand::Report {
+                output,
+                workload,
+                all,
+            } => {
+                check_writable(&output)?;
+                Self::Report {
+                    db,
+                    output,
+                    workload,
+                    all,
+                }
+            }
         })
     }
 }

@@ -48,9 +48,9 @@ pub struct Host {
     pub kernel: Option<String>,
     /// The 1, 5 and 15 minute load averages when the benchmark started.
     pub load_average: Option<[f64; 3]>,
-    /// Names the machine without naming a person: a hash of /etc/machine-id, or where there
-    /// is none (a container) of the CPU model, CPU and core counts and memory. Absent in
-    /// `tessera-bench/1` results (see `Report::machine_id`).
+    /// Names the machine without naming a person: a hash of its CPU model, CPU and core
+    /// counts and memory (see `machine_id`). Absent in `tessera-bench/1` results, which get
+    /// the same hash of the same facts when read (`Report::machine_id`).
     #[serde(default)]
     pub machine_id: Option<String>,
     /// Whether simultaneous multithreading (Hyper-Threading) is on.
@@ -145,15 +145,12 @@ impl Host {
                     .map(|g| g * 1000.0)
             });
         let cpu_max_mhz = khz("/sys/devices/system/cpu/cpu0/cpufreq/cpuinfo_max_freq");
-        let machine_id = machine_id(
-            read_file("/etc/machine-id").or_else(|| read_file("/var/lib/dbus/machine-id")),
-            &Facts {
-                cpu_model: cpu_model.as_deref(),
-                logical_cpus,
-                physical_cores,
-                memory_bytes,
-            },
-        );
+        let machine_id = machine_id(&Facts {
+            cpu_model: cpu_model.as_deref(),
+            logical_cpus,
+            physical_cores,
+            memory_bytes,
+        });
         Self {
             machine_id: Some(machine_id),
             smt,
@@ -189,23 +186,19 @@ pub struct Facts<'a> {
     pub memory_bytes: Option<u64>,
 }
 
-/// A machine's id: `m-` and 16 hex digits of a hash of its /etc/machine-id (salted, so the
-/// id itself is not disclosed), or of its hardware facts (memory in whole GiB, as the
-/// kernel reports a little less or more from boot to boot) where it has none.
-pub fn machine_id(system_id: Option<String>, facts: &Facts) -> String {
-    let id = system_id
-        .map(|t| t.trim().to_owned())
-        .filter(|t| !t.is_empty());
-    let text = match id {
-        Some(id) => format!("tessera machine id\0{id}"),
-        None => format!(
-            "tessera machine facts\0{}\0{}\0{:?}\0{:?}",
-            facts.cpu_model.unwrap_or(""),
-            facts.logical_cpus,
-            facts.physical_cores,
-            facts.memory_bytes.map(|b| (b + (1 << 29)) >> 30)
-        ),
-    };
+/// A machine's id: `m-` and 16 hex digits of a hash of its hardware facts (memory in whole
+/// GiB, as the kernel reports a little more or less from boot to boot). The facts, not
+/// /etc/machine-id, so that the same machine has the same id in a container (which has no
+/// machine id), after a reinstall, and in `tessera-bench/1` results (which lack the field);
+/// machines of one model, CPU count and memory size share it, as one kind of machine.
+pub fn machine_id(facts: &Facts) -> String {
+    let text = format!(
+        "tessera machine\0{}\0{}\0{:?}\0{:?}",
+        facts.cpu_model.unwrap_or(""),
+        facts.logical_cpus,
+        facts.physical_cores,
+        facts.memory_bytes.map(|b| (b + (1 << 29)) >> 30)
+    );
     format!("m-{:016x}", xxhash_rust::xxh3::xxh3_64(text.as_bytes()))
 }
 
@@ -223,26 +216,24 @@ mod tests {
     }
 
     #[test]
-    fn machine_ids_name_a_machine_without_revealing_it() {
+    fn machine_ids_hash_the_hardware_to_the_gib() {
         let facts = Facts {
             cpu_model: Some("AMD EPYC"),
             logical_cpus: 2,
             physical_cores: Some(2),
             memory_bytes: Some(24 << 30),
         };
-        let system = "3d1219c7aaaabbbbccccddddeeeeffff";
-        let a = machine_id(Some(format!("{system}\n")), &facts);
-        assert_eq!(a, machine_id(Some(system.into()), &facts));
+        let a = machine_id(&facts);
         assert!(a.starts_with("m-") && a.len() == 18, "{a}");
-        assert!(!a.contains("3d1219c7"));
-        assert_ne!(a, machine_id(Some("another".into()), &facts));
-        // Without a system id: the facts, with memory to the GiB.
-        let b = machine_id(None, &facts);
         let slightly_less = Facts {
             memory_bytes: Some((24 << 30) - (40 << 20)),
             ..facts
         };
-        assert_eq!(b, machine_id(Some(" \n".into()), &slightly_less));
-        assert_ne!(b, a);
+        assert_eq!(a, machine_id(&slightly_less));
+        let more_cpus = Facts {
+            logical_cpus: 4,
+            ..slightly_less
+        };
+        assert_ne!(a, machine_id(&more_cpus));
     }
 }

@@ -289,15 +289,12 @@ impl Report {
     pub fn machine_id(&self) -> String {
         self.host.machine_id.clone().unwrap_or_else(|| {
             let h = &self.host;
-            super::host::machine_id(
-                None,
-                &super::host::Facts {
-                    cpu_model: h.cpu_model.as_deref(),
-                    logical_cpus: h.logical_cpus,
-                    physical_cores: h.physical_cores,
-                    memory_bytes: h.memory_bytes,
-                },
-            )
+            super::host::machine_id(&super::host::Facts {
+                cpu_model: h.cpu_model.as_deref(),
+                logical_cpus: h.logical_cpus,
+                physical_cores: h.physical_cores,
+                memory_bytes: h.memory_bytes,
+            })
         })
     }
 

@@ -67,12 +67,12 @@ fn runs(n: usize) -> String {
     format!("{n} run{}", if n == 1 { "" } else { "s" })
 }
 
-fn build(r: &Run) -> String {
+pub fn build(r: &Run) -> String {
     let commit: String = r.commit.chars().take(8).collect();
     format!("{} {commit} {}", r.version, r.simd)
 }
 
-fn cpu(r: &Run) -> String {
+pub fn cpu(r: &Run) -> String {
     format!(
         "{} ({} CPUs)",
         r.cpu_model.as_deref().unwrap_or("unknown CPU"),
@@ -86,6 +86,8 @@ pub struct Ranked<'a> {
     pub example: &'a Run,
     pub score: Pooled,
     pub threads: i64,
+    /// The runs pooled.
+    pub ids: Vec<i64>,
 }
 
 /// The runs of one workload grouped by machine and build (version, commit, SIMD path), each
@@ -111,6 +113,7 @@ pub fn rank(runs: &[Run], all: bool) -> Vec<Ranked<'_>> {
                 example: runs[0],
                 score,
                 threads: runs[0].threads,
+                ids: runs.iter().map(|r| r.id).collect(),
             })
         })
         .collect();

@@ -76,7 +76,7 @@ pub fn resolve(path: Option<PathBuf>) -> Result<PathBuf> {
 }
 
 /// One run as `list` shows it.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub struct Run {
     pub id: i64,
     pub started_unix_s: i64,

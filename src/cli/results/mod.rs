@@ -5,6 +5,7 @@
 
 mod analysis;
 pub mod db;
+mod html;
 
 use super::bench::report::Report;
 use super::print_out;
@@ -42,6 +43,12 @@ pub enum ResultsMode {
     },
     Export {
         db: PathBuf,
+    },
+    Report {
+        db: PathBuf,
+        output: PathBuf,
+        workload: String,
+        all: bool,
     },
 }
 
@@ -155,6 +162,67 @@ pub fn run(mode: ResultsMode) -> Result<()> {
                 );
             }
             print_out(&analysis::history_text(&steps, &id, threads, &simd))
+        }
+        ResultsMode::Report {
+            db,
+            output,
+            workload,
+            all,
+        } => {
+            let db = ResultsDb::open(&db)?;
+            let total_runs = db.runs(&Filter::default())?.len();
+            let runs = db.runs(&Filter {
+                workload: Some(workload.clone()),
+                ..Filter::default()
+            })?;
+            let id = runs.first().map(|r| r.workload_id.clone());
+            let runs: Vec<_> = (runs.into_iter())
+                .filter(|r| Some(&r.workload_id) == id.as_ref() && (all || r.validation == "valid"))
+                .collect();
+            let ranked = analysis::rank(&runs, all);
+            let scaling = (ranked.iter())
+                .map(|line| {
+                    let rows = (line.ids.iter())
+                        .map(|&id| db.scaling(id))
+                        .collect::<Result<Vec<_>>>()?;
+                    Ok(analysis::pool_scaling(&rows))
+                })
+                .collect::<Result<Vec<_>>>()?;
+            let mut histories = Vec::new();
+            let mut seen = std::collections::BTreeSet::new();
+            for line in &ranked {
+                let machine = &line.example.machine_id;
+                if !seen.insert(machine.clone()) {
+                    continue;
+                }
+                let mine: Vec<db::Run> = (runs.iter())
+                    .filter(|r| &r.machine_id == machine)
+                    .cloned()
+                    .collect();
+                // At the thread count and SIMD path of the machine's best line.
+                let (threads, simd) = (line.threads, line.example.simd.clone());
+                let steps = analysis::history(&mine, threads, &simd);
+                histories.push((machine.clone(), threads, simd, steps));
+            }
+            let generated_unix_s = std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0, |d| d.as_secs() as i64);
+            let page = html::render(&html::Report {
+                workload: &workload,
+                generated_unix_s,
+                total_runs,
+                ranked: &ranked,
+                scaling: &scaling,
+                histories: &histories,
+            });
+            tessera::atomic_file::write_atomically(&output, page.as_bytes())?;
+            super::note(format_args!(
+                "{}: {} machine and build lines, {} runs",
+                output.display(),
+                ranked.len(),
+                runs.len()
+            ));
+            Ok(())
         }
         ResultsMode::Export { db } => {
             let db = ResultsDb::open(&db)?;
