@@ -68,6 +68,8 @@ fn a_quick_result_is_valid_and_carries_build_host_and_workload() {
     assert_eq!(build["version"], env!("CARGO_PKG_VERSION"));
     assert!(!build["commit"].as_str().unwrap().is_empty());
     assert!(build["rustc"].as_str().unwrap().starts_with("rustc "));
+    let reason = build["simd_reason"].as_str().unwrap();
+    assert!(reason.starts_with("auto on "), "{reason}");
     let supported = build["simd_supported"].as_array().unwrap();
     assert!(supported.contains(&build["simd"]));
     let host = &r["host"];

@@ -59,7 +59,7 @@ fn long_version() -> String {
         .map(|p| p.name())
         .collect();
     format!(
-        "{}\ncommit {}\ntarget {} ({} build, {})\nSIMD paths this CPU runs: {} (auto takes {})",
+        "{}\ncommit {}\ntarget {} ({} build, {})\nSIMD paths this CPU runs: {} (auto takes {})\n  because {} ({})",
         env!("CARGO_PKG_VERSION"),
         env!("TESSERA_GIT_COMMIT"),
         env!("TESSERA_TARGET"),
@@ -67,6 +67,8 @@ fn long_version() -> String {
         env!("TESSERA_RUSTC_VERSION"),
         paths.join(", "),
         simd::Path::best().name(),
+        simd::Path::auto().1,
+        simd::cpu_identity().unwrap_or_else(|| std::env::consts::ARCH.into()),
     )
 }
 

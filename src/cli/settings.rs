@@ -288,6 +288,8 @@ pub struct Measure {
     pub out: Option<PathBuf>,
     /// The SIMD path of every render.
     pub simd: simd::Path,
+    /// Whether `--simd` (or `TESSERA_SIMD`) named it, rather than `auto`.
+    pub simd_chosen: bool,
     /// The results database to record the result in; `None`: not recorded.
     pub save: Option<SaveTo>,
 }
@@ -313,6 +315,7 @@ impl BenchMode {
         let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
         let threads = args.threads.unwrap_or(cpus);
         let simd = args.simd.path()?;
+        let simd_chosen = args.simd.name != "auto";
         render_options(Some(threads), render::DEFAULT_TILE, simd)?;
         if let Some(path) = args.write_workloads {
             check_writable(&path)?;
@@ -362,6 +365,7 @@ impl BenchMode {
             json: args.json,
             out: args.out,
             simd,
+            simd_chosen,
             save,
         })))
     }

@@ -97,6 +97,19 @@ fn paths_parse_and_refuse_what_the_cpu_lacks() {
     assert!(Path::best().is_supported());
 }
 
+#[test]
+fn auto_takes_the_widest_path_but_avx2_on_intel() {
+    let (path, why) = Path::auto();
+    assert!(path.is_supported() && !why.is_empty());
+    let widest = *Path::supported().last().unwrap();
+    let intel = super::cpu_identity().is_some_and(|c| c.starts_with("GenuineIntel"));
+    if intel && widest == Path::Avx512 {
+        assert_eq!(path, Path::Avx2, "{why}");
+    } else {
+        assert_eq!(path, widest, "{why}");
+    }
+}
+
 /// `slab16` of random rays against random boxes (and inverted, flat and infinite ones).
 struct Slabs(Vec<([F32x16; 6], SlabRay)>);
 

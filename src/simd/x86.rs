@@ -43,6 +43,24 @@ impl Avx512 {
     }
 }
 
+/// The CPU's vendor (`GenuineIntel`, `AuthenticAMD`, …) and family, from CPUID.
+pub fn vendor_and_family() -> ([u8; 12], u32) {
+    // SAFETY: CPUID leaves 0 and 1 exist on every x86-64 CPU.
+    #[allow(unused_unsafe)]
+    let (leaf0, leaf1) = unsafe { (__cpuid(0), __cpuid(1)) };
+    let mut vendor = [0u8; 12];
+    vendor[..4].copy_from_slice(&leaf0.ebx.to_le_bytes());
+    vendor[4..8].copy_from_slice(&leaf0.edx.to_le_bytes());
+    vendor[8..].copy_from_slice(&leaf0.ecx.to_le_bytes());
+    let base = (leaf1.eax >> 8) & 0xf;
+    let family = if base == 0xf {
+        base + ((leaf1.eax >> 20) & 0xff)
+    } else {
+        base
+    };
+    (vendor, family)
+}
+
 /// Runs `kernel` compiled for AVX2 (its generic body is inlined here, so it takes this
 /// function's features).
 #[target_feature(enable = "avx2,bmi1,bmi2,lzcnt,popcnt")]

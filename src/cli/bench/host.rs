@@ -17,6 +17,10 @@ pub struct Build {
     pub profile: String,
     /// The SIMD path the renders took.
     pub simd: String,
+    /// Why that path: `auto`'s rule with the CPU's vendor and family, or chosen by
+    /// `--simd`. Absent in results before it was recorded.
+    #[serde(default)]
+    pub simd_reason: Option<String>,
     /// Every SIMD path this CPU runs.
     pub simd_supported: Vec<String>,
 }
@@ -65,7 +69,13 @@ pub struct Host {
 }
 
 impl Build {
-    pub fn this(path: simd::Path) -> Self {
+    pub fn this(path: simd::Path, chosen: bool) -> Self {
+        let cpu = simd::cpu_identity().unwrap_or_else(|| std::env::consts::ARCH.into());
+        let simd_reason = if chosen {
+            format!("chosen with --simd or TESSERA_SIMD on {cpu}")
+        } else {
+            format!("auto on {cpu}: {}", simd::Path::auto().1)
+        };
         Self {
             version: env!("CARGO_PKG_VERSION").into(),
             commit: env!("TESSERA_GIT_COMMIT").into(),
@@ -73,6 +83,7 @@ impl Build {
             target: env!("TESSERA_TARGET").into(),
             profile: env!("TESSERA_PROFILE").into(),
             simd: path.name().into(),
+            simd_reason: Some(simd_reason),
             simd_supported: simd::Path::supported()
                 .iter()
                 .map(|p| p.name().into())

@@ -120,7 +120,7 @@ fn measure(m: Measure) -> Result<()> {
         .context("the headline thread count was not measured")?;
     let report = Report {
         schema: SCHEMA.into(),
-        build: Build::this(m.simd),
+        build: Build::this(m.simd, m.simd_chosen),
         host,
         workload: WorkloadInfo {
             name: m.workload.name.clone(),

@@ -170,6 +170,7 @@ impl Report {
             ("build.target", Some(&self.build.target)),
             ("build.profile", Some(&self.build.profile)),
             ("build.simd", Some(&self.build.simd)),
+            ("build.simd_reason", self.build.simd_reason.as_ref()),
             ("host.cpu_model", self.host.cpu_model.as_ref()),
             ("host.os", self.host.os.as_ref()),
             ("host.kernel", self.host.kernel.as_ref()),
