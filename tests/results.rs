@@ -17,16 +17,9 @@ use std::process::{Command, Output, Stdio};
 /// also written to `out`.
 fn bench(dir: &Path, db: Option<&Path>, out: &str) -> Output {
     let mut c = tessera();
-    c.args(["bench", &cover(), "--width", "48", "--spp", "1"])
-        .args([
-            "--repeat",
-            "1",
-            "--warmup",
-            "0",
-            "--no-scaling",
-            "--out",
-            out,
-        ])
+    c.args(["bench", &cover()])
+        .args("--width 48 --spp 1 --repeat 1 --warmup 0 --no-scaling".split(' '))
+        .args(["--out", out])
         .current_dir(dir);
     match db {
         Some(db) => c.env("TESSERA_DB", db),
@@ -429,18 +422,26 @@ fn concurrent_writers_all_land_and_a_killed_one_loses_nothing() {
     let (a, _) = two_results(&dir);
     let base = json(&a);
     // Four importers and a bench at once, on a new database.
+    let import = |files: &[String]| {
+        tessera()
+            .args(["results", "import"])
+            .args(files)
+            .env("TESSERA_DB", &db)
+            .current_dir(&dir)
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap()
+    };
     let mut children: Vec<std::process::Child> = (0..4)
         .map(|k| {
-            let files = variants(&dir, &base, 1_700_000_000 + k * 1000, 25, &format!("w{k}"));
-            tessera()
-                .args(["results", "import"])
-                .args(&files)
-                .env("TESSERA_DB", &db)
-                .current_dir(&dir)
-                .stdout(Stdio::null())
-                .stderr(Stdio::piped())
-                .spawn()
-                .unwrap()
+            import(&variants(
+                &dir,
+                &base,
+                1_700_000_000 + k * 1000,
+                25,
+                &format!("w{k}"),
+            ))
         })
         .collect();
     bench(&dir, Some(&db), "bench.json");
@@ -451,16 +452,7 @@ fn concurrent_writers_all_land_and_a_killed_one_loses_nothing() {
     assert_eq!(listed(&dir, &db, &[]).len(), 101);
     // An importer killed mid-way: its transaction is all or nothing, and what was there
     // stays.
-    let files = variants(&dir, &base, 1_710_000_000, 2000, "k");
-    let mut child = tessera()
-        .args(["results", "import"])
-        .args(&files)
-        .env("TESSERA_DB", &db)
-        .current_dir(&dir)
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
+    let mut child = import(&variants(&dir, &base, 1_710_000_000, 2000, "k"));
     std::thread::sleep(std::time::Duration::from_millis(150));
     let _ = Command::new("kill")
         .args(["-KILL", &child.id().to_string()])
