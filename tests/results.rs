@@ -572,3 +572,86 @@ fn rank_compare_history_and_export_read_the_kept_runs() {
     );
     assert_eq!(stdout(&o), "imported 0 new results, 4 already present\n");
 }
+
+#[test]
+fn a_result_of_the_first_schema_imports_on_the_same_machine() {
+    let dir = temp_dir("results-schema-1");
+    let db = dir.join("r.db");
+    let (a, _) = two_results(&dir);
+    let now = json(&a);
+    // What tessera-bench/1 wrote: no machine id, SMT, clocks or SIMD reason.
+    let mut old = now.clone();
+    old["schema"] = Value::from("tessera-bench/1");
+    old["method"]["started_unix_s"] = Value::from(1_700_000_000u64);
+    for field in ["machine_id", "smt", "cpu_base_mhz", "cpu_max_mhz"] {
+        old["host"].as_object_mut().unwrap().remove(field);
+    }
+    old["build"].as_object_mut().unwrap().remove("simd_reason");
+    write_json(&dir.join("old.json"), &old);
+    let o = results(&dir, &db, &["import", "old.json", a.to_str().unwrap()]);
+    assert_eq!(
+        stdout(&o),
+        "imported 2 new results, 0 already present\n",
+        "{}",
+        stderr(&o)
+    );
+    // The old result's machine id comes from the same facts: one machine.
+    let machine = now["host"]["machine_id"].as_str().unwrap();
+    assert_eq!(listed(&dir, &db, &["--machine", machine]).len(), 2);
+}
+
+/// Runs `script` with `sh` in a private mount namespace where `dir/small` is a 256 KiB
+/// filesystem; `None` if this machine cannot make one (no `unshare`, or no user namespaces).
+fn in_a_small_filesystem(dir: &Path, script: &str) -> Option<Output> {
+    std::fs::create_dir_all(dir.join("small")).unwrap();
+    let mount = format!("mount -t tmpfs -o size=256k none '{}/small'", dir.display());
+    let run = |script: &str| {
+        Command::new("unshare")
+            .args(["-rm", "sh", "-c", script])
+            .current_dir(dir)
+            .env("TESSERA_DB", dir.join("small/r.db"))
+            .output()
+    };
+    if !run(&mount).is_ok_and(|o| o.status.success()) {
+        return None;
+    }
+    Some(run(&format!("{mount} && {script}")).unwrap())
+}
+
+#[test]
+fn a_full_or_read_only_disk_is_an_error_that_keeps_what_was_there() {
+    let test = "a_full_or_read_only_disk_is_an_error_that_keeps_what_was_there";
+    let dir = temp_dir("results-disk");
+    let (a, _) = two_results(&dir);
+    let base = json(&a);
+    // Enough results to outgrow 256 KiB: their JSON is kept whole.
+    let many = variants(&dir, &base, 1_720_000_000, 200, "m").join(" ");
+    let tessera = env!("CARGO_BIN_EXE_tessera");
+    let script = format!(
+        "{tessera} results import a.json && {tessera} results import {many}; echo \"full=$?\"; \
+         {tessera} results list | tail -n +2 | wc -l; \
+         mount -o remount,ro small && {tessera} results import b.json; echo \"ro=$?\"; \
+         {tessera} results list | tail -n +2 | wc -l"
+    );
+    let Some(o) = in_a_small_filesystem(&dir, &script) else {
+        return skip(
+            test,
+            "this machine cannot make a private filesystem (unshare -rm)",
+        );
+    };
+    let (out, err) = (stdout(&o), stderr(&o));
+    let lines: Vec<&str> = (out.lines())
+        .filter(|l| !l.starts_with("imported"))
+        .collect();
+    assert_eq!(lines.first(), Some(&"full=2"), "{out}{err}");
+    assert!(err.contains("disk is full"), "{err}");
+    assert_eq!(
+        lines.get(1).map(|l| l.trim()),
+        Some("1"),
+        "the first import was lost: {out}"
+    );
+    assert_eq!(lines.get(2), Some(&"ro=2"), "{out}{err}");
+    assert!(err.contains("read-only"), "{err}");
+    assert_eq!(lines.get(3).map(|l| l.trim()), Some("1"), "{out}");
+    assert!(!err.contains("panicked"), "{err}");
+}

@@ -112,6 +112,12 @@ pub enum Added {
     Duplicate(i64),
 }
 
+#[derive(Clone, Copy, PartialEq)]
+enum Access {
+    Read,
+    Write,
+}
+
 pub struct ResultsDb {
     conn: Connection,
     path: PathBuf,
@@ -123,6 +129,22 @@ const SQLITE_MAGIC: &[u8; 16] = b"SQLite format 3\0";
 impl ResultsDb {
     /// Opens the database at `path`, creating it (and its directory) if it does not exist.
     pub fn open(path: &Path) -> Result<Self> {
+        Self::open_as(path, Access::Write)
+    }
+
+    /// Opens the database at `path` to read it: it is not created, and nothing is written,
+    /// so it reads on a read-only disk too. One that needs a migration is opened to write.
+    pub fn open_to_read(path: &Path) -> Result<Self> {
+        if !path.exists() {
+            bail!(
+                "{}: no results database yet (`tessera bench` records its runs there, `tessera results import` adds others')",
+                path.display()
+            );
+        }
+        Self::open_as(path, Access::Read)
+    }
+
+    fn open_as(path: &Path, access: Access) -> Result<Self> {
         let shown = path.display();
         match std::fs::metadata(path) {
             Ok(meta) if !meta.is_file() => {
@@ -145,7 +167,11 @@ impl ResultsDb {
                     .with_context(|| format!("{shown}: could not open the results database"));
             }
         }
-        let conn = Connection::open(path)
+        let flags = match access {
+            Access::Read => rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY,
+            Access::Write => rusqlite::OpenFlags::SQLITE_OPEN_READ_WRITE,
+        } | rusqlite::OpenFlags::SQLITE_OPEN_NO_MUTEX;
+        let conn = Connection::open_with_flags(path, flags)
             .with_context(|| format!("{shown}: could not open the results database"))?;
         let db = Self {
             conn,
@@ -171,6 +197,13 @@ impl ResultsDb {
         }
         if version < 0 {
             bail!("{shown}: not a tessera results database (schema {version}); left as it is");
+        }
+        if access == Access::Read && version < SCHEMA_VERSION {
+            drop(db);
+            return Self::open_as(path, Access::Write);
+        }
+        if access == Access::Read {
+            return Ok(db);
         }
         if version == 0 {
             let tables: i64 = db
@@ -234,64 +267,21 @@ impl ResultsDb {
         let added_unix_s = std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
             .map_or(0, |d| d.as_secs() as i64);
-        let tx = self
-            .conn
-            .transaction_with_behavior(TransactionBehavior::Immediate)
-            .map_err(|e| anyhow!("{}: could not write: {e}", self.path.display()))?;
-        let mut outcomes = Vec::new();
-        for report in reports {
-            let json = serde_json::to_string(report)?;
-            let digest = format!("{:032x}", xxhash_rust::xxh3::xxh3_128(json.as_bytes()));
-            let existing: Option<i64> = tx
-                .query_row("SELECT id FROM runs WHERE digest = ?1", [&digest], |r| {
-                    r.get(0)
-                })
-                .optional()?;
-            if let Some(id) = existing {
-                outcomes.push(Added::Duplicate(id));
-                continue;
+        let jsons = (reports.iter())
+            .map(serde_json::to_string)
+            .collect::<Result<Vec<_>, _>>()?;
+        let written = (|| {
+            let tx = self
+                .conn
+                .transaction_with_behavior(TransactionBehavior::Immediate)?;
+            let mut outcomes = Vec::new();
+            for (report, json) in reports.iter().zip(&jsons) {
+                outcomes.push(insert(&tx, report, json, source, added_unix_s)?);
             }
-            let r = &report.result;
-            tx.execute(
-                "INSERT INTO runs (digest, added_unix_s, source, started_unix_s, machine_id,
-                    cpu_model, logical_cpus, version, commit_id, simd, workload, workload_id,
-                    threads, sps_median, sps_min, sps_max, validation, result)
-                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18)",
-                params![
-                    digest,
-                    added_unix_s,
-                    source,
-                    report.method.started_unix_s as i64,
-                    report.machine_id(),
-                    report.host.cpu_model,
-                    report.host.logical_cpus as i64,
-                    report.build.version,
-                    report.build.commit,
-                    report.build.simd,
-                    report.workload.name,
-                    report.workload.id,
-                    r.threads as i64,
-                    r.samples_per_sec.median,
-                    r.samples_per_sec.min,
-                    r.samples_per_sec.max,
-                    report.validation.status,
-                    json,
-                ],
-            )?;
-            let id = tx.last_insert_rowid();
-            for row in &report.scaling {
-                let s = row.samples_per_sec;
-                tx.execute(
-                    "INSERT OR REPLACE INTO scaling (run_id, threads, sps_median, sps_min, sps_max)
-                     VALUES (?1, ?2, ?3, ?4, ?5)",
-                    params![id, row.threads as i64, s.median, s.min, s.max],
-                )?;
-            }
-            outcomes.push(Added::New(id));
-        }
-        tx.commit()
-            .map_err(|e| self.error(e, "could not write the results"))?;
-        Ok(outcomes)
+            tx.commit()?;
+            Ok(outcomes)
+        })();
+        written.map_err(|e| self.error(e, "could not write the results"))
     }
 
     /// The runs `filter` selects, newest first.
@@ -364,6 +354,62 @@ impl ResultsDb {
         let rows = stmt.query_map([], |r| r.get(0))?;
         Ok(rows.collect::<rusqlite::Result<Vec<_>>>()?)
     }
+}
+
+/// Adds one result in transaction `tx`, unless a result of the same digest is there.
+fn insert(
+    tx: &rusqlite::Transaction,
+    report: &Report,
+    json: &str,
+    source: &str,
+    added_unix_s: i64,
+) -> rusqlite::Result<Added> {
+    let digest = format!("{:032x}", xxhash_rust::xxh3::xxh3_128(json.as_bytes()));
+    let existing: Option<i64> = tx
+        .query_row("SELECT id FROM runs WHERE digest = ?1", [&digest], |r| {
+            r.get(0)
+        })
+        .optional()?;
+    if let Some(id) = existing {
+        return Ok(Added::Duplicate(id));
+    }
+    let r = &report.result;
+    tx.execute(
+        "INSERT INTO runs (digest, added_unix_s, source, started_unix_s, machine_id,
+            cpu_model, logical_cpus, version, commit_id, simd, workload, workload_id,
+            threads, sps_median, sps_min, sps_max, validation, result)
+         VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18)",
+        params![
+            digest,
+            added_unix_s,
+            source,
+            report.method.started_unix_s as i64,
+            report.machine_id(),
+            report.host.cpu_model,
+            report.host.logical_cpus as i64,
+            report.build.version,
+            report.build.commit,
+            report.build.simd,
+            report.workload.name,
+            report.workload.id,
+            r.threads as i64,
+            r.samples_per_sec.median,
+            r.samples_per_sec.min,
+            r.samples_per_sec.max,
+            report.validation.status,
+            json,
+        ],
+    )?;
+    let id = tx.last_insert_rowid();
+    for row in &report.scaling {
+        let s = row.samples_per_sec;
+        tx.execute(
+            "INSERT OR REPLACE INTO scaling (run_id, threads, sps_median, sps_min, sps_max)
+             VALUES (?1, ?2, ?3, ?4, ?5)",
+            params![id, row.threads as i64, s.median, s.min, s.max],
+        )?;
+    }
+    Ok(Added::New(id))
 }
 
 /// Creates an empty database file readable by its owner alone, and its directory.

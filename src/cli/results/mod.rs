@@ -55,7 +55,7 @@ pub enum ResultsMode {
 pub fn run(mode: ResultsMode) -> Result<()> {
     match mode {
         ResultsMode::List { db, filter } => {
-            let db = ResultsDb::open(&db)?;
+            let db = ResultsDb::open_to_read(&db)?;
             print_out(&list(&db.runs(&filter)?))
         }
         ResultsMode::Import { db, files } => {
@@ -74,7 +74,7 @@ pub fn run(mode: ResultsMode) -> Result<()> {
             ))
         }
         ResultsMode::Rank { db, workload, all } => {
-            let db = ResultsDb::open(&db)?;
+            let db = ResultsDb::open_to_read(&db)?;
             let runs = db.runs(&Filter {
                 workload: Some(workload.clone()),
                 ..Filter::default()
@@ -88,7 +88,7 @@ pub fn run(mode: ResultsMode) -> Result<()> {
             print_out(&analysis::rank_text(&analysis::rank(&runs, all), &workload))
         }
         ResultsMode::Compare { db, a, b, workload } => {
-            let db = ResultsDb::open(&db)?;
+            let db = ResultsDb::open_to_read(&db)?;
             let all = db.runs(&Filter::default())?;
             let side_a = select(&all, &a)?;
             let workload_id = match &workload {
@@ -124,7 +124,7 @@ pub fn run(mode: ResultsMode) -> Result<()> {
             threads,
             simd,
         } => {
-            let db = ResultsDb::open(&db)?;
+            let db = ResultsDb::open_to_read(&db)?;
             let runs = db.runs(&Filter {
                 workload: Some(workload.clone()),
                 machine: Some(machine.clone()),
@@ -169,7 +169,7 @@ pub fn run(mode: ResultsMode) -> Result<()> {
             workload,
             all,
         } => {
-            let db = ResultsDb::open(&db)?;
+            let db = ResultsDb::open_to_read(&db)?;
             let total_runs = db.runs(&Filter::default())?.len();
             let runs = db.runs(&Filter {
                 workload: Some(workload.clone()),
@@ -225,7 +225,7 @@ pub fn run(mode: ResultsMode) -> Result<()> {
             Ok(())
         }
         ResultsMode::Export { db } => {
-            let db = ResultsDb::open(&db)?;
+            let db = ResultsDb::open_to_read(&db)?;
             let mut text = String::new();
             for json in db.results_json()? {
                 text.push_str(&json);
