@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Builds tessera's container image without pulling anything: first the static binary
-# (target x86_64-unknown-linux-musl, cargo profile `container`), then the image from
+# (target x86_64-unknown-linux-musl, cargo profile `container`; needs musl-gcc, from
+# Debian's musl-tools, for the bundled SQLite), then the image from
 # deploy/container/Containerfile, labelled with the version, the commit and the source.
 # Prints the image's two tags, the version's first:
 #
@@ -15,6 +16,15 @@ engine=${ENGINE:-podman}
 target=x86_64-unknown-linux-musl
 if command -v rustup >/dev/null && ! rustup target list --installed | grep -qx "$target"; then
   rustup target add "$target" >&2
+fi
+# The bundled SQLite of the results database is C: it needs musl's compiler wrapper
+# (Debian's musl-tools).
+if [ -z "${CC_x86_64_unknown_linux_musl:-}" ]; then
+  command -v musl-gcc >/dev/null || {
+    echo "build.sh: musl-gcc not found: install musl-tools (Debian, Ubuntu) or musl-gcc" >&2
+    exit 2
+  }
+  export CC_x86_64_unknown_linux_musl=musl-gcc
 fi
 cargo build --locked --profile container --target "$target" >&2
 
