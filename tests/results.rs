@@ -530,11 +530,33 @@ fn rank_compare_history_and_export_read_the_kept_runs() {
     assert!(o.status.success(), "{}", stderr(&o));
     let text = stdout(&o);
     assert!(text.contains("faster, beyond the spread"), "{text}");
-    let o = results(&dir, &db, &["compare", "commit:c1c1", "commit:c2c2"]);
+    // A slow portable run of c2c2, older than its newest: compare keeps each side to one
+    // SIMD path (its newest run's), so it does not drag c2c2 down.
+    let mut portable = as_if(&base, "m-slow000000000000", "c2c2", 1_700_000_150, 0.5);
+    portable["build"]["simd"] = Value::from("portable");
+    write_json(&dir.join("portable.json"), &portable);
     assert!(
-        stdout(&o).contains("within the runs' spread"),
+        results(&dir, &db, &["import", "portable.json"])
+            .status
+            .success()
+    );
+    let o = results(&dir, &db, &["compare", "commit:c1c1", "commit:c2c2"]);
+    let text = stdout(&o);
+    assert!(text.contains("0.999  within the runs' spread"), "{text}");
+    let path = base["build"]["simd"].as_str().unwrap();
+    assert!(text.contains(&format!("commit:c2c2 ({path})")), "{text}");
+    let only_portable = [
+        "compare",
+        "commit:c1c1",
+        "commit:c2c2",
+        "--simd",
+        "portable",
+    ];
+    let o = results(&dir, &db, &only_portable);
+    assert!(
+        stderr(&o).contains("no runs on SIMD path portable"),
         "{}",
-        stdout(&o)
+        stderr(&o)
     );
     let o = results(&dir, &db, &["compare", "run:1", "nothing-like-this"]);
     assert_eq!(o.status.code(), Some(2));
@@ -561,16 +583,15 @@ fn rank_compare_history_and_export_read_the_kept_runs() {
     // Export gives every result back, one per line, and importing it adds nothing.
     let o = results(&dir, &db, &["export", "--jsonl"]);
     let text = stdout(&o);
-    assert_eq!(text.lines().count(), 4);
+    assert_eq!(text.lines().count(), 5);
+    let mut exported = Vec::new();
     for (i, line) in text.lines().enumerate() {
-        std::fs::write(dir.join(format!("e{i}.json")), line).unwrap();
+        exported.push(format!("e{i}.json"));
+        std::fs::write(dir.join(&exported[i]), line).unwrap();
     }
-    let o = results(
-        &dir,
-        &db,
-        &["import", "e0.json", "e1.json", "e2.json", "e3.json"],
-    );
-    assert_eq!(stdout(&o), "imported 0 new results, 4 already present\n");
+    let exported: Vec<&str> = exported.iter().map(String::as_str).collect();
+    let o = results(&dir, &db, &[&["import"][..], &exported].concat());
+    assert_eq!(stdout(&o), "imported 0 new results, 5 already present\n");
 }
 
 #[test]

@@ -99,6 +99,9 @@ pub enum ResultsCommand {
         /// The workload (default: that of A's newest run).
         #[arg(long)]
         workload: Option<String>,
+        /// Only runs on this SIMD path (default: each side's newest run's).
+        #[arg(long)]
+        simd: Option<String>,
     },
     /// One machine's speed over commits, flagging a drop beyond the runs' own spread.
     History {

@@ -400,7 +400,18 @@ impl ResultsMode {
             },
             ResultsCommand::Import { files } => Self::Import { db, files },
             ResultsCommand::Rank { workload, all } => Self::Rank { db, workload, all },
-            ResultsCommand::Compare { a, b, workload } => Self::Compare { db, a, b, workload },
+            ResultsCommand::Compare {
+                a,
+                b,
+                workload,
+                simd,
+            } => Self::Compare {
+                db,
+                a,
+                b,
+                workload,
+                simd,
+            },
             ResultsCommand::History {
                 machine,
                 workload,

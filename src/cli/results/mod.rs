@@ -33,6 +33,7 @@ pub enum ResultsMode {
         a: String,
         b: String,
         workload: Option<String>,
+        simd: Option<String>,
     },
     History {
         db: PathBuf,
@@ -87,7 +88,13 @@ pub fn run(mode: ResultsMode) -> Result<()> {
                 .collect();
             print_out(&analysis::rank_text(&analysis::rank(&runs, all), &workload))
         }
-        ResultsMode::Compare { db, a, b, workload } => {
+        ResultsMode::Compare {
+            db,
+            a,
+            b,
+            workload,
+            simd,
+        } => {
             let db = ResultsDb::open_to_read(&db)?;
             let all = db.runs(&Filter::default())?;
             let side_a = select(&all, &a)?;
@@ -98,21 +105,31 @@ pub fn run(mode: ResultsMode) -> Result<()> {
                 },
                 None => side_a[0].workload_id.clone(),
             };
-            let side = |runs: Vec<&db::Run>, what: &str| -> Result<analysis::Scaling> {
-                let runs: Vec<_> = runs
-                    .into_iter()
+            // Like with like: each side at one SIMD path, --simd's or its newest run's.
+            let side = |runs: Vec<&db::Run>, what: &str| -> Result<(analysis::Scaling, String)> {
+                let runs: Vec<_> = (runs.into_iter())
                     .filter(|r| r.workload_id == workload_id)
                     .collect();
-                if runs.is_empty() {
+                let Some(newest) = runs.first() else {
                     bail!("{}: no runs of that workload", terminal_safe(what, 40));
+                };
+                let path = simd.clone().unwrap_or_else(|| newest.simd.clone());
+                let runs: Vec<_> = runs.into_iter().filter(|r| r.simd == path).collect();
+                if runs.is_empty() {
+                    bail!(
+                        "{}: no runs on SIMD path {}",
+                        terminal_safe(what, 40),
+                        terminal_safe(&path, 16)
+                    );
                 }
                 let rows = (runs.iter())
                     .map(|r| db.scaling(r.id))
                     .collect::<Result<Vec<_>>>()?;
-                Ok(analysis::pool_scaling(&rows))
+                Ok((analysis::pool_scaling(&rows), format!("{what} ({path})")))
             };
-            let (pa, pb) = (side(side_a, &a)?, side(select(&all, &b)?, &b)?);
-            match analysis::compare_text(&a, &pa, &b, &pb) {
+            let (pa, name_a) = side(side_a, &a)?;
+            let (pb, name_b) = side(select(&all, &b)?, &b)?;
+            match analysis::compare_text(&name_a, &pa, &name_b, &pb) {
                 Some(text) => print_out(&text),
                 None => bail!("the two share no thread count"),
             }
