@@ -554,7 +554,7 @@ fn rank_compare_history_and_export_read_the_kept_runs() {
     ];
     let o = results(&dir, &db, &only_portable);
     assert!(
-        stderr(&o).contains("no runs on SIMD path portable"),
+        stderr(&o).contains("no runs of that workload on SIMD path portable"),
         "{}",
         stderr(&o)
     );

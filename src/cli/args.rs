@@ -99,7 +99,7 @@ pub enum ResultsCommand {
         /// The workload (default: that of A's newest run).
         #[arg(long)]
         workload: Option<String>,
-        /// Only runs on this SIMD path (default: each side's newest run's).
+        /// Only runs on this SIMD path (default: that of A's newest run).
         #[arg(long)]
         simd: Option<String>,
     },

@@ -105,19 +105,22 @@ pub fn run(mode: ResultsMode) -> Result<()> {
                 },
                 None => side_a[0].workload_id.clone(),
             };
-            // Like with like: each side at one SIMD path, --simd's or its newest run's.
-            let side = |runs: Vec<&db::Run>, what: &str| -> Result<(analysis::Scaling, String)> {
+            // Like with like: both sides on one SIMD path, --simd's or that of A's newest run
+            // (of the workload).
+            let path = match simd {
+                Some(path) => path,
+                None => match side_a.iter().find(|r| r.workload_id == workload_id) {
+                    Some(r) => r.simd.clone(),
+                    None => bail!("{}: no runs of that workload", terminal_safe(&a, 40)),
+                },
+            };
+            let side = |runs: Vec<&db::Run>, what: &str| -> Result<analysis::Scaling> {
                 let runs: Vec<_> = (runs.into_iter())
-                    .filter(|r| r.workload_id == workload_id)
+                    .filter(|r| r.workload_id == workload_id && r.simd == path)
                     .collect();
-                let Some(newest) = runs.first() else {
-                    bail!("{}: no runs of that workload", terminal_safe(what, 40));
-                };
-                let path = simd.clone().unwrap_or_else(|| newest.simd.clone());
-                let runs: Vec<_> = runs.into_iter().filter(|r| r.simd == path).collect();
                 if runs.is_empty() {
                     bail!(
-                        "{}: no runs on SIMD path {}",
+                        "{}: no runs of that workload on SIMD path {} (--simd chooses another)",
                         terminal_safe(what, 40),
                         terminal_safe(&path, 16)
                     );
@@ -125,10 +128,11 @@ pub fn run(mode: ResultsMode) -> Result<()> {
                 let rows = (runs.iter())
                     .map(|r| db.scaling(r.id))
                     .collect::<Result<Vec<_>>>()?;
-                Ok((analysis::pool_scaling(&rows), format!("{what} ({path})")))
+                Ok(analysis::pool_scaling(&rows))
             };
-            let (pa, name_a) = side(side_a, &a)?;
-            let (pb, name_b) = side(select(&all, &b)?, &b)?;
+            let pa = side(side_a, &a)?;
+            let pb = side(select(&all, &b)?, &b)?;
+            let (name_a, name_b) = (format!("{a} ({path})"), format!("{b} ({path})"));
             match analysis::compare_text(&name_a, &pa, &name_b, &pb) {
                 Some(text) => print_out(&text),
                 None => bail!("the two share no thread count"),
