@@ -315,7 +315,15 @@ fn a_browser_shows_the_render_converging_and_the_final_image() {
             break rest.to_owned();
         }
     };
-    std::thread::spawn(move || err.for_each(drop));
+    // The rest of its messages; the hold message says Ctrl-C is now caught.
+    let (held_tx, held) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in err.map_while(Result::ok) {
+            if line.contains("until Ctrl-C") {
+                let _ = held_tx.send(());
+            }
+        }
+    });
     let host = url
         .trim_start_matches("http://")
         .trim_end_matches('/')
@@ -385,6 +393,8 @@ fn a_browser_shows_the_render_converging_and_the_final_image() {
         end_path.display()
     );
     drop(browser);
+    held.recv_timeout(PATIENCE)
+        .expect("tessera holds the final image");
     let _ = Command::new("kill")
         .args(["-INT", &viewer.0.id().to_string()])
         .status();

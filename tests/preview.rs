@@ -97,6 +97,23 @@ impl Viewer {
         }
     }
 
+    /// Waits for a finished render's `--preview-hold` message, then sends SIGINT: the
+    /// status says `finished` before the viewer starts holding, and a Ctrl-C sent in between
+    /// would end tessera by the default action (or be lost where SIGINT is ignored, as in a
+    /// shell's background job).
+    fn interrupt_held(self) -> (i32, String) {
+        let start = Instant::now();
+        while !self.stderr.lock().unwrap().contains("until Ctrl-C") {
+            assert!(
+                start.elapsed() < PATIENCE,
+                "no hold message: {}",
+                self.stderr.lock().unwrap()
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        self.interrupt()
+    }
+
     /// Sends SIGINT (Ctrl-C) and waits for the exit status.
     fn interrupt(mut self) -> (i32, String) {
         let _ = std::process::Command::new("kill")
@@ -265,7 +282,7 @@ fn a_watched_render_shows_growing_frames_and_ends_with_the_batch_image() {
     assert!((download.header("content-disposition").unwrap()).contains("filename=\"cover.png\""));
     let watched = image::open(dir.join("watched.png")).unwrap().to_rgb8();
     assert!(decode_png(&last.body) == watched, "the final frame differs");
-    let (code, stderr) = viewer.interrupt();
+    let (code, stderr) = viewer.interrupt_held();
     assert_eq!(code, 0, "Ctrl-C ends a held viewer cleanly: {stderr}");
     assert!(stderr.contains("until Ctrl-C"), "{stderr}");
     let mut plain = cover_args(240, 128);
@@ -329,7 +346,7 @@ fn the_page_its_assets_and_the_event_stream_are_served() {
     assert!(text.contains("text/event-stream"), "{text}");
     assert!(text.contains("event: status\ndata: {"), "{text}");
     drop(stream);
-    assert_eq!(viewer.interrupt().0, 0);
+    assert_eq!(viewer.interrupt_held().0, 0);
 }
 
 #[test]
@@ -434,7 +451,7 @@ fn the_server_refuses_what_it_does_not_serve_while_the_render_goes_on() {
     // The render finished, with the bytes of an unwatched one, and the viewer answers.
     let end = viewer.wait_for("the end", |s| s["state"] == "finished");
     assert_eq!(end["spp_done"], 384);
-    let (code, stderr) = viewer.interrupt();
+    let (code, stderr) = viewer.interrupt_held();
     assert_eq!(code, 0, "{stderr}");
     assert_unwatched_bytes(&dir, cover_args(300, 384), "limited.png");
 }

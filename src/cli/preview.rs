@@ -86,16 +86,18 @@ impl Session {
         };
         let last = self.previewer.hub().latest().frame.version;
         if self.hold && run == RunState::Finished {
-            note(format_args!(
-                "tessera: serving the final image at http://{}/ until Ctrl-C",
-                server.addr()
-            ));
+            // Caught before it is announced: a Ctrl-C after the message always ends it
+            // cleanly (and is never lost where a parent made SIGINT ignored).
             let stop = Arc::new(AtomicBool::new(false));
             for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
                 if signal_hook::flag::register(signal, Arc::clone(&stop)).is_err() {
                     return;
                 }
             }
+            note(format_args!(
+                "tessera: serving the final image at http://{}/ until Ctrl-C",
+                server.addr()
+            ));
             while !stop.load(Ordering::Relaxed) {
                 std::thread::sleep(Duration::from_millis(100));
             }
