@@ -6,7 +6,7 @@ mod common;
 
 use common::*;
 use std::path::Path;
-use std::process::{Child, Command, Output, Stdio};
+use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
 fn spawn(args: &[&str], dir: &Path) -> Child {
@@ -500,24 +500,6 @@ fn a_part_claiming_a_huge_image_is_refused_before_anything_is_allocated() {
     assert_eq!(bytes(&dir, "out.png"), b"precious");
 }
 
-/// Runs `script` with `sh` in `dir`, in a private mount namespace where `dir/small` is a
-/// 16 KiB filesystem, so writing there fills the disk. `None` if this machine cannot make one
-/// (no `unshare`, or user namespaces turned off).
-fn with_a_full_disk(dir: &Path, script: &str) -> Option<Output> {
-    std::fs::create_dir_all(dir.join("small")).unwrap();
-    let mount = format!("mount -t tmpfs -o size=16k none '{}/small'", dir.display());
-    let in_namespace = |script: &str| {
-        Command::new("unshare")
-            .args(["-rm", "sh", "-c", script])
-            .current_dir(dir)
-            .output()
-    };
-    if !in_namespace(&mount).is_ok_and(|o| o.status.success()) {
-        return None;
-    }
-    Some(in_namespace(&format!("{mount} && {script}")).unwrap())
-}
-
 #[test]
 fn a_checkpoint_on_a_full_disk_warns_once_and_the_image_is_still_written() {
     let dir = temp_dir("full-disk");
@@ -528,7 +510,7 @@ fn a_checkpoint_on_a_full_disk_warns_once_and_the_image_is_still_written() {
         "{tessera} render {cover} -q --width 200 --spp 60 --checkpoint small/c.ckpt \
          --checkpoint-every 0 -o full.png"
     );
-    let Some(o) = with_a_full_disk(&dir, &render) else {
+    let Some(o) = in_a_small_filesystem(&dir, 16, &render) else {
         skip(
             "the full-disk test",
             "`unshare -rm` cannot mount a small filesystem on this machine",

@@ -621,24 +621,6 @@ fn a_result_of_the_first_schema_imports_on_the_same_machine() {
     assert_eq!(listed(&dir, &db, &["--machine", machine]).len(), 2);
 }
 
-/// Runs `script` with `sh` in a private mount namespace where `dir/small` is a 256 KiB
-/// filesystem; `None` if this machine cannot make one (no `unshare`, or no user namespaces).
-fn in_a_small_filesystem(dir: &Path, script: &str) -> Option<Output> {
-    std::fs::create_dir_all(dir.join("small")).unwrap();
-    let mount = format!("mount -t tmpfs -o size=256k none '{}/small'", dir.display());
-    let run = |script: &str| {
-        Command::new("unshare")
-            .args(["-rm", "sh", "-c", script])
-            .current_dir(dir)
-            .env("TESSERA_DB", dir.join("small/r.db"))
-            .output()
-    };
-    if !run(&mount).is_ok_and(|o| o.status.success()) {
-        return None;
-    }
-    Some(run(&format!("{mount} && {script}")).unwrap())
-}
-
 #[test]
 fn a_full_or_read_only_disk_is_an_error_that_keeps_what_was_there() {
     let test = "a_full_or_read_only_disk_is_an_error_that_keeps_what_was_there";
@@ -649,12 +631,12 @@ fn a_full_or_read_only_disk_is_an_error_that_keeps_what_was_there() {
     let many = variants(&dir, &base, 1_720_000_000, 200, "m").join(" ");
     let tessera = env!("CARGO_BIN_EXE_tessera");
     let script = format!(
-        "{tessera} results import a.json && {tessera} results import {many}; echo \"full=$?\"; \
+        "export TESSERA_DB=small/r.db; {tessera} results import a.json && {tessera} results import {many}; echo \"full=$?\"; \
          {tessera} results list | tail -n +2 | wc -l; \
          mount -o remount,ro small && {tessera} results import b.json; echo \"ro=$?\"; \
          {tessera} results list | tail -n +2 | wc -l"
     );
-    let Some(o) = in_a_small_filesystem(&dir, &script) else {
+    let Some(o) = in_a_small_filesystem(&dir, 256, &script) else {
         return skip(
             test,
             "this machine cannot make a private filesystem (unshare -rm)",

@@ -118,6 +118,27 @@ pub fn skip(test: &str, why: &str) {
     let _ = writeln!(std::io::stderr(), "skipped {test}: {why}");
 }
 
+/// Runs `script` with `sh` in `dir`, in a private mount namespace where `dir/small` is a
+/// filesystem of `kib` KiB, so that writing there fills the disk. `None` if this machine
+/// cannot make one (no `unshare`, or user namespaces turned off).
+pub fn in_a_small_filesystem(dir: &Path, kib: u32, script: &str) -> Option<Output> {
+    std::fs::create_dir_all(dir.join("small")).unwrap();
+    let mount = format!(
+        "mount -t tmpfs -o size={kib}k none '{}/small'",
+        dir.display()
+    );
+    let in_namespace = |script: &str| {
+        Command::new("unshare")
+            .args(["-rm", "sh", "-c", script])
+            .current_dir(dir)
+            .output()
+    };
+    if !in_namespace(&mount).is_ok_and(|o| o.status.success()) {
+        return None;
+    }
+    Some(in_namespace(&format!("{mount} && {script}")).unwrap())
+}
+
 /// Flags this machine's Podman needs and a cluster does not: the runtime that works with
 /// this kernel's cgroups, and limits within what the sandbox lets a container set.
 pub const PODMAN_FLAGS: &[&str] = &[

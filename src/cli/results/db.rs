@@ -346,6 +346,27 @@ impl ResultsDb {
         Ok(rows.collect::<rusqlite::Result<Vec<_>>>()?)
     }
 
+    /// The runs of workload `name`, newest first, of the newest run's scene and settings
+    /// only: a name such as `custom` covers several.
+    pub fn newest_workload_runs(&self, name: &str) -> Result<Vec<Run>> {
+        let runs = self.runs(&Filter {
+            workload: Some(name.to_owned()),
+            ..Filter::default()
+        })?;
+        let id = runs.first().map(|r| r.workload_id.clone());
+        Ok((runs.into_iter())
+            .filter(|r| Some(&r.workload_id) == id.as_ref())
+            .collect())
+    }
+
+    /// How many runs it holds.
+    pub fn count(&self) -> Result<usize> {
+        let n: i64 = self
+            .conn
+            .query_row("SELECT count(*) FROM runs", [], |r| r.get(0))?;
+        Ok(n as usize)
+    }
+
     /// Every run's result JSON, oldest first.
     pub fn results_json(&self) -> Result<Vec<String>> {
         let mut stmt = self

@@ -76,16 +76,7 @@ pub fn run(mode: ResultsMode) -> Result<()> {
         }
         ResultsMode::Rank { db, workload, all } => {
             let db = ResultsDb::open_to_read(&db)?;
-            let runs = db.runs(&Filter {
-                workload: Some(workload.clone()),
-                ..Filter::default()
-            })?;
-            // A name such as `custom` covers several scenes: rank only the newest's.
-            let id = runs.first().map(|r| r.workload_id.clone());
-            let runs: Vec<_> = runs
-                .into_iter()
-                .filter(|r| Some(&r.workload_id) == id.as_ref())
-                .collect();
+            let runs = db.newest_workload_runs(&workload)?;
             print_out(&analysis::rank_text(&analysis::rank(&runs, all), &workload))
         }
         ResultsMode::Compare {
@@ -191,14 +182,9 @@ pub fn run(mode: ResultsMode) -> Result<()> {
             all,
         } => {
             let db = ResultsDb::open_to_read(&db)?;
-            let total_runs = db.runs(&Filter::default())?.len();
-            let runs = db.runs(&Filter {
-                workload: Some(workload.clone()),
-                ..Filter::default()
-            })?;
-            let id = runs.first().map(|r| r.workload_id.clone());
-            let runs: Vec<_> = (runs.into_iter())
-                .filter(|r| Some(&r.workload_id) == id.as_ref() && (all || r.validation == "valid"))
+            let total_runs = db.count()?;
+            let runs: Vec<_> = (db.newest_workload_runs(&workload)?.into_iter())
+                .filter(|r| all || r.validation == "valid")
                 .collect();
             let ranked = analysis::rank(&runs, all);
             let scaling = (ranked.iter())
@@ -342,26 +328,19 @@ fn list(runs: &[db::Run]) -> String {
         "validation"
     );
     for r in runs {
-        let commit: String = r.commit.chars().take(8).collect();
-        let build = format!("{} {} {}", r.version, commit, r.simd);
         let sps = format!(
             "{:.3} [{:.3}-{:.3}]",
             r.sps[0] / 1e6,
             r.sps[1] / 1e6,
             r.sps[2] / 1e6
         );
-        let cpu = format!(
-            "{} ({} CPUs)",
-            r.cpu_model.as_deref().unwrap_or("unknown CPU"),
-            r.logical_cpus
-        );
         t.push_str(&format!(
             "{:>5}  {:<16}  {:<18}  {:<36}  {:<24}  {:<8}  {:>7}  {:<26}  {}\n",
             r.id,
             utc(r.started_unix_s),
             terminal_safe(&r.machine_id, 18),
-            terminal_safe(&cpu, 36),
-            terminal_safe(&build, 24),
+            terminal_safe(&analysis::cpu(r), 36),
+            terminal_safe(&analysis::build(r), 24),
             terminal_safe(&r.workload, 8),
             r.threads,
             sps,
