@@ -119,6 +119,40 @@ fn negative_and_zero_sizes_are_rejected() {
 }
 
 #[test]
+fn t_min_is_auto_or_a_distance() {
+    let with = |value: &str| {
+        GOOD.replace(
+            "max_depth = 5\n",
+            &format!("max_depth = 5\n[render]\nt_min = {value}\n"),
+        )
+    };
+    for good in ["\"auto\"", "0", "0.001", "2"] {
+        let dir = dir_with_scene("t-min-good", with(good));
+        let o = run(&["render", "scene.toml", "-o", "out.png", "-q"], &dir);
+        assert!(o.status.success(), "t_min = {good}: {}", stderr(&o));
+    }
+    assert_rejected(
+        "t-min-word",
+        &with("\"automatic\""),
+        &["scene.toml:7:9", "\"auto\" or a distance", "automatic"],
+    );
+    assert_rejected(
+        "t-min-negative",
+        &with("-0.5"),
+        &[
+            "scene.toml:7:9",
+            "render.t_min",
+            "must be \"auto\" or zero or positive, got -0.5",
+        ],
+    );
+    assert_rejected(
+        "t-min-array",
+        &with("[0.001]"),
+        &["scene.toml:7:9", "\"auto\" or a distance"],
+    );
+}
+
+#[test]
 fn nan_and_infinity_are_rejected() {
     assert_rejected(
         "nan-radius",

@@ -219,8 +219,8 @@ impl Bvh {
 /// The default knows nothing.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct RayHints {
-    /// A sphere the ray starts just outside of (off its surface) and heads away from, so
-    /// cannot meet again (convex): its test is left out. Most bounce rays leave the sphere
+    /// A sphere the ray leaves from outside (starting on or just off its surface) and heads
+    /// away from, so cannot meet again (convex): its test is left out, the giants' too. Most bounce rays leave the sphere
     /// they bounced off this way, and its pack would otherwise pass the cheap first check
     /// for every one of them.
     pub leaving: Leaving,

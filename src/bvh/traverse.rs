@@ -28,8 +28,10 @@ pub(super) struct Traversal<I: Isa> {
     /// the origin and `t_min` for the sphere tests).
     lanes: SlabLanes<I>,
     d: [Lanes<I>; 3],
-    /// The id of a sphere the ray cannot hit (`RayHints::leaving`), or `NO_SPHERE`.
+    /// The id of a sphere the ray cannot hit (`RayHints::leaving`), or `NO_SPHERE`: in lanes
+    /// for the packs, and as it is for the giants.
     skip: Ids<I>,
+    skip_id: u32,
     closest: f32,
     found: u32,
     /// The node to visit next.
@@ -57,6 +59,7 @@ impl<I: Isa> Traversal<I> {
             lanes: slab.lanes(isa),
             d: splat3(isa, ray.dir),
             skip: Ids::splat(isa, hints.leaving.id()),
+            skip_id: hints.leaving.id(),
             closest: interval.max,
             found: NO_HIT,
             current: 0,
@@ -73,6 +76,11 @@ impl<I: Isa> Traversal<I> {
     pub(super) fn test_giants(&mut self, bvh: &Bvh, ray: &Ray) {
         let interval = Interval::new(self.slab.t_min, self.slab.t_max);
         for (sphere, id) in &bvh.giants {
+            // A bounce ray leaving the ground starts on it: its test would not end at the
+            // first check (which needs the start outside) and cost a square root.
+            if *id == self.skip_id {
+                continue;
+            }
             if let Some(t) = sphere.intersect(ray, interval)
                 && beats(t, *id, self.closest, self.found)
             {

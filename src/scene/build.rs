@@ -2,8 +2,8 @@
 //! line, column and field of the first unacceptable value.
 
 use super::check::Checker;
-use super::desc::{self, SceneDesc};
-use super::settings::{Background, RenderSettings};
+use super::desc::{self, OffsetDesc, SceneDesc};
+use super::settings::{Background, RenderSettings, SurfaceOffset};
 use super::{Scene, cover};
 use crate::camera::{Camera, CameraSettings};
 use crate::error::{Error, Result};
@@ -184,7 +184,15 @@ fn render_settings(desc: &SceneDesc, ck: &Checker, ov: &Overrides) -> Result<Ren
         shading: r.shading,
         diffuse: r.diffuse,
         gamma: ck.in_range(&r.gamma, "render.gamma", |g| g > 0.0, "positive")?,
-        t_min: ck.in_range(&r.t_min, "render.t_min", |t| t >= 0.0, "zero or positive")?,
+        surface_offset: match *r.t_min.get_ref() {
+            OffsetDesc::Auto => SurfaceOffset::Auto,
+            OffsetDesc::Distance(d) => SurfaceOffset::Fixed(ck.in_range(
+                &Spanned::new(r.t_min.span(), d),
+                "render.t_min",
+                |t| t >= 0.0,
+                "\"auto\" or zero or positive",
+            )?),
+        },
         jitter: r.jitter,
     })
 }

@@ -94,7 +94,7 @@ pub struct RenderDesc {
     #[serde(default = "default_gamma")]
     pub gamma: Spanned<f64>,
     #[serde(default = "default_t_min")]
-    pub t_min: Spanned<f64>,
+    pub t_min: Spanned<OffsetDesc>,
     #[serde(default = "default_true")]
     pub jitter: bool,
 }
@@ -115,8 +115,46 @@ fn default_gamma() -> Spanned<f64> {
     Spanned::new(0..0, 2.0)
 }
 
-fn default_t_min() -> Spanned<f64> {
-    Spanned::new(0..0, 0.001)
+fn default_t_min() -> Spanned<OffsetDesc> {
+    Spanned::new(0..0, OffsetDesc::Auto)
+}
+
+/// `render.t_min`: `"auto"` or a distance.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum OffsetDesc {
+    Auto,
+    Distance(f64),
+}
+
+impl<'de> Deserialize<'de> for OffsetDesc {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct Offset;
+
+        impl Visitor<'_> for Offset {
+            type Value = OffsetDesc;
+
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                write!(f, "\"auto\" or a distance")
+            }
+
+            fn visit_str<E: de::Error>(self, v: &str) -> Result<OffsetDesc, E> {
+                match v {
+                    "auto" => Ok(OffsetDesc::Auto),
+                    _ => Err(E::invalid_value(de::Unexpected::Str(v), &self)),
+                }
+            }
+
+            fn visit_f64<E: de::Error>(self, v: f64) -> Result<OffsetDesc, E> {
+                Ok(OffsetDesc::Distance(v))
+            }
+
+            fn visit_i64<E: de::Error>(self, v: i64) -> Result<OffsetDesc, E> {
+                Ok(OffsetDesc::Distance(v as f64))
+            }
+        }
+
+        deserializer.deserialize_any(Offset)
+    }
 }
 
 fn default_true() -> bool {

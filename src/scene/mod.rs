@@ -8,7 +8,7 @@ mod settings;
 
 pub use build::{MAX_PIXELS, Overrides};
 pub use check::{MAX_LENGTH, MIN_RADIUS};
-pub use settings::{Background, RenderSettings, Shading};
+pub use settings::{Background, RenderSettings, Shading, SurfaceOffset};
 
 use crate::bvh::{Bvh, Candidates, RayHints, TraversalStack};
 use crate::camera::{Camera, CameraSettings};
@@ -186,7 +186,11 @@ impl Scene {
             s.shading as u64,
             s.diffuse as u64,
             f(s.gamma),
-            f(s.t_min),
+            match s.surface_offset {
+                // Not the bits of any finite offset.
+                SurfaceOffset::Auto => u64::MAX,
+                SurfaceOffset::Fixed(d) => f(d),
+            },
             u64::from(s.jitter),
         ];
         let c = &self.camera_settings;

@@ -42,6 +42,20 @@ impl Background {
     }
 }
 
+/// How far off the surface, along the normal, a scattered ray starts: the book's shadow-acne
+/// guard (§8.4, its `t_min`), which keeps a ray from meeting the surface it leaves again
+/// because the hit point was rounded to the wrong side.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum SurfaceOffset {
+    /// Just past the hit point's rounding error (`Sphere::escape_offset`): 16 units in the
+    /// last place of the largest magnitude that went into finding it. Far below the book's
+    /// 0.001 on small spheres, where a fixed 0.001 bends rays through curved glass by up to
+    /// a pixel; about 0.002 on the radius-1000 ground.
+    Auto,
+    /// A fixed distance (scene files' `t_min = 0.001`); zero reproduces the book's acne.
+    Fixed(f32),
+}
+
 /// Image size, sampling and the integrator's knobs.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RenderSettings {
@@ -56,9 +70,8 @@ pub struct RenderSettings {
     pub diffuse: DiffuseModel,
     /// Display gamma of 8-bit outputs (the book: 1 until §8.3, then 2).
     pub gamma: f32,
-    /// Shadow-acne guard (§8.4): scattered rays start this far off the surface along the
-    /// normal. Zero reproduces the book's acne.
-    pub t_min: f32,
+    /// How far off the surface scattered rays start (the shadow-acne guard, §8.4).
+    pub surface_offset: SurfaceOffset,
     /// Jitter samples within the pixel (anti-aliasing, §7); off for the first figures.
     pub jitter: bool,
 }
