@@ -23,7 +23,10 @@ pub struct CameraSettings {
 #[derive(Clone, Copy, Debug)]
 pub struct Camera {
     origin: Vec3,
-    lower_left_corner: Vec3,
+    /// The focus plane's lower left corner, from `origin`: a ray's direction is computed
+    /// without `origin`'s magnitude, whose rounding (1.2·10⁻⁴ at 1000) would otherwise move
+    /// film points by pixels in a narrow view from afar.
+    to_lower_left: Vec3,
     horizontal: Vec3,
     vertical: Vec3,
     u: Vec3,
@@ -101,7 +104,7 @@ impl Camera {
             forward: -w,
             focus_dist: s.focus_dist,
             origin: s.lookfrom,
-            lower_left_corner: s.lookfrom - horizontal / 2.0 - vertical / 2.0 - s.focus_dist * w,
+            to_lower_left: -horizontal / 2.0 - vertical / 2.0 - s.focus_dist * w,
             horizontal,
             vertical,
             u,
@@ -121,9 +124,8 @@ impl Camera {
         } else {
             Vec3::ZERO
         };
-        let target = self.lower_left_corner + s * self.horizontal + t * self.vertical;
-        let origin = self.origin + offset;
-        Ray::new(origin, unit(target - origin))
+        let target = self.to_lower_left + s * self.horizontal + t * self.vertical;
+        Ray::new(self.origin + offset, unit(target - offset))
     }
 
     /// True when every ray the camera shoots has a sound unit direction: the view's
@@ -132,7 +134,7 @@ impl Camera {
     pub fn rays_are_finite(&self) -> bool {
         let basis = [
             self.origin,
-            self.lower_left_corner,
+            self.to_lower_left,
             self.horizontal,
             self.vertical,
             self.u,
@@ -146,8 +148,8 @@ impl Camera {
             [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)]
                 .iter()
                 .all(|&(s, t)| {
-                    let corner = self.lower_left_corner + s * self.horizontal + t * self.vertical;
-                    let reach = (corner - self.origin).length() + lens;
+                    let corner = self.to_lower_left + s * self.horizontal + t * self.vertical;
+                    let reach = corner.length() + lens;
                     (reach * reach).is_finite()
                 });
         basis.iter().all(|v| v.is_finite())
@@ -287,5 +289,47 @@ mod tests {
             let p = r.at((s.lookat - r.origin).length());
             assert!((p - s.lookat).length() < 1e-4, "{p}");
         }
+    }
+
+    #[test]
+    fn a_camera_far_from_the_origin_resolves_every_pixel() {
+        // The cover's view from 150 times as far (1200 from the origin) through a 150 times
+        // narrower field, 600 pixels wide: neighbouring pixels are 5.8·10⁻⁶ rad apart, and
+        // a point on the focus plane near 1200 is rounded to 1.2·10⁻⁴, two pixels there.
+        // Every step across the film must turn the ray by its angle, as in f64, to within
+        // a hundredth of a pixel (a unit direction's own rounding is a hundredth).
+        let lookat = Vec3::new(5.2, 1.5, 1.2);
+        let s = CameraSettings {
+            lookfrom: lookat + 150.0 * (Vec3::new(13.0, 2.0, 3.0) - lookat),
+            lookat,
+            vup: Vec3::Y,
+            vfov_deg: 20.0 / 150.0,
+            aspect_ratio: 1.5,
+            aperture: 0.0,
+            focus_dist: 10.0,
+        };
+        let cam = Camera::new(&s);
+        let mut rng = Sampler::from_seed(1);
+        let fov = f64::from(s.vfov_deg).to_radians();
+        let (across, up) = (1.5 * fov / 599.0, fov / 399.0);
+        let mut worst: f64 = 0.0;
+        for _ in 0..2000 {
+            let (i, j) = (rng.range(0.0, 598.0), rng.range(0.0, 398.0));
+            let mut ray = |i: f32, j: f32| {
+                let d = cam.ray(i / 599.0, j / 399.0, &mut rng).dir.as_dvec3();
+                d / d.length()
+            };
+            let here = ray(i, j);
+            for (di, dj) in [(1.0, 0.0), (0.0, 1.0), (0.25, 0.0), (0.0, 0.25)] {
+                let turn = here.angle_between(ray(i + di, j + dj));
+                let expected = across * f64::from(di) + up * f64::from(dj);
+                worst = worst.max((turn - expected).abs() / up);
+            }
+        }
+        println!("worst error {worst} pixel");
+        assert!(
+            worst < 0.01,
+            "a step across the film is off by {worst} pixel"
+        );
     }
 }
