@@ -42,17 +42,19 @@ impl Background {
     }
 }
 
-/// How far off the surface, along the normal, a scattered ray starts: the book's shadow-acne
-/// guard (§8.4, its `t_min`), which keeps a ray from meeting the surface it leaves again
-/// because the hit point was rounded to the wrong side.
+/// How a scattered ray keeps clear of the surface it leaves: the book's shadow-acne guard
+/// (§8.4, its `t_min`), against meeting that surface again at once because the hit point
+/// was rounded to the wrong side of it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum SurfaceOffset {
-    /// Just past the hit point's rounding error (`Sphere::escape_offset`): 16 units in the
-    /// last place of the largest magnitude that went into finding it. Far below the book's
-    /// 0.001 on small spheres, where a fixed 0.001 bends rays through curved glass by up to
-    /// a pixel; about 0.002 on the radius-1000 ground.
+    /// The ray starts at the hit point and ignores hits until it is past a bound on the
+    /// hit's rounding (`Sphere::escape_offset`, 16 units in the last place of the largest
+    /// magnitude that went into it): about 10⁻⁵ on the book's small spheres, 0.002 on the
+    /// radius-1000 ground. Rays nearly along the surface start that far off along the
+    /// normal (`integrator::bounce`).
     Auto,
-    /// A fixed distance (scene files' `t_min = 0.001`); zero reproduces the book's acne.
+    /// A fixed start off the surface along the normal (scene files' `t_min = 0.001`); zero
+    /// reproduces the book's acne. On curved glass a start moved sideways bends rays.
     Fixed(f32),
 }
 
