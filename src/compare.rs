@@ -109,7 +109,7 @@ mod tests {
         film.sums[0] = [crate::film::to_fixed(1e5); 3];
         film.sums[1] = [crate::film::to_fixed(0.5), 0, crate::film::to_fixed(3.0)];
         let exr = dir.join("bright.exr");
-        film.save(&exr, 1.0).unwrap();
+        film.save(&exr, 1.0, None).unwrap();
         let loaded = RgbImage::load(&exr).unwrap();
         assert_eq!(loaded.data, [1.0, 1.0, 1.0, 0.5, 0.0, 1.0]);
         let white = RgbImage::from_rgb8(2, 1, &[255, 255, 255, 0, 0, 0]);

@@ -1,11 +1,14 @@
 //! Image files from a film: the formats (PNG, PPM, EXR) and their encoders, each pixel's value
-//! taken through the tone map; files are written atomically.
+//! taken through the tone map, with the film's recipe in the format's own metadata (a PNG
+//! text chunk, an EXR header attribute; PPM has none); files are written atomically. And the
+//! way back: an image's recipe and pixels, read as a stranger's file, with limits.
 
 use crate::atomic_file::write_atomically_with;
 use crate::error::{Error, Result};
 use crate::film::Film;
+use crate::recipe::{self, Recipe};
 use crate::tonemap::{encode_8bit, mean, mean_scale};
-use std::io::Write;
+use std::io::{Read, Seek, SeekFrom, Write};
 use std::path::Path;
 
 /// An image file format, chosen by the output path's extension.
@@ -68,20 +71,25 @@ impl Film {
         rgb
     }
 
-    /// Encodes the image in `format`.
+    /// Encodes the image in `format`, without a recipe.
     pub fn encode(&self, format: Format, gamma: f32) -> Result<Vec<u8>, String> {
         let mut out = Vec::new();
-        self.write(format, gamma, &mut out)
+        self.write(format, gamma, None, &mut out)
             .map_err(|e| e.to_string())?;
         Ok(out)
     }
 
-    /// Writes the image in `format` to `out`, holding as little beside the sums as the format
-    /// allows: PPM goes pixel by pixel, PNG needs one byte per channel, EXR a float per
-    /// channel and its encoding.
-    pub fn write(&self, format: Format, gamma: f32, out: &mut dyn Write) -> std::io::Result<()> {
+    /// Writes the image in `format` to `out`, with `recipe` in its metadata where the format
+    /// has any, holding as little beside the sums as the format allows: PPM goes pixel by
+    /// pixel, PNG needs one byte per channel, EXR a float per channel and its encoding.
+    pub fn write(
+        &self,
+        format: Format,
+        gamma: f32,
+        recipe: Option<&Recipe>,
+        out: &mut dyn Write,
+    ) -> std::io::Result<()> {
         let (w, h) = (self.width, self.height);
-        let encoder_error = |e: image::ImageError| std::io::Error::other(e.to_string());
         match format {
             Format::Ppm => {
                 write!(out, "P3\n{w} {h}\n255\n")?;
@@ -91,26 +99,359 @@ impl Film {
                 Ok(())
             }
             Format::Png => {
-                use image::ImageEncoder;
-                image::codecs::png::PngEncoder::new(out)
-                    .write_image(&self.to_rgb8(gamma), w, h, image::ExtendedColorType::Rgb8)
-                    .map_err(encoder_error)
+                let png_error = |e: png::EncodingError| std::io::Error::other(e.to_string());
+                let mut encoder = png::Encoder::new(out, w, h);
+                encoder.set_color(png::ColorType::Rgb);
+                encoder.set_depth(png::BitDepth::Eight);
+                let mut writer = encoder.write_header().map_err(png_error)?;
+                if let Some(recipe) = recipe {
+                    // iTXt: UTF-8 and compressed; before the pixels, where readers look.
+                    let mut chunk =
+                        png::text_metadata::ITXtChunk::new(recipe::KEY, recipe.to_json());
+                    chunk.compressed = true;
+                    writer.write_text_chunk(&chunk).map_err(png_error)?;
+                }
+                writer
+                    .write_image_data(&self.to_rgb8(gamma))
+                    .map_err(png_error)?;
+                writer.finish().map_err(png_error)
             }
             Format::Exr => {
-                let img = image::Rgb32FImage::from_raw(w, h, self.linear())
-                    .ok_or_else(|| std::io::Error::other("image buffer has the wrong size"))?;
+                use exr::prelude::*;
+                let linear = self.linear();
+                let width = w as usize;
+                let channels = SpecificChannels::rgb(|p: Vec2<usize>| {
+                    let i = 3 * (p.y() * width + p.x());
+                    (linear[i], linear[i + 1], linear[i + 2])
+                });
+                let mut image = Image::from_channels((width, h as usize), channels);
+                if let Some(recipe) = recipe {
+                    // The recipe's JSON is ASCII, which EXR text holds byte for byte.
+                    let text = Text::new_or_none(recipe.to_json())
+                        .ok_or_else(|| std::io::Error::other("recipe is not ASCII"))?;
+                    image
+                        .attributes
+                        .other
+                        .insert(Text::from(recipe::KEY), AttributeValue::Text(text));
+                }
                 let mut encoded = std::io::Cursor::new(Vec::new());
-                img.write_to(&mut encoded, image::ImageFormat::OpenExr)
-                    .map_err(encoder_error)?;
+                image
+                    .write()
+                    .to_buffered(&mut encoded)
+                    .map_err(|e| std::io::Error::other(e.to_string()))?;
                 out.write_all(encoded.get_ref())
             }
         }
     }
 
-    /// Writes the image to `path` in the format its extension names, atomically.
-    pub fn save(&self, path: &Path, gamma: f32) -> Result<()> {
+    /// Writes the image to `path` in the format its extension names, atomically, with
+    /// `recipe` in its metadata where the format has any.
+    pub fn save(&self, path: &Path, gamma: f32, recipe: Option<&Recipe>) -> Result<()> {
         let format = Format::from_path(path)?;
-        write_atomically_with(path, &mut |out| self.write(format, gamma, out))
+        write_atomically_with(path, &mut |out| self.write(format, gamma, recipe, out))
+    }
+}
+
+/// The pixels of an image file as its format stores them.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Pixels {
+    /// 8-bit RGB, row-major.
+    Rgb8(Vec<u8>),
+    /// Linear 32-bit float RGB, row-major.
+    Linear(Vec<f32>),
+    /// Not a layout tessera writes (a program re-saved it another way): named, not read.
+    Other(String),
+}
+
+/// What an image file says of itself: its size and its recipe's text, if it has one.
+#[derive(Clone, Debug)]
+pub struct ImageHeader {
+    pub format: Format,
+    pub width: u32,
+    pub height: u32,
+    /// The recipe's text, at most `recipe::MAX_BYTES` of it, not yet checked.
+    pub recipe: Option<String>,
+}
+
+fn image_error(path: &Path, message: impl Into<String>) -> Error {
+    Error::Image {
+        path: path.to_owned(),
+        message: message.into(),
+    }
+}
+
+/// Reads the size and the recipe text of the PNG or EXR file at `path`, touching nothing
+/// else: no pixel is decoded, every length is checked before anything of that length is
+/// read, and a compressed recipe is inflated no further than `recipe::MAX_BYTES`.
+pub fn read_header(path: &Path) -> Result<ImageHeader> {
+    let format = Format::from_path(path)?;
+    let io = |cause| Error::Io {
+        path: path.to_owned(),
+        cause,
+    };
+    match format {
+        Format::Ppm => Err(image_error(
+            path,
+            "is a PPM file, which has no metadata to carry a recipe",
+        )),
+        Format::Png => {
+            let file = std::fs::File::open(path).map_err(io)?;
+            let len = file.metadata().map_err(io)?.len();
+            png_header(std::io::BufReader::new(file), len)
+                .map_err(|message| image_error(path, message))
+        }
+        Format::Exr => {
+            let file = std::fs::File::open(path).map_err(io)?;
+            let meta =
+                exr::meta::MetaData::read_from_buffered(std::io::BufReader::new(file), false)
+                    .map_err(|e| image_error(path, format!("is not a readable EXR file: {e}")))?;
+            let header = meta
+                .headers
+                .first()
+                .ok_or_else(|| image_error(path, "is an EXR file with no image"))?;
+            let size = header.layer_size;
+            let key = exr::prelude::Text::from(recipe::KEY);
+            let recipe =
+                match header
+                    .shared_attributes
+                    .other
+                    .get(&key)
+                    .or_else(|| header.own_attributes.other.get(&key))
+                {
+                    None => None,
+                    Some(exr::meta::attribute::AttributeValue::Text(t)) => {
+                        let bytes = t.bytes();
+                        if bytes.len() > recipe::MAX_BYTES {
+                            return Err(image_error(
+                                path,
+                                format!(
+                                    "has a recipe of {} bytes, more than {}",
+                                    bytes.len(),
+                                    recipe::MAX_BYTES
+                                ),
+                            ));
+                        }
+                        Some(String::from_utf8(bytes.to_vec()).map_err(|_| {
+                            image_error(path, "has a recipe that is not UTF-8 text")
+                        })?)
+                    }
+                    Some(_) => {
+                        return Err(image_error(path, "has a recipe attribute that is not text"));
+                    }
+                };
+            Ok(ImageHeader {
+                format,
+                width: u32::try_from(size.width()).unwrap_or(u32::MAX),
+                height: u32::try_from(size.height()).unwrap_or(u32::MAX),
+                recipe,
+            })
+        }
+    }
+}
+
+const PNG_SIGNATURE: [u8; 8] = [0x89, b'P', b'N', b'G', 0x0d, 0x0a, 0x1a, 0x0a];
+
+/// `read_header` of PNG bytes in memory.
+pub fn png_header_of(bytes: &[u8]) -> std::result::Result<ImageHeader, String> {
+    png_header(std::io::Cursor::new(bytes), bytes.len() as u64)
+}
+
+/// Walks a PNG's chunks (`len` bytes in all) for its size and the recipe's iTXt chunk,
+/// skipping the others unread.
+fn png_header<R: Read + Seek>(mut r: R, len: u64) -> std::result::Result<ImageHeader, String> {
+    let mut signature = [0u8; 8];
+    if r.read_exact(&mut signature).is_err() || signature != PNG_SIGNATURE {
+        return Err("is not a PNG file".to_owned());
+    }
+    let (mut at, mut size, mut found) = (8u64, None, None);
+    loop {
+        let mut head = [0u8; 8];
+        if r.read_exact(&mut head).is_err() {
+            return Err(format!("is truncated at byte {at} (no IEND chunk)"));
+        }
+        let length = u64::from(u32::from_be_bytes(head[..4].try_into().expect("4 bytes")));
+        let kind: [u8; 4] = head[4..].try_into().expect("4 bytes");
+        // The data and its CRC must lie inside the file: no length is trusted further.
+        if length > (1 << 31) - 1 || at + 12 + length > len {
+            return Err(format!(
+                "has a {} chunk at byte {at} claiming {length} bytes, past the file's end",
+                String::from_utf8_lossy(&kind).escape_debug()
+            ));
+        }
+        match &kind {
+            b"IHDR" if length == 13 => {
+                let mut data = [0u8; 13];
+                r.read_exact(&mut data).map_err(|e| e.to_string())?;
+                r.seek(SeekFrom::Current(4)).map_err(|e| e.to_string())?;
+                let w = u32::from_be_bytes(data[..4].try_into().expect("4 bytes"));
+                let h = u32::from_be_bytes(data[4..8].try_into().expect("4 bytes"));
+                size = Some((w, h));
+            }
+            b"iTXt" if length <= recipe::MAX_BYTES as u64 + 1024 => {
+                let mut data = vec![0u8; length as usize];
+                r.read_exact(&mut data).map_err(|e| e.to_string())?;
+                let mut crc = [0u8; 4];
+                r.read_exact(&mut crc).map_err(|e| e.to_string())?;
+                let mut hasher = crc32fast::Hasher::new();
+                hasher.update(&kind);
+                hasher.update(&data);
+                if hasher.finalize() != u32::from_be_bytes(crc) {
+                    return Err(format!("has a damaged iTXt chunk at byte {at} (bad CRC)"));
+                }
+                if let Some(text) = recipe_of_itxt(&data)? {
+                    if found.is_some() {
+                        return Err("has two recipes".to_owned());
+                    }
+                    found = Some(text);
+                }
+            }
+            b"iTXt" => {
+                // Too long to be a recipe; a recipe so long is refused, not skipped.
+                let mut start = [0u8; 15];
+                let n = (length as usize).min(start.len());
+                r.read_exact(&mut start[..n]).map_err(|e| e.to_string())?;
+                if start[..n].starts_with(recipe::KEY.as_bytes()) {
+                    return Err(format!(
+                        "has a recipe chunk of {length} bytes, more than a recipe may have"
+                    ));
+                }
+                r.seek(SeekFrom::Current(length as i64 - n as i64 + 4))
+                    .map_err(|e| e.to_string())?;
+            }
+            b"IEND" => break,
+            _ => {
+                r.seek(SeekFrom::Current(length as i64 + 4))
+                    .map_err(|e| e.to_string())?;
+            }
+        }
+        at += 12 + length;
+    }
+    let (width, height) = size.ok_or("has no IHDR chunk")?;
+    Ok(ImageHeader {
+        format: Format::Png,
+        width,
+        height,
+        recipe: found,
+    })
+}
+
+/// The recipe in an iTXt chunk's `data`, when the chunk is tessera's.
+fn recipe_of_itxt(data: &[u8]) -> std::result::Result<Option<String>, String> {
+    let mut fields = data.splitn(2, |&b| b == 0);
+    if fields.next() != Some(recipe::KEY.as_bytes()) {
+        return Ok(None);
+    }
+    let rest = fields.next().unwrap_or_default();
+    let bad = || "has a malformed recipe chunk".to_owned();
+    let (&compressed, rest) = rest.split_first().ok_or_else(bad)?;
+    let (&method, rest) = rest.split_first().ok_or_else(bad)?;
+    // Language tag and translated keyword, each ended by a zero byte.
+    let mut parts = rest.splitn(3, |&b| b == 0);
+    let (_, _, text) = (
+        parts.next(),
+        parts.next().ok_or_else(bad)?,
+        parts.next().ok_or_else(bad)?,
+    );
+    let bytes = match (compressed, method) {
+        (0, _) if text.len() <= recipe::MAX_BYTES => text.to_vec(),
+        (0, _) => {
+            return Err(format!(
+                "has a recipe of {} bytes, more than {}",
+                text.len(),
+                recipe::MAX_BYTES
+            ));
+        }
+        (1, 0) => {
+            fdeflate::decompress_to_vec_bounded(text, recipe::MAX_BYTES).map_err(|e| match e {
+                fdeflate::BoundedDecompressionError::OutputTooLarge { .. } => format!(
+                    "has a compressed recipe that inflates beyond the {} bytes a recipe may have",
+                    recipe::MAX_BYTES
+                ),
+                _ => "has a compressed recipe that does not inflate".to_owned(),
+            })?
+        }
+        _ => return Err(bad()),
+    };
+    String::from_utf8(bytes)
+        .map(Some)
+        .map_err(|_| "has a recipe that is not UTF-8 text".to_owned())
+}
+
+/// Decodes the pixels of the image at `path`, which `header` describes: as 8-bit RGB for
+/// PNG, linear float RGB for EXR, or the name of another layout. Nothing larger than the
+/// header's size (already checked by the caller) is allocated.
+pub fn read_pixels(path: &Path, header: &ImageHeader) -> Result<Pixels> {
+    let io = |cause| Error::Io {
+        path: path.to_owned(),
+        cause,
+    };
+    let count = u64::from(header.width) * u64::from(header.height);
+    if count > crate::scene::MAX_PIXELS {
+        return Err(image_error(
+            path,
+            format!(
+                "is {}x{}, more pixels than tessera makes",
+                header.width, header.height
+            ),
+        ));
+    }
+    match header.format {
+        Format::Ppm => Err(image_error(path, "is a PPM file")),
+        Format::Png => {
+            let file = std::fs::File::open(path).map_err(io)?;
+            let budget = count as usize * 8 + (1 << 24);
+            let mut decoder = png::Decoder::new_with_limits(
+                std::io::BufReader::new(file),
+                png::Limits { bytes: budget },
+            );
+            decoder.set_ignore_text_chunk(true);
+            let mut reader = decoder
+                .read_info()
+                .map_err(|e| image_error(path, format!("is not a readable PNG file: {e}")))?;
+            let info = reader.info();
+            let layout = (info.color_type, info.bit_depth);
+            if layout != (png::ColorType::Rgb, png::BitDepth::Eight) {
+                return Ok(Pixels::Other(format!(
+                    "{:?} {:?}-bit",
+                    layout.0, layout.1 as u8
+                )));
+            }
+            let size = reader
+                .output_buffer_size()
+                .ok_or_else(|| image_error(path, "is too large"))?;
+            let mut buf = vec![0u8; size];
+            reader
+                .next_frame(&mut buf)
+                .map_err(|e| image_error(path, format!("has pixels that do not decode: {e}")))?;
+            Ok(Pixels::Rgb8(buf))
+        }
+        Format::Exr => {
+            use exr::prelude::*;
+            let width = header.width as usize;
+            let image = read()
+                .no_deep_data()
+                .largest_resolution_level()
+                .rgb_channels(
+                    |resolution, _| vec![0f32; resolution.width() * resolution.height() * 3],
+                    move |pixels: &mut Vec<f32>, p: Vec2<usize>, (r, g, b): (f32, f32, f32)| {
+                        let i = 3 * (p.y() * width + p.x());
+                        if i + 2 < pixels.len() {
+                            pixels[i..i + 3].copy_from_slice(&[r, g, b]);
+                        }
+                    },
+                )
+                .first_valid_layer()
+                .all_attributes()
+                .from_file(path);
+            match image {
+                Ok(image) => Ok(Pixels::Linear(image.layer_data.channel_data.pixels)),
+                Err(exr::error::Error::NotSupported(what)) => Ok(Pixels::Other(what.into_owned())),
+                Err(e) => Err(image_error(
+                    path,
+                    format!("has pixels that do not decode: {e}"),
+                )),
+            }
+        }
     }
 }
 

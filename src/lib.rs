@@ -15,13 +15,14 @@
 //! - [`film`] holds the exact fixed-point sums; [`tonemap`] turns a sum into a pixel's value
 //!   and [`image_file`] a film into PNG, PPM or EXR; [`partial`] stores a job's state as a
 //!   part file (shards, checkpoints) and merges parts; [`atomic_file`] writes every file
-//!   whole or not at all.
+//!   whole or not at all. [`recipe`] is what an image carries to be made again: the scene's
+//!   text, the settings and the hash of its sums, written into the image's metadata.
 //!
 //! - [`preview`] watches a running job from the folding thread (a picture kept tile by
 //!   tile, published about once a second) and serves it to a browser.
 //!
 //! The same scene, settings and seed give the same bytes whatever the thread count, tile
-//! size, shard split or interruption. [`math`], [`ray`] and [`error`] serve them all;
+//! size, shard split or interruption. [`math`], [`ray`], [`error`] and [`text`] serve them all;
 //! [`compare`] measures the difference of two images.
 //!
 //! [`simd`] picks the instruction set of the hot code when a tile is rendered (portable,
@@ -45,11 +46,13 @@ pub mod math;
 pub mod partial;
 pub mod preview;
 pub mod ray;
+pub mod recipe;
 pub mod render;
 pub mod sampling;
 pub mod scene;
 pub mod shard;
 pub mod simd;
+pub mod text;
 pub mod tonemap;
 
 pub use error::{Error, Result};

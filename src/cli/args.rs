@@ -34,7 +34,21 @@ pub enum Command {
         /// Output image (.png, .ppm or .exr).
         #[arg(short, long)]
         output: PathBuf,
+        /// Leave the parts' recipe out of the image's metadata.
+        #[arg(long)]
+        no_provenance: bool,
     },
+    /// Print the recipe an image carries: the scene, the settings, the build, the hash of
+    /// its exact sums.
+    Info {
+        image: PathBuf,
+        /// The recipe as tessera wrote it (JSON).
+        #[arg(long)]
+        json: bool,
+    },
+    /// Render an image again from the recipe it carries (no scene file needed) and say
+    /// whether it is bit for bit what the recipe makes: exit 0 `identical`, 1 `differs`.
+    Reproduce(ReproduceArgs),
     /// Print the RMSE and PSNR between two images of equal size (PNG, PPM, EXR or JPEG).
     Compare { a: PathBuf, b: PathBuf },
     /// The benchmark results kept in the local database: list them, import others'.
@@ -138,6 +152,26 @@ pub enum ResultsCommand {
 }
 
 #[derive(Args)]
+pub struct ReproduceArgs {
+    /// A PNG or EXR image tessera wrote.
+    pub image: PathBuf,
+    /// Also write the re-rendered image here (with its recipe).
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    /// Write the recipe's scene file here and stop.
+    #[arg(long, value_name = "FILE")]
+    pub extract_scene: Option<PathBuf>,
+    /// Worker threads (default: one per core); the image does not change.
+    #[arg(long)]
+    pub threads: Option<usize>,
+    #[command(flatten)]
+    pub simd: SimdArg,
+    /// No progress bar.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+#[derive(Args)]
 pub struct SceneArgs {
     /// Scene file (TOML).
     #[arg(default_value = DEFAULT_SCENE)]
@@ -207,6 +241,10 @@ pub struct RenderArgs {
     /// No progress bar and no summary line.
     #[arg(long, short)]
     pub quiet: bool,
+    /// Leave the recipe (the scene's text, the settings, the build) out of the image's
+    /// metadata and of partial files, for a scene that must not be published.
+    #[arg(long)]
+    pub no_provenance: bool,
     #[command(flatten)]
     pub preview: PreviewArgs,
 }

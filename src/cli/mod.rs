@@ -6,6 +6,7 @@ mod args;
 mod bench;
 mod preview;
 mod render;
+mod reproduce;
 mod results;
 mod settings;
 
@@ -77,17 +78,43 @@ pub fn run(command: Command) -> Result<()> {
     match command {
         Command::Render(args) => render::run(RenderSettings::new(args)?),
         Command::Bench(args) => bench::run(BenchMode::new(args)?),
-        Command::Merge { parts, output } => merge(&parts, &output),
+        Command::Merge {
+            parts,
+            output,
+            no_provenance,
+        } => merge(&parts, &output, no_provenance),
+        Command::Info { image, json } => reproduce::info(&image, json),
+        Command::Reproduce(args) => reproduce::run(args),
         Command::Compare { a, b } => compare(&a, &b),
         Command::Results(args) => results::run(ResultsMode::new(args)?),
     }
 }
 
-fn merge(paths: &[PathBuf], output: &Path) -> Result<()> {
+fn merge(paths: &[PathBuf], output: &Path, no_provenance: bool) -> Result<()> {
     Format::from_path(output)?;
     let paths = part_files(paths)?;
-    let (film, gamma) = tessera::partial::merge_files(&paths)?;
-    film.save(output, gamma)?;
+    let (film, gamma, source) = tessera::partial::merge_files(&paths)?;
+    let recipe = match source.filter(|_| !no_provenance) {
+        Some(source) => {
+            let recipe = reproduce::merged_recipe(&source, &film, &paths[0]);
+            if recipe.is_none() {
+                note(format_args!(
+                    "tessera: warning: the parts' recipe does not describe them; {} carries none",
+                    output.display()
+                ));
+            }
+            recipe
+        }
+        None if no_provenance => None,
+        None => {
+            note(format_args!(
+                "tessera: note: the parts carry no common recipe, so {} carries none",
+                output.display()
+            ));
+            None
+        }
+    };
+    film.save(output, gamma, recipe.as_ref())?;
     note(format_args!(
         "{}: merged {} parts, {}x{}, {} spp",
         output.display(),

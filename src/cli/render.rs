@@ -9,9 +9,12 @@ use indicatif::ProgressBar;
 use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
+use tessera::film::Film;
+use tessera::image_file::Format;
 use tessera::job::{Job, JobState};
 use tessera::partial::{self, Part, RenderId};
 use tessera::preview::{About, RunState};
+use tessera::recipe::Recipe;
 use tessera::render::{self, Control, RenderOptions, RenderStats, Snapshot, Watch};
 use tessera::scene::Scene;
 
@@ -138,17 +141,53 @@ pub fn run(settings: RenderSettings) -> Result<()> {
         }
     }
     let what = describe(&scene, &state, &output);
-    let preview = preview.map(|p| p.end(&state, RunState::Finished));
-    match &output {
-        Output::Part(path) => partial::save(path, &render, &state)?,
-        Output::Image(path) => state.into_film().save(path, scene.settings.gamma)?,
-    }
+    // The output first, so that a viewer told the render has finished finds it written.
+    let kept = match &output {
+        Output::Part(path) => {
+            partial::save(path, &render, &state)?;
+            Some(state)
+        }
+        Output::Image(path) if preview.is_some() => {
+            write_image(path, state.clone().into_film(), &scene, &render, quiet)?;
+            Some(state)
+        }
+        Output::Image(path) => {
+            write_image(path, state.into_film(), &scene, &render, quiet)?;
+            None
+        }
+    };
+    let preview = match (preview, &kept) {
+        (Some(p), Some(state)) => Some(p.end(state, RunState::Finished)),
+        _ => None,
+    };
     if !quiet {
         report(&scene, &output, &what, &stats);
     }
     if let Some(preview) = preview {
         preview.close();
     }
+    Ok(())
+}
+
+/// Writes `film` of `scene` to `path` with the recipe of `render`, if it keeps one.
+fn write_image(
+    path: &Path,
+    film: Film,
+    scene: &Scene,
+    render: &RenderId,
+    quiet: bool,
+) -> Result<()> {
+    let recipe = render
+        .recipe
+        .as_ref()
+        .map(|source| Recipe::new(source, scene, &film));
+    if recipe.is_some() && !quiet && Format::from_path(path)? == Format::Ppm {
+        note(format_args!(
+            "tessera: note: PPM has no metadata, so {} carries no recipe (PNG and EXR do)",
+            path.display()
+        ));
+    }
+    film.save(path, scene.settings.gamma, recipe.as_ref())?;
     Ok(())
 }
 

@@ -17,6 +17,7 @@ use tessera::image_file::Format;
 use tessera::job::Job;
 use tessera::math::PixelRect;
 use tessera::partial::RenderId;
+use tessera::recipe::Source;
 use tessera::render::{self, RenderOptions};
 use tessera::scene::{Overrides, Scene};
 use tessera::shard::{self, Shard, Split, parse_samples};
@@ -184,7 +185,7 @@ impl RenderSettings {
         }
         let options = render_options(args.scene.threads, args.tile, args.scene.simd.path()?)?;
         let every = seconds("--checkpoint-every", args.checkpoint_every)?;
-        let scene = load(&args.scene, args.depth, args.seed)?;
+        let (scene, source) = load(&args.scene, args.depth, args.seed)?;
         let shard = match &args.shard {
             Some(spec) => Some(Shard::parse(spec, |k| std::env::var(k).ok())?),
             None => None,
@@ -241,7 +242,10 @@ impl RenderSettings {
         // Last, so that the port is taken only once everything else is known to be right.
         let preview = PreviewSettings::new(&args.preview)?;
         Ok(Self {
-            render: RenderId::of(&scene, target),
+            render: RenderId {
+                recipe: (!args.no_provenance).then_some(source),
+                ..RenderId::of(&scene, target)
+            },
             scene,
             options,
             job,
@@ -444,19 +448,23 @@ impl ResultsMode {
 
 impl SimdArg {
     /// The SIMD path `--simd` (or `TESSERA_SIMD`) names, if this CPU runs it.
-    fn path(&self) -> Result<simd::Path> {
+    pub(super) fn path(&self) -> Result<simd::Path> {
         simd::Path::choose(&self.name).map_err(|e| anyhow::anyhow!("--simd: {e}"))
     }
 }
 
-fn load(args: &SceneArgs, depth: Option<u32>, seed: Option<u64>) -> Result<Scene> {
+/// The scene file, parsed with the command line's overrides, and its recipe source: the
+/// text parsed is the text recorded.
+fn load(args: &SceneArgs, depth: Option<u32>, seed: Option<u64>) -> Result<(Scene, Source)> {
     let overrides = Overrides {
         width: args.width,
         samples_per_pixel: args.spp,
         max_depth: depth,
         seed,
     };
-    Ok(Scene::load(&args.scene, &overrides)?)
+    let text = Scene::read_text(&args.scene)?;
+    let scene = Scene::parse(&text, &args.scene, &overrides)?;
+    Ok((scene, Source::new(&args.scene, &text, overrides)))
 }
 
 /// Scheduling options, checked.

@@ -140,7 +140,9 @@ pub fn merge(parts: &[(PathBuf, Part)]) -> Result<(Film, f32)> {
 /// Merges the part files `paths` into the image they cover together (see `check_set`),
 /// reading one part at a time a chunk at a time: memory stays about one image whatever the
 /// number of parts. Every part is checked, by its header, before any sums are read.
-pub fn merge_files(paths: &[PathBuf]) -> Result<(Film, f32)> {
+/// Gives the film, its gamma, and the recipe source every part carries (none unless all
+/// carry the same).
+pub fn merge_files(paths: &[PathBuf]) -> Result<(Film, f32, Option<crate::recipe::Source>)> {
     let headers = paths
         .iter()
         .map(|path| Ok((path.as_path(), PartReader::open(path)?.into_header())))
@@ -160,7 +162,13 @@ pub fn merge_files(paths: &[PathBuf]) -> Result<(Film, f32)> {
             at += run.len() as u64;
         })?;
     }
-    Ok((film, whole.gamma))
+    let first = headers.first().and_then(|(_, h)| h.render.recipe.clone());
+    let shared = first.filter(|f| {
+        headers
+            .iter()
+            .all(|(_, h)| h.render.recipe.as_ref() == Some(f))
+    });
+    Ok((film, whole.gamma, shared))
 }
 
 impl Whole {

@@ -35,6 +35,10 @@ pub struct RenderId {
     /// Samples per pixel of the finished image: a merge must cover sample indices
     /// `0..target` of every pixel of `window`.
     pub target: u32,
+    /// The scene file and settings, for the recipe of the image a merge writes; none when
+    /// the render was told to leave its recipe out.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub recipe: Option<crate::recipe::Source>,
 }
 
 impl RenderId {
@@ -50,6 +54,7 @@ impl RenderId {
             gamma: s.gamma,
             window: s.window,
             target,
+            recipe: None,
         }
     }
 
@@ -226,6 +231,7 @@ pub(crate) mod tests {
                 gamma: 2.0,
                 window: PixelRect::full(8, 6),
                 target: 9,
+                recipe: None,
             },
             state,
         }

@@ -55,6 +55,11 @@ impl Scene {
 
     /// Reads, parses and validates a scene file, applying command-line overrides.
     pub fn load(path: &Path, overrides: &Overrides) -> Result<Scene> {
+        Self::parse(&Self::read_text(path)?, path, overrides)
+    }
+
+    /// The text of the scene file at `path`, which must be UTF-8.
+    pub fn read_text(path: &Path) -> Result<String> {
         let bytes = std::fs::read(path).map_err(|cause| Error::Io {
             path: path.to_owned(),
             cause,
@@ -72,7 +77,7 @@ impl Scene {
                 ),
             }
         })?;
-        Self::parse(&text, path, overrides)
+        Ok(text)
     }
 
     /// Parses and validates scene text; `path` only names the source in errors.

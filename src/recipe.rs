@@ -1,0 +1,375 @@
+//! The recipe an image carries: the scene file's text, the command-line settings that change
+//! the image, the build that made it and the hash of its exact sums. `image_file` writes it
+//! into the image's own metadata and reads it back; this module makes it, checks one read
+//! from a file a stranger may have crafted, and rebuilds the scene it describes.
+
+use crate::error::{Error, Result};
+use crate::film::Film;
+use crate::math::PixelRect;
+use crate::scene::{Overrides, Scene};
+use crate::text::terminal_safe;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// The recipe's format, and the one this tessera reads.
+pub const SCHEMA: &str = "tessera-recipe/1";
+const SCHEMA_PREFIX: &str = "tessera-recipe/";
+/// The PNG text chunk's keyword and the EXR header attribute's name.
+pub const KEY: &str = "tessera-recipe";
+/// The most bytes a recipe may take once decompressed: the cover's is 3 KiB. A chunk that
+/// inflates beyond this is refused before it is inflated further.
+pub const MAX_BYTES: usize = 1 << 20;
+/// The longest scene file name a recipe may give.
+const MAX_NAME: usize = 255;
+
+/// The part of a recipe a partial render carries, so that a merge of parts can write it:
+/// the scene file and the command line's settings.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Source {
+    pub scene: SceneText,
+    pub overrides: RecipeOverrides,
+}
+
+impl Source {
+    /// The source of a render of the file `scene_file`, whose text is `text`, with
+    /// `overrides`.
+    pub fn new(scene_file: &Path, text: &str, overrides: Overrides) -> Self {
+        let name = scene_file
+            .file_name()
+            .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+        Source {
+            scene: SceneText {
+                name,
+                text: text.to_owned(),
+            },
+            overrides: overrides.into(),
+        }
+    }
+
+    /// The scene it describes, parsed as a scene file is; `origin` names it in errors.
+    pub fn parse(&self, origin: &Path) -> Result<Scene> {
+        Scene::parse(&self.scene.text, origin, &self.overrides.into())
+    }
+}
+
+/// What made an image, and how to make it again.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Recipe {
+    pub schema: String,
+    pub tessera: Maker,
+    pub scene: SceneText,
+    /// The command line's settings that replaced the scene file's.
+    pub overrides: RecipeOverrides,
+    /// The settings in effect: what the scene and the overrides give.
+    pub image: Effective,
+    /// XXH3-128 of the exact sums (`Film::content_hash`), as `xxh3-128:` and 32 hex digits.
+    pub sums: String,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Maker {
+    pub version: String,
+    pub commit: String,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneText {
+    /// The scene file's name, without its directory.
+    pub name: String,
+    /// The scene file's text, whole.
+    pub text: String,
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RecipeOverrides {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub width: Option<u32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub samples_per_pixel: Option<u32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_depth: Option<u32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub seed: Option<u64>,
+}
+
+impl From<Overrides> for RecipeOverrides {
+    fn from(o: Overrides) -> Self {
+        RecipeOverrides {
+            width: o.width,
+            samples_per_pixel: o.samples_per_pixel,
+            max_depth: o.max_depth,
+            seed: o.seed,
+        }
+    }
+}
+
+impl From<RecipeOverrides> for Overrides {
+    fn from(o: RecipeOverrides) -> Self {
+        Overrides {
+            width: o.width,
+            samples_per_pixel: o.samples_per_pixel,
+            max_depth: o.max_depth,
+            seed: o.seed,
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Effective {
+    pub width: u32,
+    pub height: u32,
+    /// The pixels written, `[x, y, width, height]`: the whole image unless the scene crops.
+    pub window: [u32; 4],
+    pub samples_per_pixel: u32,
+    pub max_depth: u32,
+    pub seed: u64,
+    pub gamma: f32,
+}
+
+impl Effective {
+    fn of(scene: &Scene) -> Self {
+        let s = &scene.settings;
+        let w = s.window;
+        Effective {
+            width: s.width,
+            height: s.height,
+            window: [w.x0, w.y0, w.width, w.height],
+            samples_per_pixel: s.samples_per_pixel,
+            max_depth: s.max_depth,
+            seed: s.seed,
+            gamma: s.gamma,
+        }
+    }
+}
+
+/// The hash of a film's exact sums, as recipes and benchmark results write it.
+pub fn sums_hash(film: &Film) -> String {
+    format!("xxh3-128:{:032x}", film.content_hash())
+}
+
+impl Recipe {
+    /// The recipe of `film`, rendered from `scene`, which `source` describes.
+    pub fn new(source: &Source, scene: &Scene, film: &Film) -> Self {
+        Recipe {
+            schema: SCHEMA.to_owned(),
+            tessera: Maker {
+                version: env!("CARGO_PKG_VERSION").to_owned(),
+                commit: env!("TESSERA_GIT_COMMIT").to_owned(),
+            },
+            scene: source.scene.clone(),
+            overrides: source.overrides,
+            image: Effective::of(scene),
+            sums: sums_hash(film),
+        }
+    }
+
+    /// The recipe as JSON, every character beyond ASCII escaped (`\uXXXX`), so that formats
+    /// whose text is Latin-1 or bytes (EXR attributes) carry it unchanged.
+    pub fn to_json(&self) -> String {
+        let json = serde_json::to_string(self).expect("a recipe serialises");
+        let mut out = String::with_capacity(json.len());
+        for c in json.chars() {
+            if c.is_ascii() {
+                out.push(c);
+            } else {
+                let mut units = [0u16; 2];
+                for unit in c.encode_utf16(&mut units) {
+                    out.push_str(&format!("\\u{unit:04x}"));
+                }
+            }
+        }
+        out
+    }
+
+    /// Reads a recipe from the text found in `image`, refusing what this tessera cannot
+    /// trust: too long, not JSON, another schema (naming the one needed when a newer tessera
+    /// wrote it), fields it does not know, values out of range.
+    pub fn parse(text: &str, image: &Path) -> Result<Recipe> {
+        let fail = |message: String| Error::Image {
+            path: image.to_owned(),
+            message: format!("its recipe {message}"),
+        };
+        if text.len() > MAX_BYTES {
+            return Err(fail(format!(
+                "is {} bytes, more than the {MAX_BYTES} a recipe may have",
+                text.len()
+            )));
+        }
+        // The schema first, so a newer recipe is named as such rather than misread.
+        #[derive(Deserialize)]
+        struct Versioned {
+            schema: Option<String>,
+            tessera: Option<Maker>,
+        }
+        let versioned: Versioned = serde_json::from_str(text).map_err(|e| {
+            fail(format!(
+                "is not a tessera recipe (not JSON of its shape: {e})"
+            ))
+        })?;
+        let made_by = versioned.tessera.as_ref().map_or_else(String::new, |m| {
+            format!(" (made by tessera {})", terminal_safe(&m.version, 40))
+        });
+        match versioned.schema.as_deref() {
+            Some(SCHEMA) => {}
+            Some(s) if s.starts_with(SCHEMA_PREFIX) => {
+                let newer = s[SCHEMA_PREFIX.len()..].parse::<u32>().is_ok_and(|n| n > 1);
+                return Err(fail(if newer {
+                    format!(
+                        "needs {}{made_by}; this tessera reads {SCHEMA}: use a newer tessera",
+                        terminal_safe(s, 60)
+                    )
+                } else {
+                    format!("has an unknown schema `{}`", terminal_safe(s, 60))
+                }));
+            }
+            Some(s) => {
+                return Err(fail(format!(
+                    "has an unknown schema `{}`",
+                    terminal_safe(s, 60)
+                )));
+            }
+            None => return Err(fail("has no schema".to_owned())),
+        }
+        let recipe: Recipe = serde_json::from_str(text).map_err(|e| {
+            fail(if e.to_string().contains("unknown field") {
+                format!("has a field this tessera does not know{made_by}: {e}")
+            } else {
+                format!("is malformed: {e}")
+            })
+        })?;
+        recipe.check().map_err(fail)?;
+        Ok(recipe)
+    }
+
+    fn check(&self) -> std::result::Result<(), String> {
+        if self.scene.name.len() > MAX_NAME {
+            return Err(format!(
+                "names a scene file of {} bytes",
+                self.scene.name.len()
+            ));
+        }
+        let hex = self.sums.strip_prefix("xxh3-128:").unwrap_or("");
+        if hex.len() != 32 || !hex.bytes().all(|b| b.is_ascii_hexdigit()) {
+            return Err(format!(
+                "has a malformed sums hash `{}`",
+                terminal_safe(&self.sums, 60)
+            ));
+        }
+        Ok(())
+    }
+
+    /// The scene the recipe describes, parsed and checked as a scene file is (errors name
+    /// `image` and the recipe's scene), with its settings checked against the recipe's.
+    pub fn scene(&self, image: &Path) -> Result<Scene> {
+        let origin = PathBuf::from(format!(
+            "{} (recipe scene {})",
+            image.display(),
+            terminal_safe(&self.scene.name, 80)
+        ));
+        let source = Source {
+            scene: self.scene.clone(),
+            overrides: self.overrides,
+        };
+        let scene = source.parse(&origin)?;
+        let effective = Effective::of(&scene);
+        if effective != self.image {
+            return Err(Error::Image {
+                path: image.to_owned(),
+                message: format!(
+                    "its recipe's settings ({}) are not what its scene and overrides give ({})",
+                    describe(&self.image),
+                    describe(&effective)
+                ),
+            });
+        }
+        Ok(scene)
+    }
+
+    /// The window the image holds.
+    pub fn window(&self) -> PixelRect {
+        let [x0, y0, width, height] = self.image.window;
+        PixelRect {
+            x0,
+            y0,
+            width,
+            height,
+        }
+    }
+}
+
+/// The settings in a few words.
+pub fn describe(e: &Effective) -> String {
+    let [x, y, w, h] = e.window;
+    let crop = if (x, y, w, h) == (0, 0, e.width, e.height) {
+        String::new()
+    } else {
+        format!(", crop {w}x{h} at ({x}, {y})")
+    };
+    format!(
+        "{}x{}{crop}, {} spp, depth {}, seed {}, gamma {}",
+        e.width, e.height, e.samples_per_pixel, e.max_depth, e.seed, e.gamma
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn recipe() -> Recipe {
+        let text = "[image]\nwidth = 8\nheight = 4\nsamples_per_pixel = 2\nmax_depth = 3\n# § ²\n";
+        let scene = Scene::parse(text, Path::new("s.toml"), &Overrides::default()).unwrap();
+        let film = Film::new(8, 4, 2);
+        let source = Source::new(Path::new("dir/s.toml"), text, Overrides::default());
+        Recipe::new(&source, &scene, &film)
+    }
+
+    #[test]
+    fn round_trips_through_ascii_json() {
+        let r = recipe();
+        let json = r.to_json();
+        assert!(json.is_ascii(), "{json}");
+        assert!(json.contains("\\u00a7"), "{json}");
+        assert_eq!(Recipe::parse(&json, Path::new("x.png")).unwrap(), r);
+        assert_eq!(r.scene.name, "s.toml");
+    }
+
+    #[test]
+    fn newer_and_unknown_recipes_are_refused_by_name() {
+        let json = recipe().to_json();
+        let newer = json.replace(SCHEMA, "tessera-recipe/7");
+        let e = Recipe::parse(&newer, Path::new("x.png"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("needs tessera-recipe/7") && e.contains("newer tessera"),
+            "{e}"
+        );
+        let extra = json.replacen('{', "{\"lens\":1,", 1);
+        let e = Recipe::parse(&extra, Path::new("x.png"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("does not know") && e.contains("lens"), "{e}");
+        for bad in ["", "[]", "{\"schema\":\"other\"}", "{}", "1e999"] {
+            assert!(Recipe::parse(bad, Path::new("x.png")).is_err(), "{bad}");
+        }
+        let deep = format!("{}{}", "[".repeat(200_000), "]".repeat(200_000));
+        assert!(Recipe::parse(&deep, Path::new("x.png")).is_err());
+        let hash = json.replace("xxh3-128:", "md5:");
+        assert!(Recipe::parse(&hash, Path::new("x.png")).is_err());
+    }
+
+    #[test]
+    fn the_scene_must_give_the_recipes_settings() {
+        let mut r = recipe();
+        assert!(r.scene(Path::new("x.png")).is_ok());
+        r.image.seed = 9;
+        let e = r.scene(Path::new("x.png")).unwrap_err().to_string();
+        assert!(e.contains("not what its scene"), "{e}");
+    }
+}
