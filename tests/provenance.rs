@@ -78,23 +78,18 @@ fn write_png(path: &Path, (w, h, pixels): &(u32, u32, Vec<u8>), chunks: &[(&str,
     writer.finish().unwrap();
 }
 
-/// A small cover render with its recipe, in `dir`.
-fn small_cover(dir: &Path, name: &str) -> PathBuf {
-    ok(
-        &[
-            "render",
-            &cover(),
-            "--width",
-            "96",
-            "--spp",
-            "4",
-            "-o",
-            name,
-            "-q",
-        ],
-        dir,
-    );
+/// A small cover render in `dir`, with `extra` arguments (its recipe unless they say not).
+fn small_cover_with(dir: &Path, name: &str, extra: &[&str]) -> PathBuf {
+    let mut args = vec!["render", "--width", "96", "--spp", "4", "-o", name, "-q"];
+    args.extend(extra);
+    let scene = cover();
+    args.insert(1, &scene);
+    ok(&args, dir);
     dir.join(name)
+}
+
+fn small_cover(dir: &Path, name: &str) -> PathBuf {
+    small_cover_with(dir, name, &[])
 }
 
 #[test]
@@ -184,24 +179,9 @@ fn merged_shards_and_resumed_checkpoints_carry_the_single_renders_recipe() {
     let dir = temp_dir("provenance-parts");
     let single = small_cover(&dir, "single.png");
     for i in 0..3 {
-        ok(
-            &[
-                "render",
-                &cover(),
-                "--width",
-                "96",
-                "--spp",
-                "4",
-                "--split",
-                "rows",
-                "--shard",
-                &format!("{i}/3"),
-                "-o",
-                &format!("p{i}.part"),
-                "-q",
-            ],
-            &dir,
-        );
+        let shard = format!("{i}/3");
+        let extra = ["--split", "rows", "--shard", &shard];
+        small_cover_with(&dir, &format!("p{i}.part"), &extra);
     }
     ok(
         &["merge", "p0.part", "p1.part", "p2.part", "-o", "merged.png"],
@@ -239,21 +219,7 @@ fn merged_shards_and_resumed_checkpoints_carry_the_single_renders_recipe() {
     assert_identical(&dir.join("resumed.png"), &dir);
 
     // --no-provenance leaves it out of parts and images, and a merge of such parts.
-    ok(
-        &[
-            "render",
-            &cover(),
-            "--width",
-            "96",
-            "--spp",
-            "4",
-            "-o",
-            "bare.png",
-            "-q",
-            "--no-provenance",
-        ],
-        &dir,
-    );
+    small_cover_with(&dir, "bare.png", &["--no-provenance"]);
     assert_eq!(png_recipe_text(&dir.join("bare.png")), None);
     let o = run(&["reproduce", "bare.png"], &dir);
     assert_eq!(o.status.code(), Some(2));
