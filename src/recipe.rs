@@ -272,11 +272,7 @@ impl Recipe {
             image.display(),
             terminal_safe(&self.scene.name, 80)
         ));
-        let source = Source {
-            scene: self.scene.clone(),
-            overrides: self.overrides,
-        };
-        let scene = source.parse(&origin)?;
+        let scene = self.source().parse(&origin)?;
         let effective = Effective::of(&scene);
         if effective != self.image {
             return Err(Error::Image {
@@ -289,6 +285,14 @@ impl Recipe {
             });
         }
         Ok(scene)
+    }
+
+    /// The scene file and overrides it was made from.
+    pub fn source(&self) -> Source {
+        Source {
+            scene: self.scene.clone(),
+            overrides: self.overrides,
+        }
     }
 
     /// The window the image holds.

@@ -220,9 +220,9 @@ impl Bvh {
 #[derive(Clone, Copy, Debug, Default)]
 pub struct RayHints {
     /// A sphere the ray leaves from outside (starting on or just off its surface) and heads
-    /// away from, so cannot meet again (convex): its test is left out, the giants' too. Most bounce rays leave the sphere
-    /// they bounced off this way, and its pack would otherwise pass the cheap first check
-    /// for every one of them.
+    /// away from, so cannot meet again (convex): its test is left out, a giant's too. Most
+    /// bounce rays leave the sphere they bounced off this way, and its pack would otherwise
+    /// pass the cheap first check for every one of them.
     pub leaving: Leaving,
     /// `1 / dir` (up to rounding), for a caller that has it before `dir` itself: a bounce
     /// ray's `len × (1 / raw)` is ready a division sooner than `1 / (raw / len)`, and the

@@ -93,10 +93,10 @@ pub fn run(command: Command) -> Result<()> {
 fn merge(paths: &[PathBuf], output: &Path, no_provenance: bool) -> Result<()> {
     Format::from_path(output)?;
     let paths = part_files(paths)?;
-    let (film, gamma, source) = tessera::partial::merge_files(&paths)?;
-    let recipe = match source.filter(|_| !no_provenance) {
+    let (film, render) = tessera::partial::merge_files(&paths)?;
+    let recipe = match render.recipe.as_ref().filter(|_| !no_provenance) {
         Some(source) => {
-            let recipe = reproduce::merged_recipe(&source, &film, &paths[0]);
+            let recipe = reproduce::merged_recipe(source, &render, &film, &paths[0]);
             if recipe.is_none() {
                 note(format_args!(
                     "tessera: warning: the parts' recipe does not describe them; {} carries none",
@@ -114,7 +114,7 @@ fn merge(paths: &[PathBuf], output: &Path, no_provenance: bool) -> Result<()> {
             None
         }
     };
-    film.save(output, gamma, recipe.as_ref())?;
+    film.save(output, render.gamma, recipe.as_ref())?;
     note(format_args!(
         "{}: merged {} parts, {}x{}, {} spp",
         output.display(),

@@ -142,23 +142,20 @@ pub fn run(settings: RenderSettings) -> Result<()> {
     }
     let what = describe(&scene, &state, &output);
     // The output first, so that a viewer told the render has finished finds it written.
-    let kept = match &output {
-        Output::Part(path) => {
+    let preview = match (&output, preview) {
+        (Output::Part(path), preview) => {
             partial::save(path, &render, &state)?;
-            Some(state)
+            preview.map(|p| p.end(&state, RunState::Finished))
         }
-        Output::Image(path) if preview.is_some() => {
+        // The viewer's final frame comes from the state: the image gets a copy.
+        (Output::Image(path), Some(p)) => {
             write_image(path, state.clone().into_film(), &scene, &render, quiet)?;
-            Some(state)
+            Some(p.end(&state, RunState::Finished))
         }
-        Output::Image(path) => {
+        (Output::Image(path), None) => {
             write_image(path, state.into_film(), &scene, &render, quiet)?;
             None
         }
-    };
-    let preview = match (preview, &kept) {
-        (Some(p), Some(state)) => Some(p.end(state, RunState::Finished)),
-        _ => None,
     };
     if !quiet {
         report(&scene, &output, &what, &stats);

@@ -10,6 +10,7 @@ use std::time::Instant;
 use tessera::compare::{self, RgbImage};
 use tessera::film::Film;
 use tessera::image_file::{self, ImageHeader, Pixels};
+use tessera::partial::RenderId;
 use tessera::recipe::{self, Recipe, Source, describe};
 use tessera::render;
 use tessera::text::{terminal_safe, terminal_safe_lines};
@@ -120,12 +121,9 @@ pub fn run(args: ReproduceArgs) -> Result<()> {
     let start = Instant::now();
     let (film, stats) = render::render(&scene, &options, &|n| bar.inc(n))?;
     bar.finish_and_clear();
-    let source = Source {
-        scene: recipe.scene.clone(),
-        overrides: recipe.overrides,
-    };
     if let Some(out) = &args.output {
-        film.save(out, s.gamma, Some(&Recipe::new(&source, &scene, &film)))?;
+        let again = Recipe::new(&recipe.source(), &scene, &film);
+        film.save(out, s.gamma, Some(&again))?;
     }
     let rendered = recipe::sums_hash(&film);
     let pixels = image_file::read_pixels(image, &header)?;
@@ -177,14 +175,15 @@ fn compare_pixels(film: &Film, gamma: f32, pixels: &Pixels) -> Result<(), String
             ));
         }
         Pixels::Rgb8(bytes) => {
-            let wrong = pixel_mismatches(bytes.len(), expected.len(), |i| bytes[i] != expected[i]);
+            same_count(bytes.len(), expected.len())?;
+            let wrong = pixel_mismatches(bytes.len(), |i| bytes[i] != expected[i]);
             (wrong.0, wrong.1, RgbImage::from_rgb8(w, h, bytes))
         }
         Pixels::Linear(values) => {
             let linear = film.linear();
-            let wrong = pixel_mismatches(values.len(), linear.len(), |i| {
-                values[i].to_bits() != linear[i].to_bits()
-            });
+            same_count(values.len(), linear.len())?;
+            let wrong =
+                pixel_mismatches(values.len(), |i| values[i].to_bits() != linear[i].to_bits());
             let shown: Vec<u8> = values
                 .iter()
                 .map(|&c| tessera::tonemap::encode_8bit(c, gamma))
@@ -209,15 +208,21 @@ fn compare_pixels(film: &Film, gamma: f32, pixels: &Pixels) -> Result<(), String
     ))
 }
 
-/// The number of pixels (3 values each) whose values differ, and the first one's index.
-fn pixel_mismatches(
-    len: usize,
-    expected: usize,
-    differs: impl Fn(usize) -> bool,
-) -> (u64, Option<usize>) {
-    if len != expected {
-        return (u64::MAX, Some(0));
+/// Refuses pixels of another count than the render's (the size was checked: only a
+/// decoder's surprise could make them so).
+fn same_count(values: usize, expected: usize) -> Result<(), String> {
+    if values == expected {
+        Ok(())
+    } else {
+        Err(format!(
+            "{values} values decoded, the render has {expected}"
+        ))
     }
+}
+
+/// The number of pixels among `len` values (3 each) whose values differ, and the first
+/// one's index.
+fn pixel_mismatches(len: usize, differs: impl Fn(usize) -> bool) -> (u64, Option<usize>) {
     let mut count = 0;
     let mut first = None;
     for p in 0..len / 3 {
@@ -229,14 +234,19 @@ fn pixel_mismatches(
     (count, first)
 }
 
-/// The recipe of a merged `film` from parts that carry `source`, when `source` describes
-/// them (the scene it gives has the parts' fingerprint); `part` names it in errors.
-pub fn merged_recipe(source: &Source, film: &Film, part: &Path) -> Option<Recipe> {
+/// The recipe of a merged `film` of `render`'s parts, which carry `source`, when `source`
+/// describes them: the scene it gives has their fingerprint, window and sample count.
+/// `part` names the source in errors.
+pub fn merged_recipe(
+    source: &Source,
+    render: &RenderId,
+    film: &Film,
+    part: &Path,
+) -> Option<Recipe> {
     let scene = source.parse(part).ok()?;
-    let header = tessera::partial::PartReader::open(part).ok()?.into_header();
-    let ours = format!("{:016x}", scene.fingerprint());
-    (ours == header.render.fingerprint
-        && scene.settings.window.width == film.width
-        && scene.settings.window.height == film.height)
+    let s = &scene.settings;
+    (format!("{:016x}", scene.fingerprint()) == render.fingerprint
+        && s.window == render.window
+        && s.samples_per_pixel == render.target)
         .then(|| Recipe::new(source, &scene, film))
 }

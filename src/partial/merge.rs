@@ -1,7 +1,7 @@
 //! Adding complete parts of one render into the image they cover, after checking, from
 //! their headers alone, that they make exactly that image.
 
-use super::{Part, PartReader, part_error};
+use super::{Part, PartReader, RenderId, part_error};
 use crate::error::{Error, Result};
 use crate::film::{Film, add_run, add_sums};
 use crate::math::PixelRect;
@@ -140,9 +140,9 @@ pub fn merge(parts: &[(PathBuf, Part)]) -> Result<(Film, f32)> {
 /// Merges the part files `paths` into the image they cover together (see `check_set`),
 /// reading one part at a time a chunk at a time: memory stays about one image whatever the
 /// number of parts. Every part is checked, by its header, before any sums are read.
-/// Gives the film, its gamma, and the recipe source every part carries (none unless all
-/// carry the same).
-pub fn merge_files(paths: &[PathBuf]) -> Result<(Film, f32, Option<crate::recipe::Source>)> {
+/// Gives the film and the render the parts belong to: the first part's, with the recipe
+/// source every part carries (none unless all carry the same).
+pub fn merge_files(paths: &[PathBuf]) -> Result<(Film, RenderId)> {
     let headers = paths
         .iter()
         .map(|path| Ok((path.as_path(), PartReader::open(path)?.into_header())))
@@ -162,13 +162,11 @@ pub fn merge_files(paths: &[PathBuf]) -> Result<(Film, f32, Option<crate::recipe
             at += run.len() as u64;
         })?;
     }
-    let first = headers.first().and_then(|(_, h)| h.render.recipe.clone());
-    let shared = first.filter(|f| {
-        headers
-            .iter()
-            .all(|(_, h)| h.render.recipe.as_ref() == Some(f))
-    });
-    Ok((film, whole.gamma, shared))
+    let mut render = headers[0].1.render.clone();
+    if (headers.iter()).any(|(_, h)| h.render.recipe != render.recipe) {
+        render.recipe = None;
+    }
+    Ok((film, render))
 }
 
 impl Whole {
