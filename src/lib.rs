@@ -23,7 +23,7 @@
 //!
 //! The same scene, settings and seed give the same bytes whatever the thread count, tile
 //! size, shard split or interruption. [`math`], [`ray`], [`error`] and [`text`] serve them all;
-//! [`compare`] measures the difference of two images.
+//! [`image_diff`] measures the difference of two images.
 //!
 //! [`simd`] picks the instruction set of the hot code when a tile is rendered (portable,
 //! AVX2 or AVX-512, the same bytes on each) and holds the crate's only `unsafe` code; the
@@ -34,10 +34,10 @@
 pub mod atomic_file;
 pub mod bvh;
 pub mod camera;
-pub mod compare;
 pub mod error;
 pub mod film;
 pub mod geometry;
+pub mod image_diff;
 pub mod image_file;
 pub mod integrator;
 pub mod job;

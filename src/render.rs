@@ -1,6 +1,6 @@
 //! Running a job: cutting its region into tiles (and, for a watched render, its samples into
 //! passes), spreading them over a rayon pool, folding finished tiles into the job's state in
-//! batches, and handing out snapshots to save or show. The only module that knows the
+//! batches, and handing its state out to be saved or shown. The only module that knows the
 //! workers' threads; what a sample is, is the integrator's business.
 
 use crate::film::{Film, to_fixed};
@@ -58,8 +58,8 @@ impl RenderStats {
     }
 }
 
-/// A callback that sees the job's state, e.g. to save a checkpoint.
-pub type Snapshot<'a> = &'a mut dyn FnMut(&JobState);
+/// A callback that saves the job's state now and then, e.g. as a checkpoint.
+pub type ProgressSaver<'a> = &'a mut dyn FnMut(&JobState);
 
 /// What a running job reports to and hears from its caller.
 pub struct Control<'a> {
@@ -71,7 +71,7 @@ pub struct Control<'a> {
     pub on_samples: &'a (dyn Fn(u64) + Sync),
     /// Called with the state at most every `interval` while the job runs, e.g. to save a
     /// checkpoint; a zero interval calls it after every tile.
-    pub on_snapshot: Option<(Snapshot<'a>, Duration)>,
+    pub on_progress: Option<(ProgressSaver<'a>, Duration)>,
     /// Renders the samples in progressive passes over the whole region (see `passes`)
     /// instead of each tile's samples at once, so the image sharpens everywhere together.
     /// The sums, and so the image, are the same either way.
@@ -166,7 +166,7 @@ pub fn render(
     let control = Control {
         stop: &stop,
         on_samples: progress,
-        on_snapshot: None,
+        on_progress: None,
         progressive: false,
         watch: None,
     };
@@ -175,8 +175,8 @@ pub fn render(
 }
 
 /// Renders what `state` still lacks, tile by tile over a rayon pool, until it is complete or
-/// `control.stop` is set. Finished tiles are folded into `state` on the calling thread, so a
-/// snapshot is always consistent.
+/// `control.stop` is set. Finished tiles are folded into `state` on the calling thread, so
+/// what is saved or shown is always consistent.
 pub fn render_job(
     scene: &Scene,
     options: &RenderOptions,
@@ -258,7 +258,7 @@ pub fn render_job(
             Some(p) => p.install(work),
             None => work(),
         });
-        let mut last_snapshot = Instant::now();
+        let mut last_saved = Instant::now();
         for batch in receiver {
             folded.clear();
             for f in batch {
@@ -277,11 +277,11 @@ pub fn render_job(
                     &progress(samples, rays, work_done, &left_in_pass),
                 );
             }
-            if let Some((snapshot, interval)) = control.on_snapshot.as_mut()
-                && last_snapshot.elapsed() >= *interval
+            if let Some((save, interval)) = control.on_progress.as_mut()
+                && last_saved.elapsed() >= *interval
             {
-                snapshot(state);
-                last_snapshot = Instant::now();
+                save(state);
+                last_saved = Instant::now();
             }
         }
     });

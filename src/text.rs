@@ -1,5 +1,6 @@
 //! Text a stranger wrote (a CPU model in an imported result, a recipe in an image), made safe
-//! to print to a terminal, where an escape sequence could rewrite the screen.
+//! to print to a terminal, where an escape sequence could rewrite the screen, or to put in a
+//! web page, where markup or a bidirectional override could change what it shows.
 
 /// Whether `c` must not reach a terminal as it is: a control character, or one that
 /// reorders or hides what follows (bidirectional overrides, zero-width marks).
@@ -40,6 +41,25 @@ pub fn terminal_safe_lines(text: &str) -> String {
     out
 }
 
+/// `text` for HTML text and attribute values: markup characters as entities, and what
+/// must not reach a terminal (controls, bidirectional overrides) as `\u{…}`, as a reader of
+/// the page could otherwise see another text than the one there.
+pub fn html_safe(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    for c in text.chars() {
+        match c {
+            '&' => out.push_str("&amp;"),
+            '<' => out.push_str("&lt;"),
+            '>' => out.push_str("&gt;"),
+            '"' => out.push_str("&quot;"),
+            '\'' => out.push_str("&#39;"),
+            c if is_unsafe(c) => out.extend(c.escape_unicode()),
+            c => out.push(c),
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -51,6 +71,10 @@ mod tests {
         assert_eq!(
             terminal_safe_lines("a\n\u{1b}[2J\tb\u{2066}"),
             "a\n\\u{1b}[2J\tb\\u{2066}"
+        );
+        assert_eq!(
+            html_safe("<b a=\"x\">&'\u{202e}</b>"),
+            "&lt;b a=&quot;x&quot;&gt;&amp;&#39;\\u{202e}&lt;/b&gt;"
         );
     }
 }

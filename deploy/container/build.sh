@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Builds tessera's container image without pulling anything: first the static binary
-# (target x86_64-unknown-linux-musl, cargo profile `container`; needs musl-gcc, from
-# Debian's musl-tools, for the bundled SQLite), then the image from
+# (target x86_64-unknown-linux-musl, cargo profile `container`, without the results
+# database: pure Rust, so no C compiler is needed), then the image from
 # deploy/container/Containerfile, labelled with the version, the commit and the source.
 # Prints the image's two tags, the version's first:
 #
@@ -17,25 +17,26 @@ target=x86_64-unknown-linux-musl
 if command -v rustup >/dev/null && ! rustup target list --installed | grep -qx "$target"; then
   rustup target add "$target" >&2
 fi
-# The bundled SQLite of the results database is C: it needs musl's compiler wrapper
-# (Debian's musl-tools).
-if [ -z "${CC_x86_64_unknown_linux_musl:-}" ]; then
-  command -v musl-gcc >/dev/null || {
-    echo "build.sh: musl-gcc not found: install musl-tools (Debian, Ubuntu) or musl-gcc" >&2
-    exit 2
-  }
-  export CC_x86_64_unknown_linux_musl=musl-gcc
-fi
-cargo build --locked --profile container --target "$target" >&2
+# The image renders, merges, benchmarks and reproduces, and serves the live viewer; a
+# results database belongs where results are kept, not in a container.
+cargo build --locked --profile container --target "$target" \
+  --no-default-features --features preview >&2
 
 version=$(sed -n 's/^version = "\(.*\)"$/\1/p' Cargo.toml | head -n 1)
 revision=$(git rev-parse HEAD 2>/dev/null || echo unknown)
+# As the binary's own commit says: `-dirty` when what is compiled in differs from it.
+if [ "$revision" != unknown ] &&
+  [ -n "$(git status --porcelain -- src benches scenes Cargo.toml Cargo.lock build.rs)" ]; then
+  revision="$revision-dirty"
+fi
 source=${SOURCE:-$(git config --get remote.origin.url 2>/dev/null || echo unknown)}
 # The commit's time, not the build's, so that the same commit builds the same image.
 epoch=$(git log -1 --format=%ct 2>/dev/null || echo 0)
 created=$(date -u -d "@$epoch" +%Y-%m-%dT%H:%M:%SZ)
 tags=("tessera:$version")
-[ "$revision" != unknown ] && tags+=("tessera:$version-${revision:0:12}")
+short=${revision:0:12}
+[[ $revision == *-dirty ]] && short="$short-dirty"
+[ "$revision" != unknown ] && tags+=("tessera:$version-$short")
 
 args=(-f deploy/container/Containerfile
   --build-arg "VERSION=$version" --build-arg "REVISION=$revision"

@@ -1,19 +1,50 @@
 //! `tessera info` and `tessera reproduce`: the recipe an image carries, printed, and the image
-//! rendered again from it alone and compared bit for bit; and the recipe a merge writes.
+//! rendered again from it alone and checked bit for bit against the image.
 
-use super::args::ReproduceArgs;
-use super::settings::render_options;
-use super::{note, progress_bar};
+use super::flags::{self, SimdArg};
+use super::output::{self, count, note, out, progress_bar, significant};
+use super::writable::check_output;
 use anyhow::{Result, bail};
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
 use std::time::Instant;
-use tessera::compare::{self, RgbImage};
 use tessera::film::Film;
+use tessera::image_diff::{self, RgbImage};
 use tessera::image_file::{self, ImageHeader, Pixels};
-use tessera::partial::RenderId;
-use tessera::recipe::{self, Recipe, Source, describe};
-use tessera::render;
+use tessera::recipe::{self, Recipe, describe};
+use tessera::render::{self, RenderOptions};
 use tessera::text::{terminal_safe, terminal_safe_lines};
+
+/// `tessera info` as typed.
+#[derive(clap::Args)]
+pub struct InfoArgs {
+    /// A PNG or EXR image tessera wrote.
+    image: PathBuf,
+    /// The recipe as tessera wrote it (JSON).
+    #[arg(long)]
+    json: bool,
+}
+
+/// `tessera reproduce` as typed.
+#[derive(clap::Args)]
+pub struct Args {
+    /// A PNG or EXR image tessera wrote.
+    image: PathBuf,
+    /// Also write the re-rendered image here (with its recipe).
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// Write the recipe's scene file here and stop.
+    #[arg(long, value_name = "FILE")]
+    extract_scene: Option<PathBuf>,
+    /// Worker threads (default: one per core); the image does not change.
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = flags::threads)]
+    threads: Option<usize>,
+    #[command(flatten)]
+    simd: SimdArg,
+    /// No progress bar.
+    #[arg(long, short)]
+    quiet: bool,
+}
 
 /// The recipe of the image at `path`, read and checked, with the image's header.
 fn recipe_of(path: &Path) -> Result<(ImageHeader, Recipe)> {
@@ -30,11 +61,12 @@ fn recipe_of(path: &Path) -> Result<(ImageHeader, Recipe)> {
 }
 
 /// `tessera info IMAGE`: the recipe, readably, or as JSON.
-pub fn info(path: &Path, json: bool) -> Result<()> {
+pub fn info(args: InfoArgs) -> Result<ExitCode> {
+    let path = &args.image;
     let (header, recipe) = recipe_of(path)?;
-    if json {
-        println!("{}", recipe.to_json());
-        return Ok(());
+    if args.json {
+        out(&format!("{}\n", recipe.to_json()))?;
+        return Ok(ExitCode::SUCCESS);
     }
     let o = &recipe.overrides;
     let flags: Vec<String> = [
@@ -47,73 +79,92 @@ pub fn info(path: &Path, json: bool) -> Result<()> {
     .flatten()
     .collect();
     let text = &recipe.scene.text;
-    println!(
-        "{}: {} {}x{}, with a recipe ({})",
+    let mut t = format!(
+        "{}: {} {}x{}, with a recipe ({})\n",
         path.display(),
         format!("{:?}", header.format).to_uppercase(),
         header.width,
         header.height,
         recipe.schema
     );
-    println!(
-        "  made by    tessera {}, commit {}",
+    t.push_str(&format!(
+        "  made by    tessera {}, commit {}\n",
         terminal_safe(&recipe.tessera.version, 40),
         terminal_safe(&recipe.tessera.commit, 64)
-    );
-    println!(
-        "  scene      {} ({} bytes, {} lines)",
+    ));
+    t.push_str(&format!(
+        "  scene      {} ({} bytes, {} lines)\n",
         terminal_safe(&recipe.scene.name, 80),
         text.len(),
         text.lines().count()
-    );
-    println!("  settings   {}", describe(&recipe.image));
-    println!(
-        "  overrides  {}",
+    ));
+    t.push_str(&format!("  settings   {}\n", describe(&recipe.image)));
+    t.push_str(&format!(
+        "  overrides  {}\n",
         if flags.is_empty() {
             "none (the scene file's own settings)".to_owned()
         } else {
             flags.join(" ")
         }
-    );
-    println!("  sums       {}", terminal_safe(&recipe.sums, 64));
-    println!("  check      tessera reproduce {}", path.display());
-    println!("--- {} ---", terminal_safe(&recipe.scene.name, 80));
-    print!("{}", terminal_safe_lines(text));
+    ));
+    t.push_str(&format!(
+        "  sums       {}\n",
+        terminal_safe(&recipe.sums, 64)
+    ));
+    t.push_str(&format!(
+        "  check      tessera reproduce {}\n",
+        path.display()
+    ));
+    t.push_str(&format!(
+        "--- {} ---\n",
+        terminal_safe(&recipe.scene.name, 80)
+    ));
+    t.push_str(&terminal_safe_lines(text));
     if !text.ends_with('\n') {
-        println!();
+        t.push('\n');
     }
-    Ok(())
+    out(&t)?;
+    Ok(ExitCode::SUCCESS)
 }
 
 /// `tessera reproduce IMAGE`: exit 0 when identical; differences print and exit 1.
-pub fn run(args: ReproduceArgs) -> Result<()> {
+pub fn run(args: Args) -> Result<ExitCode> {
     let image = &args.image;
     let (header, recipe) = recipe_of(image)?;
-    if let Some(out) = &args.extract_scene {
-        tessera::atomic_file::write_atomically_with(out, &mut |w| {
+    if let Some(file) = &args.extract_scene {
+        check_output(file)?;
+        tessera::atomic_file::write_atomically_with(file, &mut |w| {
             w.write_all(recipe.scene.text.as_bytes())
         })?;
         note(format_args!(
             "{}: the scene of {}'s recipe ({} bytes)",
-            out.display(),
+            file.display(),
             image.display(),
             recipe.scene.text.len()
         ));
-        return Ok(());
+        return Ok(ExitCode::SUCCESS);
     }
-    let options = render_options(args.threads, render::DEFAULT_TILE, args.simd.path()?)?;
+    if let Some(file) = &args.output {
+        check_output(file)?;
+    }
+    let options = RenderOptions {
+        threads: args.threads,
+        tile: render::DEFAULT_TILE,
+        simd: args.simd.path()?,
+    };
     let scene = recipe.scene(image)?;
     let window = recipe.window();
+    let differs = ExitCode::from(output::NEGATIVE);
     if (header.width, header.height) != (window.width, window.height) {
-        println!(
-            "differs: {} is {}x{}, its recipe makes {}x{}",
+        out(&format!(
+            "differs: {} is {}x{}, its recipe makes {}x{}\n",
             image.display(),
             header.width,
             header.height,
             window.width,
             window.height
-        );
-        std::process::exit(1);
+        ))?;
+        return Ok(differs);
     }
     let s = &scene.settings;
     let total = u64::from(window.width) * u64::from(window.height) * u64::from(s.samples_per_pixel);
@@ -127,44 +178,45 @@ pub fn run(args: ReproduceArgs) -> Result<()> {
     }
     let rendered = recipe::sums_hash(&film);
     let pixels = image_file::read_pixels(image, &header)?;
-    let verdict = compare_pixels(&film, s.gamma, &pixels);
+    let verdict = check_pixels(&film, s.gamma, &pixels);
     let how = format!(
-        "{} in {:.1} s on {} threads, SIMD path {}",
+        "{} in {:.1} s on {}, SIMD path {}",
         describe(&recipe.image),
         start.elapsed().as_secs_f64(),
-        stats.threads,
+        count(stats.threads as u64, "thread"),
         options.simd.name()
     );
     match (rendered == recipe.sums, verdict) {
         (true, Ok(())) => {
-            println!(
-                "identical: {} is bit for bit what its recipe makes ({rendered}; {how})",
+            out(&format!(
+                "identical: {} is bit for bit what its recipe makes ({rendered}; {how})\n",
                 image.display()
-            );
-            Ok(())
+            ))?;
+            Ok(ExitCode::SUCCESS)
         }
         (same_sums, verdict) => {
-            println!(
-                "differs: {} is not what its recipe makes ({how})",
+            let mut t = format!(
+                "differs: {} is not what its recipe makes ({how})\n",
                 image.display()
             );
             if !same_sums {
-                println!(
-                    "  sums: the recipe says {}, the render gives {rendered}",
+                t.push_str(&format!(
+                    "  sums: the recipe says {}, the render gives {rendered}\n",
                     terminal_safe(&recipe.sums, 64)
-                );
+                ));
             }
             match verdict {
-                Ok(()) => println!("  pixels: the same as the render's"),
-                Err(why) => println!("  pixels: {why}"),
+                Ok(()) => t.push_str("  pixels: the same as the render's\n"),
+                Err(why) => t.push_str(&format!("  pixels: {why}\n")),
             }
-            std::process::exit(1);
+            out(&t)?;
+            Ok(differs)
         }
     }
 }
 
 /// Whether `pixels` are exactly what `film` writes: where and how much they differ if not.
-fn compare_pixels(film: &Film, gamma: f32, pixels: &Pixels) -> Result<(), String> {
+fn check_pixels(film: &Film, gamma: f32, pixels: &Pixels) -> Result<(), String> {
     let (w, h) = (film.width, film.height);
     let expected = film.to_rgb8(gamma);
     // Both sides as 8-bit values for `compare`'s figures; equality is checked exactly.
@@ -194,11 +246,13 @@ fn compare_pixels(film: &Film, gamma: f32, pixels: &Pixels) -> Result<(), String
     let Some((x, y)) = first.map(|i| (i as u32 % w, i as u32 / w)) else {
         return Ok(());
     };
-    let figures = compare::difference(&RgbImage::from_rgb8(w, h, &expected), &actual)
+    let figures = image_diff::difference(&RgbImage::from_rgb8(w, h, &expected), &actual)
         .map(|d| {
             format!(
-                "RMSE {:.6}, PSNR {:.2} dB, mean abs error {:.6}",
-                d.rmse, d.psnr_db, d.mean_abs
+                "RMSE {}, PSNR {:.2} dB, mean abs error {}",
+                significant(d.rmse, 4),
+                d.psnr_db,
+                significant(d.mean_abs, 4)
             )
         })
         .unwrap_or_default();
@@ -232,21 +286,4 @@ fn pixel_mismatches(len: usize, differs: impl Fn(usize) -> bool) -> (u64, Option
         }
     }
     (count, first)
-}
-
-/// The recipe of a merged `film` of `render`'s parts, which carry `source`, when `source`
-/// describes them: the scene it gives has their fingerprint, window and sample count.
-/// `part` names the source in errors.
-pub fn merged_recipe(
-    source: &Source,
-    render: &RenderId,
-    film: &Film,
-    part: &Path,
-) -> Option<Recipe> {
-    let scene = source.parse(part).ok()?;
-    let s = &scene.settings;
-    (format!("{:016x}", scene.fingerprint()) == render.fingerprint
-        && s.window == render.window
-        && s.samples_per_pixel == render.target)
-        .then(|| Recipe::new(source, &scene, film))
 }

@@ -4,6 +4,7 @@
 //! Nothing here is on a worker's path, and nothing here changes the image.
 
 pub mod frame;
+#[cfg(feature = "preview")]
 pub mod server;
 
 use crate::job::JobState;
@@ -49,6 +50,24 @@ pub struct About {
     pub job: String,
     /// Where the result goes.
     pub output: String,
+    /// Whether the viewer keeps serving after the render ends (`--preview-hold`); without,
+    /// a page keeps what it offers to download itself, as the server goes.
+    pub held: bool,
+}
+
+/// The image file a finished render offers to download: the very bytes of its PNG (recipe
+/// included), under the output's name.
+#[derive(Debug)]
+pub struct Download {
+    pub name: String,
+    pub png: Bytes,
+}
+
+/// What the status says of the download.
+#[derive(Clone, Debug, Serialize)]
+pub struct DownloadInfo {
+    pub name: String,
+    pub bytes: usize,
 }
 
 /// The run's status at one moment, as `/status` and the event stream send it.
@@ -75,6 +94,8 @@ pub struct Status {
     pub frame: FrameInfo,
     /// The tiles being rendered now, `[x, y, width, height]` in the job's pixels.
     pub tiles: Vec<[u32; 4]>,
+    /// The finished image to download, once there is one.
+    pub download: Option<DownloadInfo>,
 }
 
 /// The frame a status goes with.
@@ -86,12 +107,14 @@ pub struct FrameInfo {
     pub scale: u32,
 }
 
-/// One published moment: the status (and its JSON, made once for every viewer) and the frame.
+/// One published moment: the status (and its JSON, made once for every viewer), the frame
+/// and, at the end, the image to download.
 #[derive(Debug)]
 pub struct Snapshot {
     pub status: Status,
     pub status_json: Bytes,
     pub frame: Arc<Frame>,
+    pub download: Option<Arc<Download>>,
 }
 
 /// The latest snapshot, for any number of readers on any threads. Publishing replaces it
@@ -135,6 +158,7 @@ pub struct Previewer {
     /// The fraction of the job's samples already done when this run started (a resume).
     done_before: f64,
     status: Option<Status>,
+    download: Option<Arc<Download>>,
 }
 
 impl Previewer {
@@ -157,7 +181,7 @@ impl Previewer {
             done_before,
             RunState::Rendering,
         );
-        let hub = Arc::new(Hub::new(snapshot(status, Arc::clone(&frame))));
+        let hub = Arc::new(Hub::new(snapshot(status, Arc::clone(&frame), None)));
         Self {
             hub,
             about,
@@ -168,6 +192,7 @@ impl Previewer {
             last_pass: 0,
             done_before,
             status: None,
+            download: None,
         }
     }
 
@@ -208,14 +233,30 @@ impl Previewer {
                 ..last.clone()
             };
         }
+        status.download = (self.download.as_ref()).map(|d| DownloadInfo {
+            name: d.name.clone(),
+            bytes: d.png.len(),
+        });
         self.status = Some(status.clone());
-        self.hub.publish(snapshot(status, Arc::clone(&self.frame)));
+        let download = self.download.clone();
+        self.hub
+            .publish(snapshot(status, Arc::clone(&self.frame), download));
         self.last_publish = Instant::now();
     }
 
-    /// Publishes the end of the run: `Finished` or `Interrupted`, with the final frame.
+    /// Publishes the end of the run: `Finished` or `Interrupted`, with the final frame (and
+    /// the image to download, if one was offered).
     pub fn finish(&mut self, state: &JobState, run: RunState) {
         self.publish(state, None, run);
+    }
+
+    /// Offers the finished image file for download: `png` is the PNG the render wrote (or
+    /// would write), `name` its file name. Published with the end of the run.
+    pub fn offer_download(&mut self, name: String, png: Vec<u8>) {
+        self.download = Some(Arc::new(Download {
+            name,
+            png: Bytes::from(png),
+        }));
     }
 }
 
@@ -236,12 +277,13 @@ impl Watch for Previewer {
     }
 }
 
-fn snapshot(status: Status, frame: Arc<Frame>) -> Snapshot {
+fn snapshot(status: Status, frame: Arc<Frame>, download: Option<Arc<Download>>) -> Snapshot {
     let json = serde_json::to_vec(&status).expect("a status serializes");
     Snapshot {
         status,
         status_json: Bytes::from(json),
         frame,
+        download,
     }
 }
 
@@ -275,6 +317,7 @@ fn status_of(
             scale: frame.scale,
         },
         tiles: Vec::new(),
+        download: None,
     };
     let Some(p) = progress else {
         return status;

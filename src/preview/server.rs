@@ -60,6 +60,8 @@ pub struct ServerStats {
     pub clients: AtomicUsize,
     /// The newest frame version sent to any client (0: none).
     pub frame_served: AtomicU64,
+    /// How many times the finished image was downloaded.
+    pub downloads: AtomicU64,
     /// Connections refused because too many were open.
     pub refused: AtomicU64,
 }
@@ -311,6 +313,7 @@ fn respond(shared: &Arc<Shared>, request: &Request<Incoming>) -> Response<Body> 
             )
         }
         "/frame.png" => frame(shared, uri.query()),
+        "/download" => download(shared),
         "/events" => events(shared),
         _ => text(StatusCode::NOT_FOUND, "not found\n"),
     }
@@ -397,25 +400,41 @@ fn frame(shared: &Arc<Shared>, query: Option<&str>) -> Response<Body> {
         "x-frame-size",
         digits(format!("{},{}", frame.width, frame.height)),
     );
-    if param("download").is_some() {
-        let name = format!("{}.png", safe_name(&latest.status.about.scene));
-        if let Ok(v) = HeaderValue::from_str(&format!("attachment; filename=\"{name}\"")) {
-            headers.insert(header::CONTENT_DISPOSITION, v);
-        }
+    r
+}
+
+/// The finished image as the render wrote it (recipe included), to save under its own
+/// name; 404 until the render has finished.
+fn download(shared: &Arc<Shared>) -> Response<Body> {
+    let latest = shared.hub.latest();
+    let Some(file) = &latest.download else {
+        return text(
+            StatusCode::NOT_FOUND,
+            "nothing to download yet: the image is offered when the render has finished\n",
+        );
+    };
+    shared.stats.downloads.fetch_add(1, Ordering::Relaxed);
+    let mut r = dynamic(Full::new(file.png.clone()).boxed(), "image/png");
+    let name = safe_name(&file.name);
+    if let Ok(v) = HeaderValue::from_str(&format!("attachment; filename=\"{name}\"")) {
+        r.headers_mut().insert(header::CONTENT_DISPOSITION, v);
     }
     r
 }
 
-/// A file name made of the scene's name, letters, digits, '-' and '_' only.
-fn safe_name(scene: &str) -> String {
-    let name: String = (scene.chars())
-        .filter(|c| c.is_ascii_alphanumeric() || *c == '-' || *c == '_')
-        .take(64)
+/// A file name for a header: letters, digits, '-', '_' and '.' only (no leading dot), at
+/// most 96 of them, ending in `.png`.
+fn safe_name(name: &str) -> String {
+    let stem = name.strip_suffix(".png").unwrap_or(name);
+    let stem: String = (stem.chars())
+        .filter(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))
+        .take(92)
         .collect();
-    if name.is_empty() {
-        "render".to_owned()
+    let stem = stem.trim_start_matches('.');
+    if stem.is_empty() {
+        "render.png".to_owned()
     } else {
-        name
+        format!("{stem}.png")
     }
 }
 
@@ -520,8 +539,13 @@ mod tests {
 
     #[test]
     fn download_names_are_plain() {
-        assert_eq!(safe_name("cover"), "cover");
-        assert_eq!(safe_name("../../etc/passwd\"\r\n"), "etcpasswd");
-        assert_eq!(safe_name("é"), "render");
+        assert_eq!(safe_name("cover.png"), "cover.png");
+        assert_eq!(
+            safe_name("img-1.16-glass-hollow.png"),
+            "img-1.16-glass-hollow.png"
+        );
+        assert_eq!(safe_name("../../etc/passwd\"\r\n"), "etcpasswd.png");
+        assert_eq!(safe_name(".hidden"), "hidden.png");
+        assert_eq!(safe_name("é"), "render.png");
     }
 }

@@ -83,11 +83,11 @@ impl Scene {
     /// Parses and validates scene text; `path` only names the source in errors.
     pub fn parse(text: &str, path: &Path, overrides: &Overrides) -> Result<Scene> {
         let desc: desc::SceneDesc = toml::from_str(text).map_err(|e| {
-            let at = Location::of_offset(text, e.span().map_or(0, |s| s.start));
+            let start = e.span().map_or(0, |s| s.start);
             Error::SceneSyntax {
                 path: path.to_owned(),
-                at,
-                message: plain_types(e.message().trim()),
+                at: Location::of_offset(text, start),
+                message: name_the_table(text, start, &plain_types(e.message().trim())),
             }
         })?;
         build::build(&desc, text, path, overrides)
@@ -243,6 +243,53 @@ impl Scene {
 }
 
 /// Serde names Rust types in its messages; a scene author knows TOML's.
+/// A missing key's message with the table it is missing from: the table whose header
+/// starts the line at `start` (where the parser points), `[[spheres]]` counted (`#2`), or
+/// the file's top level for a whole table that is missing.
+fn name_the_table(text: &str, start: usize, message: &str) -> String {
+    let Some(key) = message
+        .strip_prefix("missing field `")
+        .and_then(|m| m.strip_suffix('`'))
+    else {
+        return message.to_owned();
+    };
+    let line_start = text
+        .get(..start)
+        .map_or(0, |t| t.rfind('\n').map_or(0, |i| i + 1));
+    let line = text
+        .get(line_start..)
+        .unwrap_or("")
+        .lines()
+        .next()
+        .unwrap_or("");
+    let header = line.split('#').next().unwrap_or("").trim();
+    let Some(name) = header
+        .strip_prefix('[')
+        .and_then(|h| h.strip_suffix(']'))
+        .map(|h| h.trim_matches(['[', ']']).trim())
+    else {
+        return format!("missing table or key `{key}` at the top level of the file");
+    };
+    let table = if header.starts_with("[[") {
+        // Which of the array's tables: count the headers of the same name up to here.
+        let nth = text[..line_start]
+            .lines()
+            .filter(|l| l.split('#').next().unwrap_or("").trim() == header)
+            .count()
+            + 1;
+        format!("{header} #{nth}")
+    } else {
+        header.to_owned()
+    };
+    let hint = match (name, key) {
+        ("image", "max_depth") => " (the most ray segments per path: the book uses 50)",
+        ("image", "samples_per_pixel") => " (samples per pixel: the book uses 100)",
+        ("image", "width" | "height") => " (the image's size in pixels)",
+        _ => "",
+    };
+    format!("{table}: missing key `{key}`{hint}; docs/scene-format.md lists every key")
+}
+
 fn plain_types(message: &str) -> String {
     message
         .replace("expected i64", "expected an integer")
@@ -255,6 +302,32 @@ fn plain_types(message: &str) -> String {
 mod tests {
     use super::*;
     use crate::sampling::Sampler;
+
+    #[test]
+    fn a_missing_key_names_its_table_at_the_tables_line() {
+        let error = |text: &str| {
+            Scene::parse(text, Path::new("s.toml"), &Overrides::default())
+                .err()
+                .unwrap()
+                .to_string()
+        };
+        let no_depth = "# small\n\n[image]\nwidth = 4\nheight = 2\nsamples_per_pixel = 1\n";
+        assert_eq!(
+            error(no_depth),
+            "s.toml:3:1: [image]: missing key `max_depth` (the most ray segments per path: \
+             the book uses 50); docs/scene-format.md lists every key"
+        );
+        let spheres = "[image]\nwidth = 4\nheight = 2\nsamples_per_pixel = 1\nmax_depth = 2\n\
+                       [materials.m]\ntype = \"lambertian\"\nalbedo = [1.0, 1.0, 1.0]\n\
+                       [[spheres]]\ncenter = [0.0, 0.0, -1.0]\nradius = 1.0\nmaterial = \"m\"\n\
+                       [[spheres]] # the second\ncenter = [0.0, 0.0, -1.0]\nmaterial = \"m\"\n";
+        assert_eq!(
+            error(spheres),
+            "s.toml:13:1: [[spheres]] #2: missing key `radius`; docs/scene-format.md lists \
+             every key"
+        );
+        assert!(error("# nothing\n").contains("missing table or key `image` at the top level"));
+    }
 
     #[test]
     fn leaving_outside_means_heading_away_from_the_centre_for_either_radius_sign() {

@@ -1,43 +1,133 @@
 //! `tessera bench`: a benchmark anyone can trust and compare. It renders a named, fixed
 //! workload (or a custom scene) after a warm-up, repeatedly at each thread count (1, 2, 4, …,
 //! every CPU), checks every image against the hash the workload must produce, and reports the
-//! medians with their spread, as text or JSON with the build and host. `--compare` sets two
-//! results side by side; `--chart` draws them.
+//! medians with their spread, as text or JSON with the build and host (`measure`), recorded
+//! in the results database. `--compare` sets two result files side by side; `--chart` draws
+//! them.
 
-mod chart;
-mod confinement;
-mod host;
-pub mod report;
-pub mod workload;
+mod measure;
 
-use super::print_out;
-use super::results::db::ResultsDb;
-use super::settings::{BenchMode, Measure, SaveTo, render_options};
-use anyhow::{Context, Result};
-use host::{Build, Host};
-use report::{Method, Report, Row, SCHEMA, Spread, Validation, WorkloadInfo};
+use super::charts;
+use super::flags::{self, DbArg, SimdArg};
+use super::output::out;
+use super::record::result::BenchResult;
+use super::record::stats::{self, Scaling};
+use super::record::workload::{self, Workload, hash_text};
+use super::writable::check_output;
+use anyhow::{Result, bail};
+use measure::Measure;
 use std::collections::BTreeSet;
+use std::path::PathBuf;
+use std::process::ExitCode;
 use tessera::atomic_file::write_atomically;
-use tessera::render::{self, RenderStats};
-use workload::{Workload, hash_text};
+use tessera::render::{self, RenderOptions};
+use tessera::scene::Overrides;
 
-pub fn run(mode: BenchMode) -> Result<()> {
-    match mode {
-        BenchMode::Measure(m) => measure(*m),
-        BenchMode::Compare { old, new } => print_out(&report::compare(
-            &Report::read(&old)?,
-            &Report::read(&new)?,
-        )?),
+/// `tessera bench` as typed.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Scene file of a custom workload (default: the standard workload --workload names).
+    scene: Option<PathBuf>,
+    /// Standard workload: `quick` (default, seconds) or `cover` (the full book cover);
+    /// `--list` describes them. Its image is checked against the hash it must produce.
+    #[arg(long, conflicts_with = "scene")]
+    workload: Option<String>,
+    /// Image width of a custom workload.
+    #[arg(long, requires = "scene", value_name = "PX", allow_negative_numbers = true, value_parser = flags::positive_u32)]
+    width: Option<u32>,
+    /// Samples per pixel of a custom workload.
+    #[arg(long, requires = "scene", value_name = "N", allow_negative_numbers = true, value_parser = flags::positive_u32)]
+    spp: Option<u32>,
+    /// Threads of the headline result (default: every CPU).
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = flags::threads)]
+    threads: Option<usize>,
+    #[command(flatten)]
+    simd: SimdArg,
+    /// Measured renders per thread count; the median is reported with min and max.
+    #[arg(long, value_name = "N", default_value_t = 3, allow_negative_numbers = true, value_parser = flags::positive_u32)]
+    repeat: u32,
+    /// Renders before measuring, not counted.
+    #[arg(long, value_name = "N", default_value_t = 1, allow_negative_numbers = true, value_parser = flags::whole_u32)]
+    warmup: u32,
+    /// Measure only the headline thread count, not 1, 2, 4, … every CPU.
+    #[arg(long)]
+    no_scaling: bool,
+    /// Print the JSON result instead of text.
+    #[arg(long)]
+    json: bool,
+    /// Also write the JSON result to FILE (atomically).
+    #[arg(long, value_name = "FILE")]
+    out: Option<PathBuf>,
+    #[command(flatten)]
+    db: DbArg,
+    /// Do not record the result in the results database.
+    #[arg(long)]
+    no_save: bool,
+    /// Compare two JSON results of the same workload, thread count by thread count.
+    #[arg(long, num_args = 2, value_names = ["OLD", "NEW"], conflicts_with_all = ["scene", "workload"])]
+    compare: Option<Vec<PathBuf>>,
+    /// Draw samples/s against threads of JSON results as an SVG chart: `--chart OUT.svg A.json [B.json …]`.
+    #[arg(long, num_args = 2.., value_names = ["SVG", "RESULT"], conflicts_with_all = ["scene", "workload", "compare"])]
+    chart: Option<Vec<PathBuf>>,
+    /// List the standard workloads.
+    #[arg(long)]
+    list: bool,
+    /// Render each standard workload once and write the workloads file with their image
+    /// hashes (after a deliberate change of the image): `--write-workloads benches/workloads.toml`.
+    #[arg(long, value_name = "FILE")]
+    write_workloads: Option<PathBuf>,
+}
+
+/// What `tessera bench` is asked to do, checked.
+enum BenchMode {
+    Measure(Box<Measure>),
+    Compare {
+        old: PathBuf,
+        new: PathBuf,
+    },
+    Chart {
+        out: PathBuf,
+        results: Vec<PathBuf>,
+    },
+    List,
+    WriteWorkloads {
+        path: PathBuf,
+        options: RenderOptions,
+    },
+}
+
+/// Checks `args` and runs what they ask for.
+pub fn run(args: Args) -> Result<ExitCode> {
+    match BenchMode::new(args)? {
+        BenchMode::Measure(m) => measure::run(*m),
+        BenchMode::Compare { old, new } => {
+            out(&compare_files(
+                &BenchResult::read(&old)?,
+                &BenchResult::read(&new)?,
+            )?)?;
+            Ok(ExitCode::SUCCESS)
+        }
         BenchMode::Chart { out, results } => {
-            let reports = (results.iter())
-                .map(|p| Report::read(p))
+            let results = (results.iter())
+                .map(|p| BenchResult::read(p))
                 .collect::<Result<Vec<_>>>()?;
-            let ids: BTreeSet<_> = reports.iter().map(|r| &r.workload.id).collect();
+            let ids: BTreeSet<_> = results.iter().map(|r| &r.workload.id).collect();
             if ids.len() > 1 {
-                anyhow::bail!("the results measure different workloads: chart one at a time");
+                bail!("the results measure different workloads: chart one at a time");
             }
-            write_atomically(&out, chart::svg(&reports)?.as_bytes())?;
-            Ok(())
+            let lines: Vec<(String, Scaling)> = (results.iter())
+                .map(|r| (r.label(), stats::scaling_of(r)))
+                .collect();
+            let w = &results[0].workload;
+            let title = format!(
+                "tessera bench: {} ({}x{}, {} spp)",
+                w.name, w.width, w.height, w.spp
+            );
+            write_atomically(
+                &out,
+                charts::scaling_svg_document(&title, &lines).as_bytes(),
+            )?;
+            Ok(ExitCode::SUCCESS)
         }
         BenchMode::List => {
             let mut text = String::new();
@@ -47,297 +137,121 @@ pub fn run(mode: BenchMode) -> Result<()> {
                     w.name, w.about, w.scene, w.width, w.spp
                 ));
             }
-            print_out(&text)
+            out(&text)?;
+            Ok(ExitCode::SUCCESS)
         }
-        BenchMode::WriteWorkloads {
-            path,
-            threads,
-            simd,
-        } => {
+        BenchMode::WriteWorkloads { path, options } => {
             let text = workload::with_new_hashes(&mut |w| {
                 let workload = Workload::from_standard(w)?;
-                let (film, _) = render_once(&workload, threads, simd)?;
+                let (film, _) = render::render(&workload.scene, &options, &|_| {})?;
                 Ok(hash_text(film.content_hash()))
             })?;
             write_atomically(&path, text.as_bytes())?;
-            Ok(())
+            Ok(ExitCode::SUCCESS)
         }
     }
 }
 
-/// One render of `workload`: its image and counts.
-fn render_once(
-    workload: &Workload,
-    threads: usize,
-    simd: tessera::simd::Path,
-) -> Result<(tessera::film::Film, RenderStats)> {
-    let options = render_options(Some(threads), render::DEFAULT_TILE, simd)?;
-    render::render(&workload.scene, &options, &|_| {}).context("could not start the thread pool")
-}
-
-fn measure(m: Measure) -> Result<()> {
-    let started_unix_s = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_secs());
-    // Opened before the renders, so that a database it cannot use stops it at once.
-    let mut db = open_results_db(m.save.as_ref())?;
-    // Read before the renders load the machine.
-    let host = Host::this();
-    let mut images = BTreeSet::new();
-    let mut render = |threads: usize| -> Result<RenderStats> {
-        let (film, stats) = render_once(&m.workload, threads, m.simd)?;
-        images.insert(hash_text(film.content_hash()));
-        Ok(stats)
-    };
-    for _ in 0..m.warmup {
-        render(m.threads)?;
-    }
-    let mut counts: Vec<usize> = m.scaling.clone();
-    counts.push(m.threads);
-    counts.sort_unstable();
-    counts.dedup();
-    let mut rows = Vec::new();
-    for &threads in &counts {
-        let runs = (0..m.repeat)
-            .map(|_| render(threads))
-            .collect::<Result<Vec<_>>>()?;
-        rows.push(row(threads, &runs));
-    }
-    let base = rows
-        .iter()
-        .find(|r| r.threads == 1)
-        .map(|r| r.samples_per_sec.median);
-    for r in &mut rows {
-        r.speedup = base.map(|b| r.samples_per_sec.median / b);
-        r.efficiency = r.speedup.map(|s| s / r.threads as f64);
-    }
-    let validation = validate(&m.workload, images);
-    let s = &m.workload.scene.settings;
-    let result = rows
-        .iter()
-        .find(|r| r.threads == m.threads)
-        .cloned()
-        .context("the headline thread count was not measured")?;
-    let report = Report {
-        schema: SCHEMA.into(),
-        build: Build::this(m.simd, m.simd_chosen),
-        host,
-        workload: WorkloadInfo {
-            name: m.workload.name.clone(),
-            scene: m.workload.scene_name.clone(),
-            id: m.workload.id.clone(),
-            width: s.width,
-            height: s.height,
-            spp: s.samples_per_pixel,
-            max_depth: s.max_depth,
-            seed: s.seed,
-        },
-        method: Method {
-            threads: m.threads,
-            repeat: m.repeat,
-            warmup: m.warmup,
-            started_unix_s,
-        },
-        result,
-        scaling: rows,
-        validation,
-    };
-    let json = serde_json::to_string_pretty(&report)? + "\n";
-    if let Some(out) = &m.out {
-        write_atomically(out, json.as_bytes())?;
-    }
-    print_out(&if m.json { json } else { text(&report) })?;
-    if let Some((db, path)) = &mut db {
-        db.add_all(std::slice::from_ref(&report), "bench")?;
-        super::note(format_args!("tessera: recorded in {}", path.display()));
-    }
-    if report.validation.status == "invalid" {
-        // A wrong image makes the speed meaningless: fail, after the result is written for
-        // inspection. (Status 2 is kept for bad input.)
-        super::note(format_args!(
-            "tessera: the result is INVALID: the image is not the one this workload must produce"
-        ));
-        std::process::exit(1);
-    }
-    Ok(())
-}
-
-/// The results database `save` names, opened; `None` when not saving, or when the default
-/// database cannot be created (said as a warning).
-fn open_results_db(save: Option<&SaveTo>) -> Result<Option<(ResultsDb, &std::path::Path)>> {
-    let Some(save) = save else {
-        return Ok(None);
-    };
-    match ResultsDb::open(&save.path) {
-        Ok(db) => Ok(Some((db, &save.path))),
-        Err(e) if !save.chosen && !save.path.exists() => {
-            super::note(format_args!(
-                "tessera: warning: the result will not be recorded ({e:#}); choose a database with --db or TESSERA_DB, or pass --no-save"
-            ));
-            Ok(None)
+impl BenchMode {
+    fn new(args: Args) -> Result<Self> {
+        if let Some(files) = args.compare {
+            let [old, new] = <[PathBuf; 2]>::try_from(files)
+                .map_err(|_| anyhow::anyhow!("--compare takes two result files"))?;
+            return Ok(Self::Compare { old, new });
         }
-        Err(e) => Err(e),
+        if let Some(mut files) = args.chart {
+            let out = files.remove(0);
+            check_output(&out)?;
+            return Ok(Self::Chart {
+                out,
+                results: files,
+            });
+        }
+        if args.list {
+            return Ok(Self::List);
+        }
+        let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let threads = args.threads.unwrap_or(cpus);
+        let simd = args.simd.path()?;
+        if let Some(path) = args.write_workloads {
+            check_output(&path)?;
+            let options = RenderOptions {
+                threads: Some(threads),
+                tile: render::DEFAULT_TILE,
+                simd,
+            };
+            return Ok(Self::WriteWorkloads { path, options });
+        }
+        let workload = match &args.scene {
+            Some(scene) => {
+                let overrides = Overrides {
+                    width: args.width,
+                    samples_per_pixel: args.spp,
+                    ..Overrides::default()
+                };
+                Workload::custom(scene, &overrides)?
+            }
+            None => {
+                let default = workload::standard().first().map(|w| w.name.clone());
+                let name = args.workload.or(default).unwrap_or_default();
+                Workload::named(&name)?
+            }
+        };
+        if let Some(out) = &args.out {
+            check_output(out)?;
+        }
+        // 1, 2, 4, … below every CPU, then every CPU.
+        let mut scaling: Vec<usize> = std::iter::successors(Some(1usize), |n| n.checked_mul(2))
+            .take_while(|&n| n < cpus)
+            .collect();
+        scaling.push(cpus);
+        Ok(Self::Measure(Box::new(Measure {
+            workload,
+            threads,
+            scaling: if args.no_scaling { Vec::new() } else { scaling },
+            repeat: args.repeat,
+            warmup: args.warmup,
+            json: args.json,
+            out: args.out,
+            simd,
+            simd_chosen: args.simd.is_chosen(),
+            save: measure::save_to(args.no_save, args.db.db),
+        })))
     }
 }
 
-/// The measurement of `runs` at `threads`.
-fn row(threads: usize, runs: &[RenderStats]) -> Row {
-    let of = |f: fn(&RenderStats) -> f64| Spread::of(&runs.iter().map(f).collect::<Vec<_>>());
-    Row {
-        threads,
-        samples_per_sec: of(RenderStats::samples_per_sec),
-        mrays_per_sec: of(RenderStats::mrays_per_sec),
-        wall_s: of(|r| r.wall.as_secs_f64()),
-        rays_per_sample: runs.first().map_or(0.0, RenderStats::rays_per_sample),
-        speedup: None,
-        efficiency: None,
-        runs: runs.iter().map(RenderStats::samples_per_sec).collect(),
+/// Two result files side by side, thread count by thread count.
+fn compare_files(old: &BenchResult, new: &BenchResult) -> Result<String> {
+    if old.workload.id != new.workload.id {
+        bail!(
+            "the results measure different workloads ({} {} and {} {}): their speeds do not compare",
+            old.workload.name,
+            old.workload.id,
+            new.workload.name,
+            new.workload.id
+        );
     }
-}
-
-fn validate(workload: &Workload, images: BTreeSet<String>) -> Validation {
-    let status = match &workload.expected {
-        None => "unvalidated",
-        Some(want) if images.len() == 1 && images.contains(want) => "valid",
-        Some(_) => "invalid",
-    };
-    Validation {
-        status: status.into(),
-        expected: workload.expected.clone(),
-        images: images.into_iter().collect(),
-    }
-}
-
-/// Where the run was confined (a container, a CPU quota, an affinity), as `host`'s last words.
-fn confinement_text(h: &Host) -> String {
-    let mut limits = Vec::new();
-    if let Some(quota) = h.cpu_quota {
-        limits.push(format!("a quota of {quota:.2} CPUs"));
-    }
-    if let Some(n) = h.cpus_allowed {
-        limits.push(format!("an affinity of {n} CPUs"));
-    }
-    let mut t = h
-        .container
-        .as_ref()
-        .map_or(String::new(), |c| format!("\n  in a {c} container"));
-    if !limits.is_empty() {
-        t.push_str(if t.is_empty() {
-            "\n  under "
-        } else {
-            " under "
-        });
-        t.push_str(&limits.join(" and "));
-        t.push_str(&format!(": {} usable", h.cpus_usable));
-    }
-    t
-}
-
-/// The report for people.
-fn text(r: &Report) -> String {
-    let w = &r.workload;
-    let h = &r.host;
-    let mut t = format!(
-        "workload {} ({}): {}x{}, {} spp, depth {}, seed {}\n  id {}\n",
-        w.name, w.scene, w.width, w.height, w.spp, w.max_depth, w.seed, w.id
+    let w = &new.workload;
+    let mut text = format!(
+        "workload {} ({}x{}, {} spp; {})\n",
+        w.name, w.width, w.height, w.spp, w.id
     );
-    t.push_str(&format!(
-        "build {} {} ({}), SIMD {}\nhost {}, {} CPUs{}{}, load {}{}\n",
-        r.build.version,
-        r.build.commit.chars().take(12).collect::<String>(),
-        r.build.rustc,
-        r.build.simd,
-        h.cpu_model.as_deref().unwrap_or("unknown CPU"),
-        h.logical_cpus,
-        h.physical_cores
-            .map_or(String::new(), |c| format!(" ({c} cores)")),
-        h.memory_bytes.map_or(String::new(), |b| format!(
-            ", {:.1} GiB",
-            b as f64 / (1u64 << 30) as f64
-        )),
-        h.load_average
-            .map_or("unknown".into(), |l| format!("{:.2}", l[0])),
-        confinement_text(h),
-    ));
-    t.push_str(&format!(
-        "median of {} after {} warm-up: {:.2} s wall, {:.3} M samples/s, {:.2} Mrays/s, \
-         {:.3} rays/sample, {} threads\n",
-        r.method.repeat,
-        r.method.warmup,
-        r.result.wall_s.median,
-        r.result.samples_per_sec.median / 1e6,
-        r.result.mrays_per_sec.median,
-        r.result.rays_per_sample,
-        r.result.threads,
-    ));
-    if r.scaling.len() > 1 {
-        t.push_str("threads  M samples/s [min-max]      speedup  efficiency\n");
-        for row in &r.scaling {
-            let s = row.samples_per_sec;
-            t.push_str(&format!(
-                "{:>7}  {:<27}  {:>7}  {:>10}\n",
-                row.threads,
-                format!(
-                    "{:.3} [{:.3}-{:.3}]",
-                    s.median / 1e6,
-                    s.min / 1e6,
-                    s.max / 1e6
-                ),
-                row.speedup.map_or("-".into(), |x| format!("{x:.2}")),
-                row.efficiency
-                    .map_or("-".into(), |x| format!("{:.0}%", 100.0 * x)),
+    for (which, r) in [("old", old), ("new", new)] {
+        if r.validation.status != "valid" {
+            text.push_str(&format!(
+                "warning: the {which} result is {}\n",
+                r.validation.status
             ));
         }
     }
-    let v = &r.validation;
-    t.push_str(&match v.status.as_str() {
-        "valid" => format!("valid: every image is {}\n", v.images.join(", ")),
-        "invalid" => format!(
-            "INVALID: images {}, expected {}\n",
-            v.images.join(", "),
-            v.expected.as_deref().unwrap_or("-")
-        ),
-        _ => format!(
-            "unvalidated (custom workload): image {}\n",
-            v.images.join(", ")
-        ),
-    });
-    t
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn quick_with(expected: Option<&str>) -> Workload {
-        let mut w = Workload::named("quick").unwrap();
-        w.expected = expected.map(str::to_owned);
-        w
-    }
-
-    #[test]
-    fn a_result_is_valid_only_if_every_image_has_the_expected_hash() {
-        let images = |list: &[&str]| list.iter().map(|s| s.to_string()).collect::<BTreeSet<_>>();
-        let status = |w: &Workload, i: &[&str]| validate(w, images(i)).status;
-        assert_eq!(status(&quick_with(Some("a")), &["a"]), "valid");
-        assert_eq!(status(&quick_with(Some("a")), &["b"]), "invalid");
-        assert_eq!(status(&quick_with(Some("a")), &["a", "b"]), "invalid");
-        assert_eq!(status(&quick_with(Some("a")), &[]), "invalid");
-        assert_eq!(status(&quick_with(None), &["b"]), "unvalidated");
-    }
-
-    #[test]
-    fn the_workloads_file_compiled_in_is_whole() {
-        let all = workload::standard();
-        let names: Vec<_> = all.iter().map(|w| w.name.as_str()).collect();
-        assert_eq!(names, ["quick", "cover"]);
-        for w in &all {
-            let loaded = Workload::from_standard(w).unwrap();
-            assert!(loaded.id.starts_with("xxh3-128:") && loaded.id.len() == 41);
-            assert!(w.image.starts_with("xxh3-128:"), "{}", w.image);
-        }
-        // The file rewritten with its own hashes is itself.
-        let same = workload::with_new_hashes(&mut |w| Ok(w.image.clone())).unwrap();
-        assert_eq!(same, include_str!("../../../benches/workloads.toml"));
+    let side_by_side = stats::side_by_side(
+        &format!("old: {}", old.label()),
+        &stats::scaling_of(old),
+        &format!("new: {}", new.label()),
+        &stats::scaling_of(new),
+    );
+    match side_by_side {
+        Some(table) => Ok(text + &table),
+        None => bail!("the results share no thread count"),
     }
 }

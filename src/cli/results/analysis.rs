@@ -1,71 +1,13 @@
-//! What the kept runs say together: a ranking of machines and builds, two sets of runs
-//! compared thread count by thread count, and one machine's speed over commits with the
-//! drops beyond the runs' own spread flagged. Pure functions of the runs, so they are
-//! tested without a database.
+//! What the kept runs say together: a ranking of machines and builds, and one machine's
+//! speed over commits with the drops beyond the runs' own spread flagged. Pure functions of
+//! the runs, so they are tested without a database.
 
-use super::db::Run;
-use super::{terminal_safe, utc};
+use super::utc;
+use crate::cli::output::count;
+use crate::cli::record::db::Run;
+use crate::cli::record::stats::{Pooled, pool, sps};
 use std::collections::BTreeMap;
-
-/// The median of `values` (not empty).
-fn median(values: &mut [f64]) -> f64 {
-    values.sort_by(f64::total_cmp);
-    let n = values.len();
-    if n % 2 == 1 {
-        values[n / 2]
-    } else {
-        (values[n / 2 - 1] + values[n / 2]) / 2.0
-    }
-}
-
-/// A set of measurements of one thing: the median of their medians, and the least minimum
-/// and greatest maximum (the spread every run saw).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Pooled {
-    pub median: f64,
-    pub min: f64,
-    pub max: f64,
-    pub runs: usize,
-}
-
-fn pool(measurements: &[[f64; 3]]) -> Option<Pooled> {
-    if measurements.is_empty() {
-        return None;
-    }
-    let mut medians: Vec<f64> = measurements.iter().map(|m| m[0]).collect();
-    Some(Pooled {
-        median: median(&mut medians),
-        min: measurements
-            .iter()
-            .map(|m| m[1])
-            .fold(f64::INFINITY, f64::min),
-        max: measurements
-            .iter()
-            .map(|m| m[2])
-            .fold(f64::NEG_INFINITY, f64::max),
-        runs: measurements.len(),
-    })
-}
-
-impl Pooled {
-    /// Whether the two spreads overlap: a difference within what the runs themselves vary.
-    pub fn overlaps(&self, other: &Pooled) -> bool {
-        self.min <= other.max && other.min <= self.max
-    }
-}
-
-fn sps(p: &Pooled) -> String {
-    format!(
-        "{:.3} [{:.3}-{:.3}]",
-        p.median / 1e6,
-        p.min / 1e6,
-        p.max / 1e6
-    )
-}
-
-fn runs(n: usize) -> String {
-    format!("{n} run{}", if n == 1 { "" } else { "s" })
-}
+use tessera::text::terminal_safe;
 
 pub fn build(r: &Run) -> String {
     let commit: String = r.commit.chars().take(8).collect();
@@ -121,12 +63,17 @@ pub fn rank(runs: &[Run], all: bool) -> Vec<Ranked<'_>> {
     ranked
 }
 
-pub fn rank_text(ranked: &[Ranked], workload: &str) -> String {
+/// The ranking as a table; when it is empty, why (of `runs`, ranked with `all` or not).
+pub fn rank_text(ranked: &[Ranked], runs: &[Run], all: bool) -> String {
     if ranked.is_empty() {
-        return format!(
-            "no valid runs of `{}` to rank (--all counts the others)\n",
-            terminal_safe(workload, 32)
-        );
+        return if all || runs.is_empty() {
+            "no runs to rank\n".to_owned()
+        } else {
+            format!(
+                "no valid runs to rank; --all ranks the other {}\n",
+                count(runs.len() as u64, "run")
+            )
+        };
     }
     let mut t = format!(
         "{:>4}  {:<18}  {:<36}  {:<24}  {:>4}  {:>7}  {:<26}  {:>14}\n",
@@ -146,51 +93,6 @@ pub fn rank_text(ranked: &[Ranked], workload: &str) -> String {
         ));
     }
     t
-}
-
-/// Each thread count's pooled samples/s over a set of runs.
-pub type Scaling = BTreeMap<i64, Pooled>;
-
-pub fn pool_scaling(rows: &[Vec<(i64, [f64; 3])>]) -> Scaling {
-    let mut by_threads: BTreeMap<i64, Vec<[f64; 3]>> = BTreeMap::new();
-    for run in rows {
-        for &(threads, m) in run {
-            by_threads.entry(threads).or_default().push(m);
-        }
-    }
-    by_threads
-        .into_iter()
-        .filter_map(|(t, ms)| Some((t, pool(&ms)?)))
-        .collect()
-}
-
-/// `b` against `a`, thread count by thread count: the ratio of pooled medians and whether
-/// it lies within the runs' spread.
-pub fn compare_text(a_name: &str, a: &Scaling, b_name: &str, b: &Scaling) -> Option<String> {
-    let mut t = format!(
-        "A: {}\nB: {}\nthreads  A M samples/s [spread]        B M samples/s [spread]        B/A\n",
-        terminal_safe(a_name, 120),
-        terminal_safe(b_name, 120)
-    );
-    let mut shared = 0;
-    for (threads, pb) in b {
-        let Some(pa) = a.get(threads) else { continue };
-        shared += 1;
-        let ratio = pb.median / pa.median;
-        let verdict = if pa.overlaps(pb) {
-            "within the runs' spread"
-        } else if ratio > 1.0 {
-            "faster, beyond the spread"
-        } else {
-            "slower, beyond the spread"
-        };
-        t.push_str(&format!(
-            "{threads:>7}  {:<28}  {:<28}  {ratio:.3}  {verdict}\n",
-            format!("{} ({})", sps(pa), runs(pa.runs)),
-            format!("{} ({})", sps(pb), runs(pb.runs)),
-        ));
-    }
-    (shared > 0).then_some(t)
 }
 
 /// One commit's place in a machine's history.
@@ -234,10 +136,18 @@ pub fn history(runs: &[Run], threads: i64, simd: &str) -> Vec<Step> {
     steps
 }
 
-pub fn history_text(steps: &[Step], machine: &str, threads: i64, simd: &str) -> String {
+pub fn history_text(
+    steps: &[Step],
+    machine: &str,
+    workload: &str,
+    threads: i64,
+    simd: &str,
+) -> String {
     let mut t = format!(
-        "machine {}, {threads} threads, SIMD {}\n{:<16}  {:<12}  {:>4}  {:<26}  {:>7}\n",
+        "machine {}, workload {}, {}, SIMD {}\n{:<16}  {:<12}  {:>4}  {:<26}  {:>7}\n",
         terminal_safe(machine, 80),
+        terminal_safe(workload, 32),
+        count(threads.max(0) as u64, "thread"),
         terminal_safe(simd, 16),
         "first run (UTC)",
         "commit",
@@ -285,6 +195,7 @@ mod tests {
             threads: 4,
             sps,
             validation: if valid { "valid" } else { "unvalidated" }.into(),
+            busy: false,
         }
     }
 
@@ -303,7 +214,7 @@ mod tests {
         let a = ranked[1].score;
         assert_eq!((a.median, a.min, a.max, a.runs), (12.0, 9.0, 15.0, 3));
         assert_eq!(rank(&runs, true)[0].example.machine_id, "m-c");
-        assert!(rank_text(&rank(&[], false), "cover").contains("no valid runs"));
+        assert!(rank_text(&rank(&runs[4..], false), &runs[4..], false).contains("--all ranks"));
     }
 
     #[test]
@@ -318,17 +229,7 @@ mod tests {
         let flags: Vec<bool> = steps.iter().map(|s| s.regression).collect();
         assert_eq!(flags, [false, false, true, false]);
         assert!(history(&runs, 4, "avx512").is_empty());
-        let text = history_text(&steps, "m", 4, "avx2");
+        let text = history_text(&steps, "m", "cover", 4, "avx2");
         assert_eq!(text.matches("REGRESSION").count(), 1, "{text}");
-    }
-
-    #[test]
-    fn compare_needs_a_shared_thread_count() {
-        let a = pool_scaling(&[vec![(1, [1.0, 0.9, 1.1]), (2, [2.0, 1.9, 2.1])]]);
-        let b = pool_scaling(&[vec![(2, [3.0, 2.9, 3.1])]]);
-        let text = compare_text("a", &a, "b", &b).unwrap();
-        assert!(text.contains("1.500  faster, beyond the spread"), "{text}");
-        let c = pool_scaling(&[vec![(8, [3.0, 2.9, 3.1])]]);
-        assert!(compare_text("a", &a, "c", &c).is_none());
     }
 }

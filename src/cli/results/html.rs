@@ -1,55 +1,81 @@
 //! `tessera results report`: one self-contained HTML file (no script, nothing fetched: its
-//! Content-Security-Policy forbids both) with the ranking, a chart of samples/s by machine,
-//! speed against threads per machine with efficiency, and each machine's history over
-//! commits. Charts are SVG written here, so every text from a result passes through one
-//! escaping function; the page reads on a phone (tables scroll inside their boxes).
+//! Content-Security-Policy forbids both) with, for each workload, the ranking, a chart of
+//! samples/s by machine, speed against threads per machine with efficiency, and each
+//! machine's history over commits. Every text from a result passes through one escape
+//! (`text::html_safe`). On a phone the ranking becomes one card per line, the score first,
+//! and charts shrink to the screen.
 
-use super::analysis::{self, Pooled, Ranked, Scaling, Step};
+use super::analysis::{self, Ranked, Step};
 use super::utc;
+use crate::cli::charts::{self, COLOURS};
+use crate::cli::record::stats::{Pooled, Scaling};
 use std::fmt::Write;
+use tessera::text::html_safe;
 
-/// `text` for HTML text and attribute values.
-pub fn escape(text: &str) -> String {
-    let mut out = String::with_capacity(text.len());
-    for c in text.chars() {
-        match c {
-            '&' => out.push_str("&amp;"),
-            '<' => out.push_str("&lt;"),
-            '>' => out.push_str("&gt;"),
-            '"' => out.push_str("&quot;"),
-            '\'' => out.push_str("&#39;"),
-            c if c.is_control() => {
-                let _ = write!(out, "\\u{{{:x}}}", c as u32);
-            }
-            c => out.push(c),
-        }
-    }
-    out
+/// One line of a ranking, as the page shows it.
+pub struct Line {
+    pub machine_id: String,
+    pub cpu: String,
+    pub build: String,
+    pub threads: i64,
+    pub score: Pooled,
 }
 
-/// Series colours, distinguishable and readable on white.
-const COLOURS: [&str; 8] = [
-    "#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf", "#8c564b", "#e377c2",
-];
+impl Line {
+    pub fn of(ranked: &Ranked) -> Self {
+        Self {
+            machine_id: ranked.example.machine_id.clone(),
+            cpu: analysis::cpu(ranked.example),
+            build: analysis::build(ranked.example),
+            threads: ranked.threads,
+            score: ranked.score,
+        }
+    }
 
-/// What the report shows.
-pub struct Report<'a> {
-    pub workload: &'a str,
+    /// A label for charts: the CPU (cut short) and the build.
+    fn label(&self) -> String {
+        let cpu: String = self.cpu.chars().take(40).collect();
+        format!("{cpu} · {}", self.build)
+    }
+}
+
+/// A machine's history at one thread count and SIMD path.
+pub struct History {
+    pub machine: String,
+    pub threads: i64,
+    pub simd: String,
+    pub steps: Vec<Step>,
+}
+
+/// What the page shows of one workload.
+pub struct Section {
+    pub title: String,
+    /// Its runs in the database (ranked or not).
+    pub runs: usize,
+    pub ranked: Vec<Line>,
+    /// Each ranked line's speed against threads (same order).
+    pub scaling: Vec<Scaling>,
+    pub histories: Vec<History>,
+}
+
+/// The whole page.
+pub struct ReportPage<'a> {
     pub generated_unix_s: i64,
     pub total_runs: usize,
-    pub ranked: &'a [Ranked<'a>],
-    /// Each ranked line's speed against threads (same order).
-    pub scaling: &'a [Scaling],
-    /// Each machine's history: its id, thread count, SIMD path and steps.
-    pub histories: &'a [(String, i64, String, Vec<Step>)],
+    /// Whether runs that are not `valid` count.
+    pub all: bool,
+    pub sections: &'a [Section],
 }
 
 const STYLE: &str = "
 body{font:15px/1.45 system-ui,sans-serif;margin:0 auto;padding:12px;max-width:1100px;color:#222}
-h1{font-size:1.4em}h2{font-size:1.15em;margin-top:1.6em}
+h1{font-size:1.4em}h2{font-size:1.25em;margin-top:1.8em;border-bottom:2px solid #ddd}
+h3{font-size:1.05em;margin-top:1.4em}h4{font-size:.95em;font-weight:600;margin:1em 0 .3em}
 .box{overflow-x:auto;-webkit-overflow-scrolling:touch}
-table{border-collapse:collapse;font-variant-numeric:tabular-nums;white-space:nowrap}
-th,td{padding:3px 8px;border-bottom:1px solid #ddd;text-align:left}td.n{text-align:right}
+table{border-collapse:collapse;font-variant-numeric:tabular-nums}
+th,td{padding:3px 8px;border-bottom:1px solid #ddd;text-align:left;vertical-align:top}
+td.n,th.n{text-align:right;white-space:nowrap}td.score{font-weight:600}
+.cpu{overflow-wrap:anywhere}.id{color:#666;font-size:.85em}
 svg{width:100%;height:auto;max-width:640px;display:block}
 svg text{font:13px system-ui,sans-serif;fill:#222}.muted{color:#666}.bad{color:#b00;font-weight:600}
 .bars{max-width:760px}.row{margin:6px 0}.label{font-size:.9em;overflow-wrap:anywhere}
@@ -57,63 +83,115 @@ svg text{font:13px system-ui,sans-serif;fill:#222}.muted{color:#666}.bad{color:#
 .whisker{position:absolute;top:8px;height:2px;background:#000}
 .legend{list-style:none;padding:0;font-size:.9em}.legend li{margin:2px 0}
 .swatch{display:inline-block;width:.8em;height:.8em;margin-right:.4em;vertical-align:-1px}
+@media (max-width:640px){
+ body{padding:8px;font-size:14px}
+ table.rank,table.rank tbody,table.rank tr,table.rank td{display:block}
+ table.rank thead{display:none}
+ table.rank tr{border:1px solid #ddd;border-radius:6px;margin:8px 0;padding:6px 8px}
+ table.rank td{border:0;padding:1px 0;text-align:left}
+ table.rank td[data-label]::before{content:attr(data-label) \": \";color:#666;font-weight:400}
+ table.rank td.rankno{float:right;color:#666}
+ table.rank td.score{font-size:1.15em}
+}
 ";
 
-pub fn render(r: &Report) -> String {
+pub fn render(r: &ReportPage) -> String {
     let mut h = String::new();
+    let workloads: Vec<String> = r.sections.iter().map(|s| html_safe(&s.title)).collect();
     let _ = write!(
         h,
         "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\
          <meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\
          <meta http-equiv=\"Content-Security-Policy\" content=\"default-src 'none'; style-src 'unsafe-inline'\">\
-         <title>tessera benchmark results: {w}</title><style>{STYLE}</style></head><body>\
-         <h1>tessera benchmark results: {w}</h1>\
-         <p class=\"muted\">{runs} runs in the database; {lines} machine and build lines with valid runs of this workload. Made {when} UTC.</p>",
-        w = escape(r.workload),
-        runs = r.total_runs,
-        lines = r.ranked.len(),
+         <title>tessera benchmark results</title><style>{STYLE}</style></head><body>\
+         <h1>tessera benchmark results</h1>\
+         <p class=\"muted\">{runs} in the database; {which}. {counted} Made {when} UTC.</p>",
+        runs = plural(r.total_runs, "run"),
+        which = if workloads.is_empty() {
+            "no workloads yet".to_owned()
+        } else {
+            format!("workloads: {}", workloads.join(", "))
+        },
+        counted = if r.all {
+            "Every run counts, valid or not."
+        } else {
+            "Only valid runs count."
+        },
         when = utc(r.generated_unix_s),
     );
-    if r.ranked.is_empty() {
-        h.push_str("<p>No valid runs of this workload yet: run <code>tessera bench</code> or import results.</p></body></html>\n");
+    if r.sections.is_empty() {
+        h.push_str("<p>No results yet: run <code>tessera bench</code> or import results with <code>tessera results import</code>.</p></body></html>\n");
         return h;
     }
-    h.push_str("<h2>Ranking</h2><div class=\"box\"><table class=\"rank\"><thead><tr><th>#</th><th>machine</th><th>CPU</th><th>build</th><th>runs</th><th>threads</th><th>M samples/s</th><th>spread</th><th>per thread</th></tr></thead><tbody>");
-    for (i, line) in r.ranked.iter().enumerate() {
-        let s = line.score;
+    for section in r.sections {
+        section_html(&mut h, section);
+    }
+    h.push_str("</body></html>\n");
+    h
+}
+
+fn plural(n: usize, noun: &str) -> String {
+    crate::cli::output::count(n as u64, noun)
+}
+
+fn section_html(h: &mut String, s: &Section) {
+    let _ = write!(
+        h,
+        "<h2>Workload {} <span class=\"muted\">({})</span></h2>",
+        html_safe(&s.title),
+        plural(s.runs, "run")
+    );
+    if s.ranked.is_empty() {
+        h.push_str("<p>No valid runs of this workload: <code>results report --all</code> counts the others.</p>");
+        return;
+    }
+    h.push_str("<h3>Ranking</h3><div class=\"box\"><table class=\"rank\"><thead><tr><th class=\"n\">#</th><th class=\"n\">M samples/s</th><th>CPU and machine</th><th>build</th><th class=\"n\">threads</th><th class=\"n\">spread</th><th class=\"n\">per thread</th><th class=\"n\">runs</th></tr></thead><tbody>");
+    for (i, line) in s.ranked.iter().enumerate() {
+        let p = line.score;
         let _ = write!(
             h,
-            "<tr><td class=\"n\">{}</td><td>{}</td><td>{}</td><td>{}</td><td class=\"n\">{}</td><td class=\"n\">{}</td><td class=\"n\">{:.3}</td><td class=\"n\">{:.3}–{:.3}</td><td class=\"n\">{:.3}</td></tr>",
+            "<tr><td class=\"n rankno\">{}</td><td class=\"n score\" data-label=\"M samples/s\">{:.3}</td>\
+             <td class=\"cpu\">{} <span class=\"id\">{}</span></td><td data-label=\"build\">{}</td>\
+             <td class=\"n\" data-label=\"threads\">{}</td><td class=\"n\" data-label=\"spread\">{:.3}–{:.3}</td>\
+             <td class=\"n\" data-label=\"per thread\">{:.3}</td><td class=\"n\" data-label=\"runs\">{}</td></tr>",
             i + 1,
-            escape(&line.example.machine_id),
-            escape(&analysis::cpu(line.example)),
-            escape(&analysis::build(line.example)),
-            s.runs,
+            p.median / 1e6,
+            html_safe(&line.cpu),
+            html_safe(&line.machine_id),
+            html_safe(&line.build),
             line.threads,
-            s.median / 1e6,
-            s.min / 1e6,
-            s.max / 1e6,
-            s.median / 1e6 / line.threads.max(1) as f64,
+            p.min / 1e6,
+            p.max / 1e6,
+            p.median / 1e6 / line.threads.max(1) as f64,
+            p.runs,
         );
     }
     h.push_str("</tbody></table></div>");
-    h.push_str("<h2>Samples per second by machine and build</h2>");
-    h.push_str(&bars(r.ranked));
-    h.push_str("<h2>Speed against threads</h2>");
-    h.push_str(&scaling_chart(r.ranked, r.scaling));
-    h.push_str(&efficiency_table(r.ranked, r.scaling));
-    h.push_str("<h2>History over commits</h2>");
-    for (machine, threads, simd, steps) in r.histories {
+    h.push_str("<h3>Samples per second by machine and build</h3>");
+    h.push_str(&bars(&s.ranked));
+    h.push_str("<h3>Speed against threads</h3>");
+    let lines: Vec<(String, Scaling)> = (s.ranked.iter().zip(&s.scaling))
+        .map(|(line, sc)| (line.label(), sc.clone()))
+        .collect();
+    h.push_str(&charts::scaling_svg(&lines));
+    h.push_str(&legend(&lines));
+    h.push_str(&efficiency_table(&s.ranked, &s.scaling));
+    h.push_str("<h3>History over commits</h3>");
+    for history in &s.histories {
         let _ = write!(
             h,
-            "<h3>{} · {threads} threads · {}</h3>",
-            escape(machine),
-            escape(simd)
+            "<h4>{} · {} · {}</h4>",
+            html_safe(&history.machine),
+            plural(history.threads.max(0) as usize, "thread"),
+            html_safe(&history.simd)
         );
-        h.push_str(&history_chart(steps));
-        let flagged: Vec<String> = (steps.iter())
+        let steps: Vec<(String, Pooled, bool)> = (history.steps.iter())
+            .map(|st| (st.commit.clone(), st.score, st.regression))
+            .collect();
+        h.push_str(&charts::history_svg(&steps));
+        let flagged: Vec<String> = (history.steps.iter())
             .filter(|s| s.regression)
-            .map(|s| escape(&s.commit.chars().take(12).collect::<String>()))
+            .map(|s| html_safe(&s.commit.chars().take(12).collect::<String>()))
             .collect();
         if !flagged.is_empty() {
             let _ = write!(
@@ -123,19 +201,11 @@ pub fn render(r: &Report) -> String {
             );
         }
     }
-    h.push_str("</body></html>\n");
-    h
-}
-
-/// A label of a ranked line for charts.
-fn label(line: &Ranked) -> String {
-    let cpu: String = analysis::cpu(line.example).chars().take(40).collect();
-    format!("{cpu} · {}", analysis::build(line.example))
 }
 
 /// Horizontal bars of the pooled median with the spread as a whisker, in HTML so that the
 /// labels wrap and stay readable on a phone.
-fn bars(ranked: &[Ranked]) -> String {
+fn bars(ranked: &[Line]) -> String {
     let max = ranked
         .iter()
         .map(|l| l.score.max)
@@ -147,10 +217,10 @@ fn bars(ranked: &[Ranked]) -> String {
         let p = line.score;
         let _ = write!(
             h,
-            "<div class=\"row\"><div class=\"label\">{} <b>{:.2}</b></div><div class=\"track\">\
+            "<div class=\"row\"><div class=\"label\">{} <b>{:.2} M samples/s</b></div><div class=\"track\">\
              <div class=\"bar\" style=\"width:{:.2}%;background:{}\"></div>\
              <div class=\"whisker\" style=\"left:{:.2}%;width:{:.2}%\"></div></div></div>",
-            escape(&label(line)),
+            html_safe(&line.label()),
             p.median / 1e6,
             pc(p.median),
             COLOURS[i % COLOURS.len()],
@@ -158,120 +228,43 @@ fn bars(ranked: &[Ranked]) -> String {
             (pc(p.max) - pc(p.min)).max(0.3),
         );
     }
-    h.push_str("</div><p class=\"muted\">M samples/s: the median of the runs' medians; the line across each bar spans the least and greatest any run measured.</p>");
+    h.push_str("</div><p class=\"muted\">The median of the runs' medians; the line across each bar spans the least and greatest any run measured.</p>");
     h
 }
 
 /// The colour key of a chart's lines.
-fn legend(labels: &[String]) -> String {
+fn legend(lines: &[(String, Scaling)]) -> String {
     let mut h = "<ul class=\"legend\">".to_owned();
-    for (i, text) in labels.iter().enumerate() {
+    for (i, (text, _)) in lines.iter().take(COLOURS.len()).enumerate() {
         let _ = write!(
             h,
             "<li><span class=\"swatch\" style=\"background:{}\"></span>{}</li>",
-            COLOURS[i % COLOURS.len()],
-            escape(text)
+            COLOURS[i],
+            html_safe(text)
         );
     }
     h.push_str("</ul>");
     h
 }
 
-/// Axes with `ticks` on y (values in M samples/s) and x labels given.
-fn axes(s: &mut String, plot: (f64, f64, f64, f64), y_max: f64, x_labels: &[(f64, String)]) {
-    let (left, top, right, bottom) = plot;
-    let _ = write!(
-        s,
-        "<line x1=\"{left}\" y1=\"{bottom}\" x2=\"{right}\" y2=\"{bottom}\" stroke=\"#888\"/>\
-         <line x1=\"{left}\" y1=\"{top}\" x2=\"{left}\" y2=\"{bottom}\" stroke=\"#888\"/>"
-    );
-    for k in 0..=4 {
-        let v = y_max * k as f64 / 4.0;
-        let y = bottom - (bottom - top) * k as f64 / 4.0;
-        let _ = write!(
-            s,
-            "<text x=\"{}\" y=\"{:.1}\" text-anchor=\"end\">{:.1}</text>\
-             <line x1=\"{left}\" x2=\"{right}\" y1=\"{y:.1}\" y2=\"{y:.1}\" stroke=\"#eee\"/>",
-            left - 6.0,
-            y + 4.0,
-            v / 1e6
-        );
-    }
-    for (x, text) in x_labels {
-        let _ = write!(
-            s,
-            "<text x=\"{x:.1}\" y=\"{}\" text-anchor=\"middle\">{}</text>",
-            bottom + 16.0,
-            escape(text)
-        );
-    }
-}
-
-/// Samples/s against threads, one line per ranked line (up to eight).
-fn scaling_chart(ranked: &[Ranked], scaling: &[Scaling]) -> String {
-    let plot = (48.0, 10.0, 470.0, 230.0);
-    let lines: Vec<(&Ranked, &Scaling)> = ranked.iter().zip(scaling).take(COLOURS.len()).collect();
-    let mut threads: Vec<i64> = lines.iter().flat_map(|(_, s)| s.keys().copied()).collect();
-    threads.sort_unstable();
-    threads.dedup();
-    let y_max = (lines.iter())
-        .flat_map(|(_, s)| s.values().map(|p| p.max))
-        .fold(1.0, f64::max);
-    // Threads on a log scale: 1, 2, 4, … evenly spaced.
-    let lg = |t: i64| (t.max(1) as f64).log2();
-    let (t0, t1) = (
-        threads.first().map_or(0.0, |&t| lg(t)),
-        threads.last().map_or(1.0, |&t| lg(t)),
-    );
-    let x = |t: i64| plot.0 + (plot.2 - plot.0) * (lg(t) - t0) / (t1 - t0).max(1.0);
-    let y = |v: f64| plot.3 - (plot.3 - plot.1) * v / y_max;
-    let mut s = "<svg viewBox=\"0 0 480 272\" role=\"img\" aria-label=\"samples per second against threads\">".to_owned();
-    let labels: Vec<(f64, String)> = threads.iter().map(|&t| (x(t), t.to_string())).collect();
-    axes(&mut s, plot, y_max, &labels);
-    let _ = write!(
-        s,
-        "<text x=\"{}\" y=\"266\" text-anchor=\"middle\">threads</text>",
-        (plot.0 + plot.2) / 2.0
-    );
-    for (i, (_, sc)) in lines.iter().enumerate() {
-        let c = COLOURS[i];
-        let points: Vec<String> = (sc.iter())
-            .map(|(&t, p)| format!("{:.1},{:.1}", x(t), y(p.median)))
-            .collect();
-        let _ = write!(
-            s,
-            "<polyline points=\"{}\" fill=\"none\" stroke=\"{c}\" stroke-width=\"2\"/>",
-            points.join(" ")
-        );
-        for (&t, p) in sc.iter() {
-            let _ = write!(
-                s,
-                "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"3\" fill=\"{c}\"/>",
-                x(t),
-                y(p.median)
-            );
-        }
-    }
-    s.push_str("</svg>");
-    let labels: Vec<String> = lines.iter().map(|(line, _)| label(line)).collect();
-    s.push_str(&legend(&labels));
-    s
-}
-
 /// Efficiency (speedup over one thread ÷ threads) of each line at each thread count.
-fn efficiency_table(ranked: &[Ranked], scaling: &[Scaling]) -> String {
+fn efficiency_table(ranked: &[Line], scaling: &[Scaling]) -> String {
     let mut threads: Vec<i64> = scaling.iter().flat_map(|s| s.keys().copied()).collect();
     threads.sort_unstable();
     threads.dedup();
     let mut h =
         "<div class=\"box\"><table class=\"efficiency\"><thead><tr><th>machine and build</th>"
             .to_owned();
-    for t in &threads {
-        let _ = write!(h, "<th>{t} thread{}</th>", if *t == 1 { "" } else { "s" });
+    for &t in &threads {
+        let _ = write!(
+            h,
+            "<th class=\"n\">{}</th>",
+            plural(t.max(0) as usize, "thread")
+        );
     }
     h.push_str("</tr></thead><tbody>");
     for (line, sc) in ranked.iter().zip(scaling) {
-        let _ = write!(h, "<tr><td>{}</td>", escape(&label(line)));
+        let _ = write!(h, "<tr><td class=\"cpu\">{}</td>", html_safe(&line.label()));
         let one = sc.get(&1).map(|p| p.median);
         for t in &threads {
             let cell = match (sc.get(t), one) {
@@ -287,64 +280,62 @@ fn efficiency_table(ranked: &[Ranked], scaling: &[Scaling]) -> String {
         }
         h.push_str("</tr>");
     }
-    h.push_str("</tbody></table></div><p class=\"muted\">Percent: efficiency, the speedup over one thread divided by the threads.</p>");
+    h.push_str("</tbody></table></div><p class=\"muted\">M/s: million samples per second. Percent: efficiency, the speedup over one thread divided by the threads.</p>");
     h
-}
-
-/// A machine's pooled speed per commit, the spread as whiskers, regressions in red.
-fn history_chart(steps: &[Step]) -> String {
-    let plot = (48.0, 10.0, 470.0, 190.0);
-    let y_max = steps.iter().map(|s| s.score.max).fold(1.0, f64::max);
-    let n = steps.len();
-    let x = |i: usize| match n {
-        0 | 1 => (plot.0 + plot.2) / 2.0,
-        _ => plot.0 + 30.0 + (plot.2 - plot.0 - 60.0) * i as f64 / (n - 1) as f64,
-    };
-    let y = |v: f64| plot.3 - (plot.3 - plot.1) * v / y_max;
-    let mut s =
-        "<svg viewBox=\"0 0 480 215\" role=\"img\" aria-label=\"samples per second over commits\">"
-            .to_owned();
-    let labels: Vec<(f64, String)> = (steps.iter().enumerate())
-        .map(|(i, st)| (x(i), st.commit.chars().take(8).collect()))
-        .collect();
-    axes(&mut s, plot, y_max, &labels);
-    let points: Vec<String> = (steps.iter().enumerate())
-        .map(|(i, st)| format!("{:.1},{:.1}", x(i), y(st.score.median)))
-        .collect();
-    let _ = write!(
-        s,
-        "<polyline points=\"{}\" fill=\"none\" stroke=\"#1f77b4\" stroke-width=\"2\"/>",
-        points.join(" ")
-    );
-    for (i, st) in steps.iter().enumerate() {
-        let Pooled {
-            median, min, max, ..
-        } = st.score;
-        let c = if st.regression { "#d00" } else { "#1f77b4" };
-        let _ = write!(
-            s,
-            "<line x1=\"{cx:.1}\" x2=\"{cx:.1}\" y1=\"{:.1}\" y2=\"{:.1}\" stroke=\"{c}\"/>\
-             <circle cx=\"{cx:.1}\" cy=\"{:.1}\" r=\"{}\" fill=\"{c}\"/>",
-            y(min),
-            y(max),
-            y(median),
-            if st.regression { 5 } else { 3 },
-            cx = x(i),
-        );
-    }
-    s.push_str("</svg>");
-    s
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
+    fn line(cpu: &str) -> Line {
+        Line {
+            machine_id: "m-0123".into(),
+            cpu: cpu.into(),
+            build: "0.1.0 abc avx2".into(),
+            threads: 2,
+            score: Pooled {
+                median: 18.3e6,
+                min: 18.0e6,
+                max: 18.5e6,
+                runs: 3,
+            },
+        }
+    }
+
     #[test]
-    fn everything_a_result_says_is_escaped() {
-        assert_eq!(
-            escape("<script>alert('x')</script> & \"q\"\u{1b}"),
-            "&lt;script&gt;alert(&#39;x&#39;)&lt;/script&gt; &amp; &quot;q&quot;\\u{1b}"
-        );
+    fn everything_a_result_says_is_escaped_and_the_score_comes_first() {
+        let section = Section {
+            title: "quick".into(),
+            runs: 1,
+            ranked: vec![line("<script>alert('x')</script>\u{202e}")],
+            scaling: vec![Scaling::new()],
+            histories: Vec::new(),
+        };
+        let page = render(&ReportPage {
+            generated_unix_s: 0,
+            total_runs: 1,
+            all: false,
+            sections: std::slice::from_ref(&section),
+        });
+        assert!(!page.contains("<script>"));
+        assert!(page.contains("&lt;script&gt;alert(&#39;x&#39;)&lt;/script&gt;\\u{202e}"));
+        // In each row the score is the second cell, after the rank: on a phone it is the
+        // card's first line.
+        let row = &page[page.find("<tbody><tr>").unwrap()..];
+        let score = row.find("18.300").unwrap();
+        assert!(score < row.find("m-0123").unwrap());
+        assert!(page.contains("@media (max-width:640px)"));
+    }
+
+    #[test]
+    fn an_empty_database_says_how_to_fill_it() {
+        let page = render(&ReportPage {
+            generated_unix_s: 0,
+            total_runs: 0,
+            all: false,
+            sections: &[],
+        });
+        assert!(page.contains("tessera bench"), "{page}");
     }
 }

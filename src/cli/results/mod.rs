@@ -1,251 +1,538 @@
-//! `tessera results`: the benchmark results kept in the local database (`db`): listing
-//! them, importing results other machines made, ranking, comparing and following them over
-//! commits (`analysis`), and exporting them. Every text that came from a result is shown
-//! escaped, as a result file may come from anyone.
+//! `tessera results`: the benchmark results kept in the local database (`record::db`):
+//! listing them, importing results other machines made, ranking, comparing and following
+//! them over commits (`analysis`), a report page (`html`), and exporting them. With no flags
+//! each shows the runs the database has, whatever their workload. Every text that came from
+//! a result is shown escaped, as a result file may come from anyone.
 
 mod analysis;
-pub mod db;
 mod html;
 
-use super::bench::report::Report;
-use super::print_out;
+use super::flags::DbArg;
+use super::output::{count, note, out};
+use super::record::db::{self, Added, Filter, ResultsDb, Run};
+use super::record::host::Host;
+use super::record::result::BenchResult;
+use super::record::stats::{self, Scaling};
+use super::writable::check_output;
 use anyhow::{Result, bail};
-use db::{Added, Filter, ResultsDb};
-use std::path::PathBuf;
+use clap::Subcommand;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use tessera::text::terminal_safe;
 
-/// What `tessera results` was asked to do.
-pub enum ResultsMode {
+/// `tessera results` as typed.
+#[derive(clap::Args)]
+pub struct Args {
+    #[command(flatten)]
+    db: DbArg,
+    #[command(subcommand)]
+    command: ResultsCommand,
+}
+
+#[derive(Subcommand)]
+enum ResultsCommand {
+    /// The runs, newest first: when, machine, CPU, build, workload, threads, samples/s with
+    /// their spread, validation (and `busy` where the machine was).
     List {
-        db: PathBuf,
-        filter: Filter,
+        /// Only this workload (`quick`, `cover`, `custom`).
+        #[arg(long)]
+        workload: Option<String>,
+        /// Only this machine: a machine id's start, or part of a CPU model.
+        #[arg(long)]
+        machine: Option<String>,
+        /// Only builds of this commit (its start).
+        #[arg(long)]
+        commit: Option<String>,
+        /// At most this many runs.
+        #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = super::flags::positive_u32)]
+        limit: Option<u32>,
     },
+    /// Add results (JSON files of `bench --out`) from other machines; a result already in
+    /// the database is not added twice, and one bad file adds nothing.
     Import {
-        db: PathBuf,
+        #[arg(required = true, value_name = "FILE")]
         files: Vec<PathBuf>,
     },
+    /// One row per machine and build: the median samples/s of its runs at their thread
+    /// count, the spread, and per thread; best first; a table for each workload with runs.
+    /// Only `valid` runs unless --all.
     Rank {
-        db: PathBuf,
-        workload: String,
+        /// Only this workload [default: every workload with runs].
+        #[arg(long)]
+        workload: Option<String>,
+        /// Count unvalidated and invalid runs too.
+        #[arg(long)]
         all: bool,
     },
+    /// Two sets of runs thread count by thread count, each a run number (`results list`),
+    /// `latest` or `latest~N` (the Nth run before the newest), a machine (`m-…`) or a
+    /// commit (its start); `run:`, `machine:` or `commit:` before it says which. Two runs
+    /// compare whatever their SIMD paths; a machine's or a commit's runs are taken on one
+    /// path.
     Compare {
-        db: PathBuf,
         a: String,
         b: String,
+        /// The workload (default: that of A's newest run).
+        #[arg(long)]
         workload: Option<String>,
+        /// The SIMD path of a machine's or commit's runs (default: that of A's newest run).
+        #[arg(long)]
         simd: Option<String>,
     },
+    /// One machine's speed over commits, flagging a drop beyond the runs' own spread.
     History {
-        db: PathBuf,
-        machine: String,
-        workload: String,
-        threads: Option<i64>,
+        /// The machine: a machine id's start, or part of a CPU model [default: this machine,
+        /// else the newest run's].
+        #[arg(long)]
+        machine: Option<String>,
+        /// The workload [default: that of the machine's newest run].
+        #[arg(long)]
+        workload: Option<String>,
+        /// The thread count (default: that of the machine's newest run).
+        #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = super::flags::threads)]
+        threads: Option<usize>,
+        /// The SIMD path (default: that of the machine's newest run).
+        #[arg(long)]
         simd: Option<String>,
     },
-    Export {
-        db: PathBuf,
-    },
+    /// A self-contained HTML report (no script, nothing fetched): for each workload, the
+    /// ranking and charts of samples/s by machine, speed against threads, and history
+    /// over commits.
     Report {
-        db: PathBuf,
+        /// The HTML file to write.
+        #[arg(short, long, required = true)]
         output: PathBuf,
-        workload: String,
+        /// Only this workload [default: every workload with runs].
+        #[arg(long)]
+        workload: Option<String>,
+        /// Count unvalidated and invalid runs too.
+        #[arg(long)]
         all: bool,
+    },
+    /// Every result, oldest first, as JSON lines (one result per line).
+    Export {
+        /// JSON lines (the one format).
+        #[arg(long, required = true)]
+        jsonl: bool,
     },
 }
 
-pub fn run(mode: ResultsMode) -> Result<()> {
-    match mode {
-        ResultsMode::List { db, filter } => {
-            let db = ResultsDb::open_to_read(&db)?;
-            print_out(&list(&db.runs(&filter)?))
-        }
-        ResultsMode::Import { db, files } => {
-            // Every file is read and checked before anything is added: one bad file adds
-            // nothing.
-            let reports = (files.iter())
-                .map(|f| Report::read(f))
-                .collect::<Result<Vec<_>>>()?;
-            let mut db = ResultsDb::open(&db)?;
-            let added = db.add_all(&reports, "import")?;
-            let new = added.iter().filter(|a| matches!(a, Added::New(_))).count();
-            print_out(&format!(
-                "imported {new} new result{}, {} already present\n",
-                if new == 1 { "" } else { "s" },
-                added.len() - new
-            ))
-        }
-        ResultsMode::Rank { db, workload, all } => {
-            let db = ResultsDb::open_to_read(&db)?;
-            let runs = db.newest_workload_runs(&workload)?;
-            print_out(&analysis::rank_text(&analysis::rank(&runs, all), &workload))
-        }
-        ResultsMode::Compare {
-            db,
+/// Runs the subcommand on the database `--db` (or `TESSERA_DB`, or the default) names.
+pub fn run(args: Args) -> Result<ExitCode> {
+    let path = db::resolve(args.db.db)?;
+    match args.command {
+        ResultsCommand::List {
+            workload,
+            machine,
+            commit,
+            limit,
+        } => list(
+            &path,
+            &Filter {
+                workload,
+                machine,
+                commit,
+                limit,
+            },
+        ),
+        ResultsCommand::Import { files } => import(&path, &files),
+        ResultsCommand::Rank { workload, all } => rank(&path, workload.as_deref(), all),
+        ResultsCommand::Compare {
             a,
             b,
             workload,
             simd,
-        } => {
-            let db = ResultsDb::open_to_read(&db)?;
-            let all = db.runs(&Filter::default())?;
-            let side_a = select(&all, &a)?;
-            let workload_id = match &workload {
-                Some(name) => match all.iter().find(|r| &r.workload == name) {
-                    Some(r) => r.workload_id.clone(),
-                    None => bail!("no runs of workload `{}`", terminal_safe(name, 32)),
-                },
-                None => side_a[0].workload_id.clone(),
-            };
-            // Like with like: both sides on one SIMD path, --simd's or that of A's newest run
-            // (of the workload).
-            let path = match simd {
-                Some(path) => path,
-                None => match side_a.iter().find(|r| r.workload_id == workload_id) {
-                    Some(r) => r.simd.clone(),
-                    None => bail!("{}: no runs of that workload", terminal_safe(&a, 40)),
-                },
-            };
-            let side = |runs: Vec<&db::Run>, what: &str| -> Result<analysis::Scaling> {
-                let runs: Vec<_> = (runs.into_iter())
-                    .filter(|r| r.workload_id == workload_id && r.simd == path)
-                    .collect();
-                if runs.is_empty() {
-                    bail!(
-                        "{}: no runs of that workload on SIMD path {} (--simd chooses another)",
-                        terminal_safe(what, 40),
-                        terminal_safe(&path, 16)
-                    );
-                }
-                let rows = (runs.iter())
-                    .map(|r| db.scaling(r.id))
-                    .collect::<Result<Vec<_>>>()?;
-                Ok(analysis::pool_scaling(&rows))
-            };
-            let pa = side(side_a, &a)?;
-            let pb = side(select(&all, &b)?, &b)?;
-            let (name_a, name_b) = (format!("{a} ({path})"), format!("{b} ({path})"));
-            match analysis::compare_text(&name_a, &pa, &name_b, &pb) {
-                Some(text) => print_out(&text),
-                None => bail!("the two share no thread count"),
-            }
-        }
-        ResultsMode::History {
-            db,
+        } => compare(&path, &a, &b, workload.as_deref(), simd.as_deref()),
+        ResultsCommand::History {
             machine,
             workload,
             threads,
             simd,
-        } => {
-            let db = ResultsDb::open_to_read(&db)?;
-            let runs = db.runs(&Filter {
-                workload: Some(workload.clone()),
-                machine: Some(machine.clone()),
-                ..Filter::default()
-            })?;
-            let mut machines: Vec<&str> = runs.iter().map(|r| r.machine_id.as_str()).collect();
-            machines.sort_unstable();
-            machines.dedup();
-            let id = match machines[..] {
-                [] => bail!(
-                    "no runs of `{}` on a machine matching `{}`",
-                    terminal_safe(&workload, 32),
-                    terminal_safe(&machine, 40)
-                ),
-                [one] => one.to_owned(),
-                _ => bail!(
-                    "`{}` matches {} machines ({}): give more of a machine id",
-                    terminal_safe(&machine, 40),
-                    machines.len(),
-                    machines
-                        .iter()
-                        .map(|m| terminal_safe(m, 18))
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                ),
-            };
-            let threads = threads.unwrap_or(runs[0].threads);
-            let simd = simd.unwrap_or_else(|| runs[0].simd.clone());
-            let steps = analysis::history(&runs, threads, &simd);
-            if steps.is_empty() {
-                bail!(
-                    "no runs at {threads} threads on SIMD path {} on {}",
-                    terminal_safe(&simd, 16),
-                    terminal_safe(&id, 18)
-                );
-            }
-            print_out(&analysis::history_text(&steps, &id, threads, &simd))
-        }
-        ResultsMode::Report {
-            db,
+        } => history(
+            &path,
+            machine.as_deref(),
+            workload.as_deref(),
+            threads.map(|t| t as i64),
+            simd.as_deref(),
+        ),
+        ResultsCommand::Report {
             output,
             workload,
             all,
-        } => {
-            let db = ResultsDb::open_to_read(&db)?;
-            let total_runs = db.count()?;
-            let runs: Vec<_> = (db.newest_workload_runs(&workload)?.into_iter())
-                .filter(|r| all || r.validation == "valid")
-                .collect();
-            let ranked = analysis::rank(&runs, all);
-            let scaling = (ranked.iter())
-                .map(|line| {
-                    let rows = (line.ids.iter())
-                        .map(|&id| db.scaling(id))
-                        .collect::<Result<Vec<_>>>()?;
-                    Ok(analysis::pool_scaling(&rows))
-                })
-                .collect::<Result<Vec<_>>>()?;
-            let mut histories = Vec::new();
-            let mut seen = std::collections::BTreeSet::new();
-            for line in &ranked {
-                let machine = &line.example.machine_id;
-                if !seen.insert(machine.clone()) {
-                    continue;
-                }
-                let mine: Vec<db::Run> = (runs.iter())
-                    .filter(|r| &r.machine_id == machine)
-                    .cloned()
-                    .collect();
-                // At the thread count and SIMD path of the machine's best line.
-                let (threads, simd) = (line.threads, line.example.simd.clone());
-                let steps = analysis::history(&mine, threads, &simd);
-                histories.push((machine.clone(), threads, simd, steps));
-            }
-            let generated_unix_s = std::time::SystemTime::now()
-                .duration_since(std::time::UNIX_EPOCH)
-                .map_or(0, |d| d.as_secs() as i64);
-            let page = html::render(&html::Report {
-                workload: &workload,
-                generated_unix_s,
-                total_runs,
-                ranked: &ranked,
-                scaling: &scaling,
-                histories: &histories,
-            });
-            tessera::atomic_file::write_atomically(&output, page.as_bytes())?;
-            super::note(format_args!(
-                "{}: {} machine and build lines, {} runs",
-                output.display(),
-                ranked.len(),
-                runs.len()
-            ));
-            Ok(())
-        }
-        ResultsMode::Export { db } => {
-            let db = ResultsDb::open_to_read(&db)?;
-            let mut text = String::new();
-            for json in db.results_json()? {
-                text.push_str(&json);
-                text.push('\n');
-            }
-            print_out(&text)
+        } => report(&path, &output, workload.as_deref(), all),
+        ResultsCommand::Export { jsonl: _ } => export(&path),
+    }?;
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `results list`: the runs as a table, newest first.
+fn list(path: &Path, filter: &Filter) -> Result<()> {
+    let db = ResultsDb::open_to_read(path)?;
+    out(&list_text(&db.runs(filter)?))
+}
+
+/// `results import`: every file is read and checked before anything is added, so one bad
+/// file adds nothing.
+fn import(path: &Path, files: &[PathBuf]) -> Result<()> {
+    let results = (files.iter())
+        .map(|f| BenchResult::read(f))
+        .collect::<Result<Vec<_>>>()?;
+    let mut db = ResultsDb::open(path)?;
+    let added = db.add_all(&results, "import")?;
+    let new = added.iter().filter(|a| matches!(a, Added::New(_))).count();
+    out(&format!(
+        "imported {}, {} already present\n",
+        count(new as u64, "new result"),
+        added.len() - new
+    ))
+}
+
+/// The runs of one workload: its name, its id (the scene and settings), and its runs,
+/// newest first.
+struct WorkloadRuns {
+    name: String,
+    id: String,
+    runs: Vec<Run>,
+}
+
+impl WorkloadRuns {
+    /// The workload's name, with the start of its id where the name alone is not enough
+    /// (`custom` stands for any scene).
+    fn title(&self, ambiguous: bool) -> String {
+        if ambiguous {
+            let id: String = self.id.chars().skip("xxh3-128:".len()).take(12).collect();
+            format!("{} (id {id})", self.name)
+        } else {
+            self.name.clone()
         }
     }
 }
 
-/// The runs `what` names: `run:N` or a number (one run), `machine:ID` or `m-…` (a machine's
-/// runs, by its id's start), `commit:HEX` or hex digits (a commit's runs, by its start).
-fn select<'a>(runs: &'a [db::Run], what: &str) -> Result<Vec<&'a db::Run>> {
+/// The runs `workload` names (its newest scene and settings), or every workload's, the
+/// workload with the newest run first.
+fn workloads(db: &ResultsDb, workload: Option<&str>) -> Result<Vec<WorkloadRuns>> {
+    let runs = db.runs(&Filter {
+        workload: workload.map(str::to_owned),
+        ..Filter::default()
+    })?;
+    let mut groups: Vec<WorkloadRuns> = Vec::new();
+    for run in runs {
+        match groups.iter_mut().find(|g| g.id == run.workload_id) {
+            Some(group) => group.runs.push(run),
+            None => groups.push(WorkloadRuns {
+                name: run.workload.clone(),
+                id: run.workload_id.clone(),
+                runs: vec![run],
+            }),
+        }
+    }
+    // A named workload is its newest scene and settings: `custom` covers several.
+    if workload.is_some() {
+        groups.truncate(1);
+    }
+    Ok(groups)
+}
+
+/// Whether two groups share a name, so that titles need their ids.
+fn ambiguous(groups: &[WorkloadRuns], group: &WorkloadRuns) -> bool {
+    groups.iter().filter(|g| g.name == group.name).count() > 1
+}
+
+/// What to say when there is nothing to show.
+fn nothing_yet(workload: Option<&str>) -> String {
+    match workload {
+        Some(w) => format!(
+            "no runs of workload `{}` in the database (`results list` shows what there is)\n",
+            terminal_safe(w, 32)
+        ),
+        None => "no results yet: `tessera bench` records a run, `tessera results import` adds \
+                 others'\n"
+            .to_owned(),
+    }
+}
+
+/// `results rank`: a table for each workload (or the one named).
+fn rank(path: &Path, workload: Option<&str>, all: bool) -> Result<()> {
+    let db = ResultsDb::open_to_read(path)?;
+    let groups = workloads(&db, workload)?;
+    if groups.is_empty() {
+        return out(&nothing_yet(workload));
+    }
+    let mut text = String::new();
+    for (i, group) in groups.iter().enumerate() {
+        if i > 0 {
+            text.push('\n');
+        }
+        let title = group.title(ambiguous(&groups, group));
+        text.push_str(&format!(
+            "workload {}: {}\n",
+            terminal_safe(&title, 64),
+            count(group.runs.len() as u64, "run")
+        ));
+        let ranked = analysis::rank(&group.runs, all);
+        text.push_str(&analysis::rank_text(&ranked, &group.runs, all));
+    }
+    out(&text)
+}
+
+/// `results compare A B`: two runs, or two sets of runs, side by side.
+fn compare(
+    path: &Path,
+    a: &str,
+    b: &str,
+    workload: Option<&str>,
+    simd: Option<&str>,
+) -> Result<()> {
+    let db = ResultsDb::open_to_read(path)?;
+    let all = db.runs(&Filter::default())?;
+    let (side_a, a_is_run) = select(&all, a)?;
+    let (side_b, b_is_run) = select(&all, b)?;
+    let workload_id = match workload {
+        Some(name) => match all.iter().find(|r| r.workload == name) {
+            Some(r) => r.workload_id.clone(),
+            None => bail!("no runs of workload `{}`", terminal_safe(name, 32)),
+        },
+        None => side_a[0].workload_id.clone(),
+    };
+    let side_a = of_workload(side_a, &workload_id, &all, a)?;
+    let side_b = of_workload(side_b, &workload_id, &all, b)?;
+    // Like with like: a machine's or a commit's runs are taken on one SIMD path, --simd's
+    // or that of A's newest run; a single run is what it is.
+    let path_of_sets = simd.map_or_else(|| side_a[0].simd.clone(), str::to_owned);
+    let on_path = |runs: Vec<&Run>, is_run: bool, what: &str| -> Result<(Scaling, String)> {
+        let runs: Vec<&Run> = if is_run {
+            runs
+        } else {
+            let on: Vec<&Run> = (runs.into_iter())
+                .filter(|r| r.simd == path_of_sets)
+                .collect();
+            if on.is_empty() {
+                bail!(
+                    "{}: no runs of that workload on SIMD path {} (--simd chooses another)",
+                    terminal_safe(what, 40),
+                    terminal_safe(&path_of_sets, 16)
+                );
+            }
+            on
+        };
+        let rows = (runs.iter())
+            .map(|r| db.scaling(r.id))
+            .collect::<Result<Vec<_>>>()?;
+        let name = format!(
+            "{what} ({}, {})",
+            if is_run {
+                format!("run on {}", runs[0].simd)
+            } else {
+                format!("{} on {}", count(runs.len() as u64, "run"), path_of_sets)
+            },
+            analysis::cpu(runs[0])
+        );
+        Ok((stats::pool_scaling(&rows), name))
+    };
+    let (pa, name_a) = on_path(side_a, a_is_run, a)?;
+    let (pb, name_b) = on_path(side_b, b_is_run, b)?;
+    match stats::side_by_side(&name_a, &pa, &name_b, &pb) {
+        Some(text) => out(&text),
+        None => bail!("the two share no thread count"),
+    }
+}
+
+/// The runs among `runs` (which `what` selected) of the workload `id`.
+fn of_workload<'a>(runs: Vec<&'a Run>, id: &str, all: &[Run], what: &str) -> Result<Vec<&'a Run>> {
+    let runs: Vec<&Run> = runs.into_iter().filter(|r| r.workload_id == id).collect();
+    if runs.is_empty() {
+        let name = all.iter().find(|r| r.workload_id == id);
+        bail!(
+            "{}: no runs of workload {} (the workload is A's newest run's unless --workload)",
+            terminal_safe(what, 40),
+            terminal_safe(name.map_or("?", |r| &r.workload), 32)
+        );
+    }
+    Ok(runs)
+}
+
+/// `results history`: one machine's speed over commits.
+fn history(
+    path: &Path,
+    machine: Option<&str>,
+    workload: Option<&str>,
+    threads: Option<i64>,
+    simd: Option<&str>,
+) -> Result<()> {
+    let db = ResultsDb::open_to_read(path)?;
+    let all = db.runs(&Filter::default())?;
+    let machine = match machine {
+        Some(m) => m.to_owned(),
+        None => {
+            // This machine when it has runs, else the newest run's.
+            let here = Host::this().machine_id.unwrap_or_default();
+            match all.iter().find(|r| r.machine_id == here).or(all.first()) {
+                Some(r) => r.machine_id.clone(),
+                None => return out(&nothing_yet(None)),
+            }
+        }
+    };
+    let runs = db.runs(&Filter {
+        workload: workload.map(str::to_owned),
+        machine: Some(machine.clone()),
+        ..Filter::default()
+    })?;
+    let mut machines: Vec<&str> = runs.iter().map(|r| r.machine_id.as_str()).collect();
+    machines.sort_unstable();
+    machines.dedup();
+    let id = match machines[..] {
+        [] => bail!(
+            "no runs{} on a machine matching `{}`",
+            workload.map_or(String::new(), |w| format!(" of `{}`", terminal_safe(w, 32))),
+            terminal_safe(&machine, 40)
+        ),
+        [one] => one.to_owned(),
+        _ => bail!(
+            "`{}` matches {} machines ({}): give more of a machine id",
+            terminal_safe(&machine, 40),
+            machines.len(),
+            machines
+                .iter()
+                .map(|m| terminal_safe(m, 18))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+    };
+    // The workload of the machine's newest run (its scene and settings), unless named.
+    let newest = &runs[0];
+    let runs: Vec<Run> = (runs.iter())
+        .filter(|r| r.workload_id == newest.workload_id)
+        .cloned()
+        .collect();
+    let threads = threads.unwrap_or(newest.threads);
+    let simd = simd.map_or_else(|| newest.simd.clone(), str::to_owned);
+    let steps = analysis::history(&runs, threads, &simd);
+    if steps.is_empty() {
+        bail!(
+            "no runs of {} at {} on SIMD path {} on {}",
+            terminal_safe(&newest.workload, 32),
+            count(threads.max(0) as u64, "thread"),
+            terminal_safe(&simd, 16),
+            terminal_safe(&id, 18)
+        );
+    }
+    out(&analysis::history_text(
+        &steps,
+        &id,
+        &newest.workload,
+        threads,
+        &simd,
+    ))
+}
+
+/// `results report`: one HTML page, a section for each workload (or the one named).
+fn report(path: &Path, output: &Path, workload: Option<&str>, all: bool) -> Result<()> {
+    check_output(output)?;
+    let db = ResultsDb::open_to_read(path)?;
+    let total_runs = db.count()?;
+    let groups = workloads(&db, workload)?;
+    let mut sections = Vec::new();
+    for group in &groups {
+        let runs: Vec<Run> = (group.runs.iter())
+            .filter(|r| all || r.validation == "valid")
+            .cloned()
+            .collect();
+        let ranked = analysis::rank(&runs, all);
+        let scaling = (ranked.iter())
+            .map(|line| {
+                let rows = (line.ids.iter())
+                    .map(|&id| db.scaling(id))
+                    .collect::<Result<Vec<_>>>()?;
+                Ok(stats::pool_scaling(&rows))
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let mut histories = Vec::new();
+        let mut seen = std::collections::BTreeSet::new();
+        for line in &ranked {
+            let machine = &line.example.machine_id;
+            if !seen.insert(machine.clone()) {
+                continue;
+            }
+            let mine: Vec<Run> = (runs.iter())
+                .filter(|r| &r.machine_id == machine)
+                .cloned()
+                .collect();
+            // At the thread count and SIMD path of the machine's best line.
+            let (threads, simd) = (line.threads, line.example.simd.clone());
+            let steps = analysis::history(&mine, threads, &simd);
+            histories.push(html::History {
+                machine: machine.clone(),
+                threads,
+                simd,
+                steps,
+            });
+        }
+        sections.push(html::Section {
+            title: group.title(ambiguous(&groups, group)),
+            runs: group.runs.len(),
+            ranked: ranked.iter().map(html::Line::of).collect(),
+            scaling,
+            histories,
+        });
+    }
+    let generated_unix_s = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs() as i64);
+    let page = html::render(&html::ReportPage {
+        generated_unix_s,
+        total_runs,
+        all,
+        sections: &sections,
+    });
+    tessera::atomic_file::write_atomically(output, page.as_bytes())?;
+    let lines: usize = sections.iter().map(|s| s.ranked.len()).sum();
+    note(format_args!(
+        "{}: {} of {}, {} in the database",
+        output.display(),
+        count(lines as u64, "machine and build line"),
+        count(sections.len() as u64, "workload"),
+        count(total_runs as u64, "run")
+    ));
+    Ok(())
+}
+
+/// `results export --jsonl`: every result, oldest first.
+fn export(path: &Path) -> Result<()> {
+    let db = ResultsDb::open_to_read(path)?;
+    let mut text = String::new();
+    for json in db.results_json()? {
+        text.push_str(&json);
+        text.push('\n');
+    }
+    out(&text)
+}
+
+/// The runs `what` names, and whether it names one run: `run:N` or a number (one run),
+/// `latest` or `latest~N` (the newest run, or the Nth before it), `machine:ID` or `m-…` (a
+/// machine's runs, by its id's start), `commit:HEX` or hex digits (a commit's runs, by its
+/// start). `runs` are newest first.
+fn select<'a>(runs: &'a [Run], what: &str) -> Result<(Vec<&'a Run>, bool)> {
+    if let Some(back) = what.strip_prefix("latest") {
+        let n = match back.strip_prefix('~') {
+            None if back.is_empty() => Some(0),
+            Some(n) => n.parse::<usize>().ok(),
+            None => None,
+        };
+        let Some(n) = n else {
+            bail!(
+                "`{}`: write latest, or latest~N for the Nth run before it",
+                terminal_safe(what, 40)
+            );
+        };
+        return match runs.get(n) {
+            Some(run) => Ok((vec![run], true)),
+            None => bail!(
+                "`{}`: the database holds {}",
+                terminal_safe(what, 40),
+                count(runs.len() as u64, "run")
+            ),
+        };
+    }
     let (kind, key) = match what.split_once(':') {
         Some((kind @ ("run" | "machine" | "commit"), key)) => (kind, key),
         _ if !what.is_empty() && what.bytes().all(|b| b.is_ascii_digit()) => ("run", what),
@@ -255,7 +542,7 @@ fn select<'a>(runs: &'a [db::Run], what: &str) -> Result<Vec<&'a db::Run>> {
     if key.is_empty() {
         bail!("`{}`: nothing to select by", terminal_safe(what, 40));
     }
-    let chosen: Vec<&db::Run> = match kind {
+    let chosen: Vec<&Run> = match kind {
         "run" => runs.iter().filter(|r| r.id.to_string() == key).collect(),
         "machine" => runs
             .iter()
@@ -264,12 +551,13 @@ fn select<'a>(runs: &'a [db::Run], what: &str) -> Result<Vec<&'a db::Run>> {
         _ => runs.iter().filter(|r| r.commit.starts_with(key)).collect(),
     };
     if chosen.is_empty() {
-        bail!("`{}` selects no runs ({kind})", terminal_safe(what, 40));
+        bail!(
+            "`{}` selects no runs ({kind}; `results list` numbers the runs)",
+            terminal_safe(what, 40)
+        );
     }
-    Ok(chosen)
+    Ok((chosen, kind == "run"))
 }
-
-pub use tessera::text::terminal_safe;
 
 /// A Unix time as a UTC date and time, `2026-12-01 19:27`.
 pub fn utc(unix_s: i64) -> String {
@@ -293,7 +581,7 @@ pub fn utc(unix_s: i64) -> String {
 }
 
 /// The runs as a table, newest first.
-fn list(runs: &[db::Run]) -> String {
+fn list_text(runs: &[Run]) -> String {
     if runs.is_empty() {
         return "no results\n".into();
     }
@@ -326,7 +614,11 @@ fn list(runs: &[db::Run]) -> String {
             terminal_safe(&r.workload, 8),
             r.threads,
             sps,
-            terminal_safe(&r.validation, 12)
+            if r.busy {
+                format!("{} (busy)", terminal_safe(&r.validation, 12))
+            } else {
+                terminal_safe(&r.validation, 12)
+            }
         ));
     }
     t

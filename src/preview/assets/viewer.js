@@ -1,6 +1,7 @@
 // tessera's live viewer: follows the render's status by server-sent events (or, failing
 // that, by polling /status), draws each new frame once it has loaded (so the old one stays
-// until then: no flicker), and outlines the tiles being rendered.
+// until then: no flicker), outlines the tiles being rendered, and at the end offers the
+// image file the render wrote. A small image is enlarged by a whole factor, pixels sharp.
 "use strict";
 
 const $ = (id) => document.getElementById(id);
@@ -12,6 +13,8 @@ let wanted = 0;       // the newest frame version announced
 let last = null;      // the newest status
 let polling = null;
 let pending = null;   // a status waiting for its frame to load
+let kept = null;      // the finished image, kept in the page as a blob: URL
+let keeping = false;  // it is being fetched
 
 function clock(seconds) {
   if (seconds == null || !isFinite(seconds)) return "–";
@@ -51,6 +54,7 @@ async function loadFrame() {
     if (whole && (image.width !== width || image.height !== height)) {
       image.width = width;
       image.height = height;
+      layout();
     }
     // The PNG holds the rows stacked in order.
     const ctx = image.getContext("2d");
@@ -73,6 +77,24 @@ async function loadFrame() {
     loading = false;
   }
   if (again) setTimeout(loadFrame, 0);
+}
+
+// Sizes the image in the stage: a whole number of screen pixels per image pixel when it
+// fits at least once (drawn sharp, no smoothing), else shrunk to fit.
+function layout() {
+  const frame = $("frame");
+  const actual = $("stage").classList.contains("actual");
+  const ratio = Math.min(frame.clientWidth / image.width, frame.clientHeight / image.height);
+  const whole = !actual && ratio >= 1;
+  image.classList.toggle("whole", whole);
+  if (whole) {
+    const k = Math.floor(ratio);
+    image.style.width = `${image.width * k}px`;
+    image.style.height = `${image.height * k}px`;
+  } else {
+    image.style.width = "";
+    image.style.height = "";
+  }
 }
 
 // Outlines the tiles being rendered: a few boxes laid over where the image is drawn.
@@ -134,8 +156,42 @@ function showText(status) {
   $("sps").textContent = number(status.samples_per_sec / 1e6, 2) + " M";
   $("mrays").textContent = number(status.mrays_per_sec, 1);
   $("scale").textContent = status.frame.scale > 1 ? `shown at 1/${status.frame.scale} size` : "";
-  $("download").hidden = status.state !== "finished";
+  offer(status);
   drawTiles();
+}
+
+// Offers the finished image: the file the render wrote, recipe and all. A viewer that stays
+// (--preview-hold) links to it; otherwise the server goes when the render ends, so the page
+// fetches the file at once and links to its own copy.
+function offer(status) {
+  const link = $("download");
+  const file = status.state === "finished" ? status.download : null;
+  if (!file) {
+    link.hidden = true;
+    return;
+  }
+  link.download = file.name;
+  link.title = `${file.name}, ${(file.bytes / 1024).toFixed(0)} KiB`;
+  if (status.about.held) {
+    link.href = "/download";
+    link.hidden = false;
+    return;
+  }
+  if (kept || keeping) return;
+  keeping = true;
+  fetch("/download", { cache: "no-store" })
+    .then((r) => (r.ok ? r.blob() : Promise.reject(new Error(`download: ${r.status}`))))
+    .then((blob) => {
+      kept = URL.createObjectURL(blob);
+      link.href = kept;
+      link.hidden = false;
+    })
+    .catch(() => {
+      link.hidden = true;
+    })
+    .finally(() => {
+      keeping = false;
+    });
 }
 
 function poll() {
@@ -151,6 +207,8 @@ function poll() {
 }
 
 function lost() {
+  // A link to the server would no longer work: only the page's own copy stays.
+  if (!kept) $("download").hidden = true;
   const state = $("state");
   if (last && last.state === "finished") {
     state.textContent = "finished · viewer closed";
@@ -180,8 +238,12 @@ function listen() {
 
 $("stage").addEventListener("click", () => {
   $("stage").classList.toggle("actual");
+  layout();
   drawTiles();
 });
-window.addEventListener("resize", drawTiles);
+window.addEventListener("resize", () => {
+  layout();
+  drawTiles();
+});
 $("frame").classList.add("empty");
 listen();

@@ -1,0 +1,362 @@
+//! One measurement of `tessera bench`: the warm-up, the renders at each thread count, the
+//! validation of every image, the result as text or JSON, and its record in the results
+//! database. A machine that is busy while it runs (load above its CPUs, stolen time) is said
+//! in the output and recorded in the result: such a run's speed and scaling are not the
+//! machine's.
+
+use crate::cli::output::{self, count, note, out};
+#[cfg(feature = "results")]
+use crate::cli::record::db::{self, ResultsDb};
+use crate::cli::record::host::{Build, Busy, CpuTimes, Host};
+use crate::cli::record::result::{
+    BenchResult, Method, Row, SCHEMA, Spread, Validation, WorkloadInfo,
+};
+use crate::cli::record::workload::{Workload, hash_text};
+use anyhow::{Context, Result};
+use std::collections::BTreeSet;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use tessera::atomic_file::write_atomically;
+use tessera::film::Film;
+use tessera::render::{self, RenderOptions, RenderStats};
+
+/// A measurement, ready to run.
+pub struct Measure {
+    pub workload: Workload,
+    /// Threads of the headline result.
+    pub threads: usize,
+    /// The thread counts of the scaling table: 1, 2, 4, … and every CPU; empty for none.
+    pub scaling: Vec<usize>,
+    /// Measured renders per thread count.
+    pub repeat: u32,
+    pub warmup: u32,
+    pub json: bool,
+    pub out: Option<PathBuf>,
+    /// The SIMD path of every render.
+    pub simd: tessera::simd::Path,
+    /// Whether `--simd` (or `TESSERA_SIMD`) named it, rather than `auto`.
+    pub simd_chosen: bool,
+    /// The results database to record the result in; `None`: not recorded.
+    pub save: Option<SaveTo>,
+}
+
+/// Where `bench` records its result.
+#[cfg_attr(not(feature = "results"), allow(dead_code))]
+pub struct SaveTo {
+    pub path: PathBuf,
+    /// Named by `--db` or `TESSERA_DB`: a database that cannot be used is an error. The
+    /// default one is only a warning when it cannot be created (a read-only home, a
+    /// container); one that exists but cannot be used is an error all the same.
+    pub chosen: bool,
+}
+
+/// Where to record a result: `--db`'s database, else the default one; none with
+/// `--no-save` or in a build without the results database.
+pub fn save_to(no_save: bool, db: Option<PathBuf>) -> Option<SaveTo> {
+    if no_save || !cfg!(feature = "results") {
+        return None;
+    }
+    match db {
+        Some(path) => Some(SaveTo { path, chosen: true }),
+        #[cfg(feature = "results")]
+        None => db::default_path().map(|path| SaveTo {
+            path,
+            chosen: false,
+        }),
+        #[cfg(not(feature = "results"))]
+        None => None,
+    }
+}
+
+/// One render of `workload`: its image and counts.
+fn render_once(
+    workload: &Workload,
+    threads: usize,
+    simd: tessera::simd::Path,
+) -> Result<(Film, RenderStats)> {
+    let options = RenderOptions {
+        threads: Some(threads),
+        tile: render::DEFAULT_TILE,
+        simd,
+    };
+    render::render(&workload.scene, &options, &|_| {}).context("could not start the thread pool")
+}
+
+/// Measures, reports and records; exit 1 when an image is not the workload's.
+pub fn run(m: Measure) -> Result<ExitCode> {
+    let started_unix_s = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    // Opened before the renders, so that a database it cannot use stops it at once.
+    #[cfg(feature = "results")]
+    let mut db = open_results_db(m.save.as_ref())?;
+    // Read before the renders load the machine.
+    let host = Host::this();
+    let cpu_times_at_start = CpuTimes::now();
+    let mut images = BTreeSet::new();
+    let mut render = |threads: usize| -> Result<RenderStats> {
+        let (film, stats) = render_once(&m.workload, threads, m.simd)?;
+        images.insert(hash_text(film.content_hash()));
+        Ok(stats)
+    };
+    for _ in 0..m.warmup {
+        render(m.threads)?;
+    }
+    let mut counts: Vec<usize> = m.scaling.clone();
+    counts.push(m.threads);
+    counts.sort_unstable();
+    counts.dedup();
+    let mut rows = Vec::new();
+    for &threads in &counts {
+        let runs = (0..m.repeat)
+            .map(|_| render(threads))
+            .collect::<Result<Vec<_>>>()?;
+        rows.push(row(threads, &runs));
+    }
+    let base = rows
+        .iter()
+        .find(|r| r.threads == 1)
+        .map(|r| r.samples_per_sec.median);
+    for r in &mut rows {
+        r.speedup = base.map(|b| r.samples_per_sec.median / b);
+        r.efficiency = r.speedup.map(|s| s / r.threads as f64);
+    }
+    let busy = Busy::judge(&host, cpu_times_at_start.as_ref(), CpuTimes::now().as_ref());
+    let validation = validate(&m.workload, images);
+    let s = &m.workload.scene.settings;
+    let result = rows
+        .iter()
+        .find(|r| r.threads == m.threads)
+        .cloned()
+        .context("the headline thread count was not measured")?;
+    let report = BenchResult {
+        schema: SCHEMA.into(),
+        build: Build::this(m.simd, m.simd_chosen),
+        host,
+        workload: WorkloadInfo {
+            name: m.workload.name.clone(),
+            scene: m.workload.scene_name.clone(),
+            id: m.workload.id.clone(),
+            width: s.width,
+            height: s.height,
+            spp: s.samples_per_pixel,
+            max_depth: s.max_depth,
+            seed: s.seed,
+        },
+        method: Method {
+            threads: m.threads,
+            repeat: m.repeat,
+            warmup: m.warmup,
+            started_unix_s,
+        },
+        result,
+        scaling: rows,
+        validation,
+        busy: Some(busy),
+    };
+    let json = serde_json::to_string_pretty(&report)? + "\n";
+    if let Some(out) = &m.out {
+        write_atomically(out, json.as_bytes())?;
+    }
+    out(&if m.json { json } else { text(&report) })?;
+    if let Some(busy) = report.busy.as_ref().filter(|b| b.busy) {
+        note(format_args!(
+            "tessera: warning: the machine was busy ({}): this result is slower, and scales \
+             worse, than the machine does; measure again when it is idle",
+            busy.reasons.join("; ")
+        ));
+    }
+    #[cfg(feature = "results")]
+    if let Some((db, path)) = &mut db {
+        db.add_all(std::slice::from_ref(&report), "bench")?;
+        note(format_args!("tessera: recorded in {}", path.display()));
+    }
+    #[cfg(not(feature = "results"))]
+    if m.save.is_none() && !m.json {
+        note(format_args!(
+            "tessera: note: this tessera was built without the results database (cargo \
+             feature `results`): --out FILE keeps the result"
+        ));
+    }
+    if report.validation.status == "invalid" {
+        // A wrong image makes the speed meaningless: fail, after the result is written for
+        // inspection. (Status 2 is kept for bad input.)
+        note(format_args!(
+            "tessera: the result is INVALID: the image is not the one this workload must produce"
+        ));
+        return Ok(ExitCode::from(output::NEGATIVE));
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The results database `save` names, opened; `None` when not saving, or when the default
+/// database cannot be created (said as a warning).
+#[cfg(feature = "results")]
+fn open_results_db(save: Option<&SaveTo>) -> Result<Option<(ResultsDb, &std::path::Path)>> {
+    let Some(save) = save else {
+        return Ok(None);
+    };
+    match ResultsDb::open(&save.path) {
+        Ok(db) => Ok(Some((db, &save.path))),
+        Err(e) if !save.chosen && !save.path.exists() => {
+            note(format_args!(
+                "tessera: warning: the result will not be recorded ({e:#}); choose a database with --db or TESSERA_DB, or pass --no-save"
+            ));
+            Ok(None)
+        }
+        Err(e) => Err(e),
+    }
+}
+
+/// The measurement of `runs` at `threads`.
+fn row(threads: usize, runs: &[RenderStats]) -> Row {
+    let of = |f: fn(&RenderStats) -> f64| Spread::of(&runs.iter().map(f).collect::<Vec<_>>());
+    Row {
+        threads,
+        samples_per_sec: of(RenderStats::samples_per_sec),
+        mrays_per_sec: of(RenderStats::mrays_per_sec),
+        wall_s: of(|r| r.wall.as_secs_f64()),
+        rays_per_sample: runs.first().map_or(0.0, RenderStats::rays_per_sample),
+        speedup: None,
+        efficiency: None,
+        runs: runs.iter().map(RenderStats::samples_per_sec).collect(),
+    }
+}
+
+fn validate(workload: &Workload, images: BTreeSet<String>) -> Validation {
+    let status = match &workload.expected {
+        None => "unvalidated",
+        Some(want) if images.len() == 1 && images.contains(want) => "valid",
+        Some(_) => "invalid",
+    };
+    Validation {
+        status: status.into(),
+        expected: workload.expected.clone(),
+        images: images.into_iter().collect(),
+    }
+}
+
+/// Where the run was confined (a container, a CPU quota, an affinity), as `host`'s last words.
+fn confinement_text(h: &Host) -> String {
+    let mut limits = Vec::new();
+    if let Some(quota) = h.cpu_quota {
+        limits.push(format!("a quota of {quota:.2} CPUs"));
+    }
+    if let Some(n) = h.cpus_allowed {
+        limits.push(format!("an affinity of {n} CPUs"));
+    }
+    let mut t = h
+        .container
+        .as_ref()
+        .map_or(String::new(), |c| format!("\n  in a {c} container"));
+    if !limits.is_empty() {
+        t.push_str(if t.is_empty() {
+            "\n  under "
+        } else {
+            " under "
+        });
+        t.push_str(&limits.join(" and "));
+        t.push_str(&format!(": {} usable", h.cpus_usable));
+    }
+    t
+}
+
+/// The report for people.
+fn text(r: &BenchResult) -> String {
+    let w = &r.workload;
+    let h = &r.host;
+    let mut t = format!(
+        "workload {} ({}): {}x{}, {} spp, depth {}, seed {}\n  id {}\n",
+        w.name, w.scene, w.width, w.height, w.spp, w.max_depth, w.seed, w.id
+    );
+    t.push_str(&format!(
+        "build {} {} ({}), SIMD {}\nhost {}, {} CPUs{}{}, load {}{}\n",
+        r.build.version,
+        r.build.commit.chars().take(12).collect::<String>(),
+        r.build.rustc,
+        r.build.simd,
+        h.cpu_model.as_deref().unwrap_or("unknown CPU"),
+        h.logical_cpus,
+        h.physical_cores
+            .map_or(String::new(), |c| format!(" ({c} cores)")),
+        h.memory_bytes.map_or(String::new(), |b| format!(
+            ", {:.1} GiB",
+            b as f64 / (1u64 << 30) as f64
+        )),
+        h.load_average
+            .map_or("unknown".into(), |l| format!("{:.2}", l[0])),
+        confinement_text(h),
+    ));
+    t.push_str(&format!(
+        "median of {} after {}: {:.2} s wall, {:.3} M samples/s, {:.2} Mrays/s, \
+         {:.3} rays/sample, {}\n",
+        count(r.method.repeat, "run"),
+        count(r.method.warmup, "warm-up"),
+        r.result.wall_s.median,
+        r.result.samples_per_sec.median / 1e6,
+        r.result.mrays_per_sec.median,
+        r.result.rays_per_sample,
+        count(r.result.threads as u64, "thread"),
+    ));
+    if r.scaling.len() > 1 {
+        t.push_str("threads  M samples/s [min-max]      speedup  efficiency\n");
+        for row in &r.scaling {
+            let s = row.samples_per_sec;
+            t.push_str(&format!(
+                "{:>7}  {:<27}  {:>7}  {:>10}\n",
+                row.threads,
+                format!(
+                    "{:.3} [{:.3}-{:.3}]",
+                    s.median / 1e6,
+                    s.min / 1e6,
+                    s.max / 1e6
+                ),
+                row.speedup.map_or("-".into(), |x| format!("{x:.2}")),
+                row.efficiency
+                    .map_or("-".into(), |x| format!("{:.0}%", 100.0 * x)),
+            ));
+        }
+    }
+    if let Some(busy) = r.busy.as_ref().filter(|b| b.busy) {
+        t.push_str(&format!(
+            "BUSY: the machine was busy while it ran: {}\n",
+            busy.reasons.join("; ")
+        ));
+    }
+    let v = &r.validation;
+    t.push_str(&match v.status.as_str() {
+        "valid" => format!("valid: every image is {}\n", v.images.join(", ")),
+        "invalid" => format!(
+            "INVALID: images {}, expected {}\n",
+            v.images.join(", "),
+            v.expected.as_deref().unwrap_or("-")
+        ),
+        _ => format!(
+            "unvalidated (custom workload): image {}\n",
+            v.images.join(", ")
+        ),
+    });
+    t
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn quick_with(expected: Option<&str>) -> Workload {
+        let mut w = Workload::named("quick").unwrap();
+        w.expected = expected.map(str::to_owned);
+        w
+    }
+
+    #[test]
+    fn a_result_is_valid_only_if_every_image_has_the_expected_hash() {
+        let images = |list: &[&str]| list.iter().map(|s| s.to_string()).collect::<BTreeSet<_>>();
+        let status = |w: &Workload, i: &[&str]| validate(w, images(i)).status;
+        assert_eq!(status(&quick_with(Some("a")), &["a"]), "valid");
+        assert_eq!(status(&quick_with(Some("a")), &["b"]), "invalid");
+        assert_eq!(status(&quick_with(Some("a")), &["a", "b"]), "invalid");
+        assert_eq!(status(&quick_with(Some("a")), &[]), "invalid");
+        assert_eq!(status(&quick_with(None), &["b"]), "unvalidated");
+    }
+}

@@ -1,0 +1,111 @@
+//! `tessera merge`: adds part files (shards, sample ranges, finished checkpoints) into the
+//! image a single render writes, recipe included when the parts carry one that describes
+//! them.
+
+use super::output::note;
+use super::writable::check_output;
+use anyhow::{Context, Result};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use tessera::film::Film;
+use tessera::image_file::Format;
+use tessera::partial::RenderId;
+use tessera::recipe::{Recipe, Source};
+
+/// `tessera merge` as typed.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Partial render files written by `render --shard` or `--samples`; a directory
+    /// stands for every `.part` file in it.
+    #[arg(required = true)]
+    parts: Vec<PathBuf>,
+    /// Output image (.png, .ppm or .exr).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Leave the parts' recipe out of the image's metadata.
+    #[arg(long)]
+    no_provenance: bool,
+}
+
+pub fn run(args: Args) -> Result<ExitCode> {
+    let Args {
+        parts,
+        output,
+        no_provenance,
+    } = args;
+    Format::from_path(&output)?;
+    check_output(&output)?;
+    let paths = part_files(&parts)?;
+    let (film, render) = tessera::partial::merge_files(&paths)?;
+    let recipe = match render.recipe.as_ref().filter(|_| !no_provenance) {
+        Some(source) => {
+            let recipe = merged_recipe(source, &render, &film, &paths[0]);
+            if recipe.is_none() {
+                note(format_args!(
+                    "tessera: warning: the parts' recipe does not describe them; {} carries none",
+                    output.display()
+                ));
+            }
+            recipe
+        }
+        None if no_provenance => None,
+        None => {
+            note(format_args!(
+                "tessera: note: the parts carry no common recipe, so {} carries none",
+                output.display()
+            ));
+            None
+        }
+    };
+    film.save(&output, render.gamma, recipe.as_ref())?;
+    note(format_args!(
+        "{}: merged {} parts, {}x{}, {} spp",
+        output.display(),
+        paths.len(),
+        film.width,
+        film.height,
+        film.samples_per_pixel
+    ));
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The part files `paths` name: a directory stands for every `*.part` file in it (sorted),
+/// as a shared volume holds a job's parts where no shell expands `*.part`.
+fn part_files(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    let mut files = Vec::new();
+    for path in paths {
+        if !path.is_dir() {
+            files.push(path.clone());
+            continue;
+        }
+        let entries = std::fs::read_dir(path)
+            .with_context(|| format!("{}: could not list the directory", path.display()))?;
+        let mut parts = Vec::new();
+        for entry in entries {
+            let entry = entry
+                .with_context(|| format!("{}: could not list the directory", path.display()))?;
+            let file = entry.path();
+            if file.extension().is_some_and(|e| e == "part") && file.is_file() {
+                parts.push(file);
+            }
+        }
+        if parts.is_empty() {
+            anyhow::bail!("{}: no .part files in the directory", path.display());
+        }
+        parts.sort();
+        files.extend(parts);
+    }
+    Ok(files)
+}
+
+/// The recipe of a merged `film` of `render`'s parts, which carry `source`, when `source`
+/// describes them: the scene it gives has their fingerprint, window and sample count.
+/// `part` names the source in errors.
+fn merged_recipe(source: &Source, render: &RenderId, film: &Film, part: &Path) -> Option<Recipe> {
+    let scene = source.parse(part).ok()?;
+    let s = &scene.settings;
+    (format!("{:016x}", scene.fingerprint()) == render.fingerprint
+        && s.window == render.window
+        && s.samples_per_pixel == render.target)
+        .then(|| Recipe::new(source, &scene, film))
+}

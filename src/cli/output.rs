@@ -1,0 +1,145 @@
+//! What the commands write for people: standard output through `out`, notes on standard
+//! error through `note`, the progress bar, numbers and counts in words, and the exit status
+//! of an outcome. Nothing here panics on a full disk or a closed pipe: a reader that went
+//! away ends the program quietly, as it does any Unix tool.
+
+use anyhow::{Context, Result};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::io::{IsTerminal, Write};
+use std::process::ExitCode;
+use tessera::render::RenderStats;
+
+/// The exit status of a verdict that is not an error: `reproduce` found a difference,
+/// `bench` an invalid image.
+pub const NEGATIVE: u8 = 1;
+/// The exit status of an error: bad input, a file that cannot be read or written.
+pub const ERROR: u8 = 2;
+/// The exit status of a render stopped by Ctrl-C or SIGTERM, its progress saved (128 + SIGINT).
+pub const INTERRUPTED: u8 = 130;
+
+/// The exit status of a command's outcome; an error is printed first (a closed pipe
+/// silently ends with 0).
+pub fn exit_code(outcome: Result<ExitCode>) -> ExitCode {
+    match outcome {
+        Ok(code) => code,
+        Err(e) if is_broken_pipe(&e) => ExitCode::SUCCESS,
+        Err(e) => {
+            note(format_args!("tessera: error: {e:#}"));
+            ExitCode::from(ERROR)
+        }
+    }
+}
+
+/// Prints clap's help, version or usage error and gives its exit status, without the panic
+/// clap's own `exit` risks on a full disk or closed pipe.
+pub fn clap_error(e: &clap::Error) -> ExitCode {
+    match e.print() {
+        Ok(()) => ExitCode::from(u8::try_from(e.exit_code()).unwrap_or(ERROR)),
+        Err(io) if io.kind() == std::io::ErrorKind::BrokenPipe => ExitCode::SUCCESS,
+        Err(io) => {
+            note(format_args!(
+                "tessera: error: could not write the message: {io}"
+            ));
+            ExitCode::from(ERROR)
+        }
+    }
+}
+
+/// True when `e` comes from writing to a pipe whose reader has gone.
+pub fn is_broken_pipe(e: &anyhow::Error) -> bool {
+    e.chain().any(|cause| {
+        cause
+            .downcast_ref::<std::io::Error>()
+            .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+    })
+}
+
+/// Writes `text` to standard output. Unlike `print!`, which panics, a failure (a full disk, a
+/// closed pipe) is an error for the caller to return.
+pub fn out(text: &str) -> Result<()> {
+    let mut stdout = std::io::stdout().lock();
+    stdout
+        .write_all(text.as_bytes())
+        .and_then(|()| stdout.flush())
+        .context("could not write to standard output")
+}
+
+/// Writes a line to standard error. Unlike `eprintln!`, which panics, a failure is ignored:
+/// when standard error cannot be written there is nobody left to tell.
+pub fn note(line: std::fmt::Arguments) {
+    let mut err = std::io::stderr().lock();
+    let _ = err.write_fmt(line).and_then(|()| err.write_all(b"\n"));
+}
+
+/// A progress bar with ETA on standard error when it is a terminal, else a hidden one.
+pub fn progress_bar(total: u64, quiet: bool) -> ProgressBar {
+    if quiet || !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr());
+    if let Ok(style) = ProgressStyle::with_template(
+        "{elapsed_precise} [{wide_bar}] {percent:>3}% of the estimated work, ETA {eta_precise}",
+    ) {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar
+}
+
+/// `n` and the noun, singular for one: `1 thread`, `2 threads`.
+pub fn count(n: impl Into<u64>, noun: &str) -> String {
+    let n = n.into();
+    if n == 1 {
+        format!("1 {noun}")
+    } else {
+        format!("{n} {noun}s")
+    }
+}
+
+/// `x` with `digits` significant digits, without an exponent for everyday magnitudes:
+/// `0.0001234` rather than `0.000123` or `0.000000` for a small but real difference.
+pub fn significant(x: f64, digits: usize) -> String {
+    if x == 0.0 || !x.is_finite() {
+        return format!("{x}");
+    }
+    let magnitude = x.abs().log10().floor() as i32;
+    if !(-9..=9).contains(&magnitude) {
+        return format!("{:.*e}", digits.saturating_sub(1), x);
+    }
+    let decimals = (digits as i32 - 1 - magnitude).max(0) as usize;
+    format!("{x:.decimals$}")
+}
+
+/// Wall time, samples/s, Mrays/s, rays per sample and threads of a render.
+pub fn render_summary(stats: &RenderStats) -> String {
+    format!(
+        "{:.2} s wall, {:.3} M samples/s, {:.2} Mrays/s, {:.3} rays/sample, {}",
+        stats.wall.as_secs_f64(),
+        stats.samples_per_sec() / 1e6,
+        stats.mrays_per_sec(),
+        stats.rays_per_sample(),
+        count(stats.threads as u64, "thread")
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counts_are_singular_for_one() {
+        assert_eq!(count(1u32, "thread"), "1 thread");
+        assert_eq!(count(0u32, "thread"), "0 threads");
+        assert_eq!(count(16u32, "thread"), "16 threads");
+    }
+
+    #[test]
+    fn small_differences_keep_their_significant_digits() {
+        assert_eq!(significant(0.0, 4), "0");
+        assert_eq!(significant(0.000_000_123_456, 4), "0.0000001235");
+        assert_eq!(significant(0.012_345_6, 4), "0.01235");
+        assert_eq!(significant(1.5, 4), "1.500");
+        assert_eq!(significant(1234.5, 4), "1234");
+        assert_eq!(significant(3e-12, 3), "3.00e-12");
+        assert_eq!(significant(f64::INFINITY, 4), "inf");
+    }
+}

@@ -1,0 +1,11 @@
+//! What a benchmark records, below both `bench` (which makes records) and `results` (which
+//! reads them): the result and its schema (`result`), the build and host it ran on
+//! (`host`), the workloads (`workload`), measurements pooled over runs (`stats`), and the
+//! SQLite database that keeps them (`db`, with the `results` feature).
+
+#[cfg(feature = "results")]
+pub mod db;
+pub mod host;
+pub mod result;
+pub mod stats;
+pub mod workload;

@@ -1,0 +1,349 @@
+//! A benchmark result as JSON (schema `tessera-bench/3`, documented in docs/benchmark-json.md):
+//! its context, measurements and validation, and reading results back (from a stranger's
+//! machine as much as our own: sizes, types and values are checked).
+
+use super::host::{Build, Busy, Host};
+use anyhow::{Context, Result, bail};
+use serde::{Deserialize, Serialize};
+use std::io::Read;
+use std::path::Path;
+
+/// The schema this build writes.
+pub const SCHEMA: &str = "tessera-bench/3";
+/// The schemas this build reads: `/1` lacks the host's machine id, clocks and SMT state,
+/// `/2` whether the machine was busy.
+pub const READS: [&str; 3] = ["tessera-bench/1", "tessera-bench/2", SCHEMA];
+/// The largest result file read: real ones are a few kilobytes.
+pub const MAX_FILE: u64 = 1 << 20;
+/// The longest text field accepted (a CPU model, a commit, a scene name).
+const MAX_TEXT: usize = 256;
+/// The most threads a result may claim; more is no machine's.
+const MAX_THREADS: usize = 1 << 16;
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BenchResult {
+    pub schema: String,
+    pub build: Build,
+    pub host: Host,
+    pub workload: WorkloadInfo,
+    pub method: Method,
+    /// The measurement at `method.threads`.
+    pub result: Row,
+    /// One row per thread count measured, fewest first (the headline's alone with
+    /// `--no-scaling`).
+    pub scaling: Vec<Row>,
+    pub validation: Validation,
+    /// Whether the machine was busy while the renders ran: what loaded it, and how much.
+    /// Absent in results before it was recorded (`tessera-bench/1` and `/2`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub busy: Option<Busy>,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct WorkloadInfo {
+    /// A standard workload's name, or `custom`.
+    pub name: String,
+    pub scene: String,
+    /// Hash of the scene text and settings: results of equal ids measured the same work.
+    pub id: String,
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub max_depth: u32,
+    pub seed: u64,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Method {
+    /// Threads of the headline result.
+    pub threads: usize,
+    /// Measured renders per thread count.
+    pub repeat: u32,
+    /// Renders before measuring, not counted.
+    pub warmup: u32,
+    /// When the benchmark started, in seconds since the Unix epoch.
+    pub started_unix_s: u64,
+}
+
+/// The median, least and greatest of a measurement's runs.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Spread {
+    pub median: f64,
+    pub min: f64,
+    pub max: f64,
+}
+
+impl Spread {
+    pub fn of(values: &[f64]) -> Self {
+        let mut v = values.to_vec();
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        let median = match n {
+            0 => f64::NAN,
+            _ if n % 2 == 1 => v[n / 2],
+            _ => (v[n / 2 - 1] + v[n / 2]) / 2.0,
+        };
+        Self {
+            median,
+            min: v.first().copied().unwrap_or(f64::NAN),
+            max: v.last().copied().unwrap_or(f64::NAN),
+        }
+    }
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Row {
+    pub threads: usize,
+    pub samples_per_sec: Spread,
+    pub mrays_per_sec: Spread,
+    pub wall_s: Spread,
+    pub rays_per_sample: f64,
+    /// Median samples/s over the one-thread median, when one thread was measured.
+    pub speedup: Option<f64>,
+    /// `speedup / threads`.
+    pub efficiency: Option<f64>,
+    /// Each run's samples/s, in the order run.
+    pub runs: Vec<f64>,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Validation {
+    /// `valid`: every render's image hash is the expected one; `invalid`: some is not;
+    /// `unvalidated`: a custom workload, with no expected hash.
+    pub status: String,
+    pub expected: Option<String>,
+    /// The distinct image hashes the renders produced (one, unless something is wrong).
+    pub images: Vec<String>,
+}
+
+impl BenchResult {
+    /// Reads a result file, refusing anything that is not a sound result of a schema this
+    /// build reads.
+    pub fn read(path: &Path) -> Result<Self> {
+        let what = path.display().to_string();
+        let file = std::fs::File::open(path).with_context(|| format!("could not open {what}"))?;
+        let mut bytes = Vec::new();
+        file.take(MAX_FILE + 1)
+            .read_to_end(&mut bytes)
+            .with_context(|| format!("could not read {what}"))?;
+        Self::parse(&bytes, &what)
+    }
+
+    /// A result from the bytes of a file named `what`.
+    pub fn parse(bytes: &[u8], what: &str) -> Result<Self> {
+        if bytes.len() as u64 > MAX_FILE {
+            bail!(
+                "{what}: larger than {} KiB: not a tessera bench result",
+                MAX_FILE >> 10
+            );
+        }
+        let text = std::str::from_utf8(bytes)
+            .map_err(|_| anyhow::anyhow!("{what}: not UTF-8 text: not a tessera bench result"))?;
+        // serde_json refuses nesting deeper than 128 before it could exhaust the stack.
+        let value: serde_json::Value =
+            serde_json::from_str(text).map_err(|e| anyhow::anyhow!("{what}: not JSON: {e}"))?;
+        match value.get("schema").and_then(|s| s.as_str()) {
+            Some(s) if READS.contains(&s) => {}
+            Some(other) => bail!(
+                "{what}: schema `{}`: this tessera reads {} (a newer tessera wrote it?)",
+                other.escape_debug().take(64).collect::<String>(),
+                READS.join(" and ")
+            ),
+            None => bail!("{what}: not a tessera bench result (no `schema` field)"),
+        }
+        let report: BenchResult = serde_json::from_value(value)
+            .map_err(|e| anyhow::anyhow!("{what}: not a valid result: {e}"))?;
+        report
+            .check()
+            .map_err(|why| anyhow::anyhow!("{what}: not a sound result: {why}"))?;
+        Ok(report)
+    }
+
+    /// Refuses what no real run produces: absurd counts, times and speeds, overlong text,
+    /// a headline missing from its table, a validation that contradicts itself.
+    pub fn check(&self) -> Result<(), String> {
+        let texts = [
+            ("build.version", Some(&self.build.version)),
+            ("build.commit", Some(&self.build.commit)),
+            ("build.rustc", Some(&self.build.rustc)),
+            ("build.target", Some(&self.build.target)),
+            ("build.profile", Some(&self.build.profile)),
+            ("build.simd", Some(&self.build.simd)),
+            ("build.simd_reason", self.build.simd_reason.as_ref()),
+            ("host.cpu_model", self.host.cpu_model.as_ref()),
+            ("host.os", self.host.os.as_ref()),
+            ("host.kernel", self.host.kernel.as_ref()),
+            ("host.container", self.host.container.as_ref()),
+            ("host.machine_id", self.host.machine_id.as_ref()),
+            ("workload.name", Some(&self.workload.name)),
+            ("workload.scene", Some(&self.workload.scene)),
+            ("workload.id", Some(&self.workload.id)),
+            ("validation.status", Some(&self.validation.status)),
+        ];
+        for (name, text) in texts {
+            if text.is_some_and(|t| t.chars().count() > MAX_TEXT) {
+                return Err(format!("{name} is longer than {MAX_TEXT} characters"));
+            }
+        }
+        if self.build.simd_supported.len() > 16 || self.validation.images.len() > 1024 {
+            return Err("a list is longer than any run makes".into());
+        }
+        let count = |name: &str, n: usize, max: usize| {
+            if (1..=max).contains(&n) {
+                Ok(())
+            } else {
+                Err(format!("{name} is {n}, not 1 to {max}"))
+            }
+        };
+        count("host.logical_cpus", self.host.logical_cpus, MAX_THREADS)?;
+        count("method.threads", self.method.threads, MAX_THREADS)?;
+        count("method.repeat", self.method.repeat as usize, 1_000_000)?;
+        count("workload.width", self.workload.width as usize, 1 << 16)?;
+        count("workload.height", self.workload.height as usize, 1 << 16)?;
+        count("workload.spp", self.workload.spp as usize, 1 << 24)?;
+        count("scaling rows", self.scaling.len(), 64)?;
+        if let Some(busy) = &self.busy {
+            check_busy(busy)?;
+        }
+        for row in self.scaling.iter().chain([&self.result]) {
+            count("a row's threads", row.threads, MAX_THREADS)?;
+            if row.runs.len() > 1_000_000 {
+                return Err("a row has more runs than any bench makes".into());
+            }
+            let positive = |name: &str, x: f64| {
+                if x.is_finite() && x > 0.0 {
+                    Ok(())
+                } else {
+                    Err(format!(
+                        "{} threads: {name} is {x}, not a positive number",
+                        row.threads
+                    ))
+                }
+            };
+            for (name, s) in [
+                ("samples/s", row.samples_per_sec),
+                ("Mrays/s", row.mrays_per_sec),
+                ("wall time", row.wall_s),
+            ] {
+                positive(name, s.min)?;
+                positive(name, s.median)?;
+                positive(name, s.max)?;
+                if !(s.min <= s.median && s.median <= s.max) {
+                    return Err(format!(
+                        "{} threads: {name}'s min, median and max are out of order",
+                        row.threads
+                    ));
+                }
+            }
+            positive("rays per sample", row.rays_per_sample)?;
+            for x in row
+                .runs
+                .iter()
+                .copied()
+                .chain(row.speedup)
+                .chain(row.efficiency)
+            {
+                positive("a run or speedup", x)?;
+            }
+        }
+        if !self
+            .scaling
+            .iter()
+            .any(|r| r.threads == self.result.threads)
+            || self.result.threads != self.method.threads
+        {
+            return Err("the headline's thread count is not in the scaling table".into());
+        }
+        let v = &self.validation;
+        let consistent = match v.status.as_str() {
+            "valid" => {
+                v.expected.is_some()
+                    && v.images.len() == 1
+                    && v.images.first() == v.expected.as_ref()
+            }
+            "invalid" => {
+                v.expected.is_some()
+                    && (v.images.len() != 1 || v.images.first() != v.expected.as_ref())
+            }
+            "unvalidated" => v.expected.is_none(),
+            _ => false,
+        };
+        if !consistent {
+            return Err(format!(
+                "validation `{}` does not agree with its image hashes",
+                v.status.escape_debug()
+            ));
+        }
+        // 2020-01-01 to a day from now: tessera did not exist before, and clocks drift.
+        let now = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(u64::MAX, |d| d.as_secs());
+        let started = self.method.started_unix_s;
+        if !(1_577_836_800..=now.saturating_add(86_400)).contains(&started) {
+            return Err(format!(
+                "method.started_unix_s {started} is not a time a run took place"
+            ));
+        }
+        Ok(())
+    }
+
+    /// The machine that ran it: the result's own id, or for a `tessera-bench/1` result, the
+    /// one its hardware facts give.
+    #[cfg_attr(not(feature = "results"), allow(dead_code))]
+    pub fn machine_id(&self) -> String {
+        self.host.machine_id.clone().unwrap_or_else(|| {
+            let h = &self.host;
+            super::host::machine_id(&super::host::Facts {
+                cpu_model: h.cpu_model.as_deref(),
+                logical_cpus: h.logical_cpus,
+                physical_cores: h.physical_cores,
+                memory_bytes: h.memory_bytes,
+            })
+        })
+    }
+
+    /// A short label: workload, CPU, SIMD path and commit.
+    pub fn label(&self) -> String {
+        let commit: String = self.build.commit.chars().take(8).collect();
+        format!(
+            "{} · {} · {} · {commit}",
+            self.workload.name,
+            self.host.cpu_model.as_deref().unwrap_or("unknown CPU"),
+            self.build.simd
+        )
+    }
+}
+
+/// Refuses a record of a busy machine that no run makes.
+fn check_busy(busy: &Busy) -> Result<(), String> {
+    if busy.reasons.len() > 8 {
+        return Err("busy.reasons: more reasons than a run gives".into());
+    }
+    if busy.reasons.iter().any(|r| r.chars().count() > MAX_TEXT) {
+        return Err(format!(
+            "busy.reasons: a reason longer than {MAX_TEXT} characters"
+        ));
+    }
+    if busy.busy == busy.reasons.is_empty() {
+        return Err("busy.busy does not agree with its reasons".into());
+    }
+    if let Some(cpus) = busy.others_cpus
+        && !(cpus.is_finite() && (0.0..=MAX_THREADS as f64).contains(&cpus))
+    {
+        return Err(format!(
+            "busy.others_cpus is {cpus}, not 0 to {MAX_THREADS}"
+        ));
+    }
+    if let Some(steal) = busy.steal
+        && !(steal.is_finite() && (0.0..=1.0).contains(&steal))
+    {
+        return Err(format!("busy.steal is {steal}, not a share from 0 to 1"));
+    }
+    Ok(())
+}

@@ -1,0 +1,386 @@
+//! `tessera render`'s arguments checked against each other and against the scene, and every
+//! output checked writable, before any work starts: a `RenderPlan` that knows how to run.
+
+use super::{Args, PreviewArgs, SceneArgs, SplitArg};
+use crate::cli::writable::check_output;
+use anyhow::{Result, bail};
+use std::net::{SocketAddr, TcpListener};
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+use tessera::image_file::Format;
+use tessera::job::Job;
+use tessera::math::PixelRect;
+use tessera::partial::RenderId;
+use tessera::recipe::Source;
+use tessera::render::RenderOptions;
+use tessera::scene::{Overrides, Scene};
+use tessera::shard::{self, Shard, Split, parse_samples};
+
+/// The scene `render` renders when none is named.
+pub const DEFAULT_SCENE: &str = "scenes/cover.toml";
+
+/// Where a render's result goes.
+pub enum Output {
+    /// The finished image, in the format its extension names.
+    Image(PathBuf),
+    /// A part file for `tessera merge`: the render is one part (a shard or a sample range).
+    Part(PathBuf),
+}
+
+impl Output {
+    pub fn path(&self) -> &Path {
+        match self {
+            Output::Image(p) | Output::Part(p) => p,
+        }
+    }
+}
+
+/// Where and how often a render saves its progress.
+pub struct CheckpointSettings {
+    pub path: PathBuf,
+    /// The longest time between saves; zero saves after every tile.
+    pub every: Duration,
+}
+
+/// Seconds between writes of the preview file, unless `--preview-every` says otherwise.
+const PREVIEW_EVERY_SECS: f64 = 2.0;
+
+/// How a render is watched: a live viewer, a preview file, both or neither.
+#[derive(Default)]
+pub struct PreviewSettings {
+    /// The viewer's listener, bound before the render starts.
+    pub listener: Option<TcpListener>,
+    /// Serve the final frame after the render until Ctrl-C.
+    pub hold: bool,
+    /// The preview file and the time between its writes.
+    pub file: Option<(PathBuf, Duration)>,
+}
+
+impl PreviewSettings {
+    pub fn is_on(&self) -> bool {
+        self.listener.is_some() || self.file.is_some()
+    }
+
+    /// Checks `--preview`, `--preview-hold`, `--preview-file` and `--preview-every`, and
+    /// binds the viewer.
+    fn new(args: &PreviewArgs) -> Result<Self> {
+        let file = match &args.preview_file {
+            Some(path) => {
+                if Format::from_path(path)? != Format::Png {
+                    bail!("--preview-file must name a .png file");
+                }
+                check_output(path)?;
+                let every = seconds(
+                    "--preview-every",
+                    args.preview_every.unwrap_or(PREVIEW_EVERY_SECS),
+                )?;
+                if every.is_zero() {
+                    bail!("--preview-every must be more than 0 seconds");
+                }
+                Some((path.clone(), every))
+            }
+            None => None,
+        };
+        if file.is_none() && args.preview_every.is_some() {
+            bail!("--preview-every needs --preview-file");
+        }
+        let listener = match &args.preview {
+            Some(_) if !cfg!(feature = "preview") => bail!(
+                "--preview: this tessera was built without the live viewer (cargo feature \
+                 `preview`); --preview-file writes the image so far to a file instead"
+            ),
+            Some(spec) => Some(bind_preview(spec)?),
+            None => None,
+        };
+        Ok(Self {
+            listener,
+            hold: args.preview_hold,
+            file,
+        })
+    }
+}
+
+/// A number of seconds from the command line, checked.
+fn seconds(flag: &str, secs: f64) -> Result<Duration> {
+    if !(secs >= 0.0 && secs.is_finite()) {
+        bail!("{flag} must be a number of seconds, 0 or more");
+    }
+    // More seconds than a Duration holds (about 585 billion years) means never.
+    Ok(Duration::try_from_secs_f64(secs).unwrap_or(Duration::MAX))
+}
+
+/// The address `--preview=SPEC` names: `ADDR:PORT` or `[IPv6]:PORT` with an IP address,
+/// `localhost:PORT`, or a bare `PORT` (on 127.0.0.1). Names are not looked up: a viewer
+/// listens on this machine's own addresses.
+pub fn preview_address(spec: &str) -> Result<SocketAddr> {
+    let spec = spec.trim();
+    if let Ok(port) = spec.parse::<u16>() {
+        return Ok(SocketAddr::from(([127, 0, 0, 1], port)));
+    }
+    if let Ok(addr) = spec.parse::<SocketAddr>() {
+        return Ok(addr);
+    }
+    match spec.rsplit_once(':') {
+        Some((host, port)) if host.eq_ignore_ascii_case("localhost") => {
+            if let Ok(port) = port.parse::<u16>() {
+                return Ok(SocketAddr::from(([127, 0, 0, 1], port)));
+            }
+        }
+        _ => {}
+    }
+    bail!(
+        "--preview: `{spec}` is not an address; write ADDR:PORT (127.0.0.1:8080), \
+         [::1]:8080, localhost:8080 or a port alone"
+    )
+}
+
+/// Binds the viewer's listener now, so that an address in use, one that is not this
+/// machine's or a port without permission is an error before the render starts.
+fn bind_preview(spec: &str) -> Result<TcpListener> {
+    let addr = preview_address(spec)?;
+    TcpListener::bind(addr).map_err(|e| {
+        use std::io::ErrorKind;
+        let why = match e.kind() {
+            ErrorKind::AddrInUse => {
+                "is in use by another program; choose another port, or leave it out for a free one"
+                    .to_owned()
+            }
+            ErrorKind::PermissionDenied => {
+                format!("needs a permission this user lacks (ports below 1024 need root): {e}")
+            }
+            ErrorKind::AddrNotAvailable => format!("is not an address of this machine: {e}"),
+            _ => format!("cannot be listened on: {e}"),
+        };
+        anyhow::anyhow!("--preview: {addr} {why}")
+    })
+}
+
+/// A render, checked and ready to run.
+pub struct RenderPlan {
+    pub scene: Scene,
+    pub options: RenderOptions,
+    /// What this process renders: the scene's window over all its samples, or one part.
+    pub job: Job,
+    /// The render the job belongs to (the whole image's samples per pixel included).
+    pub render: RenderId,
+    pub output: Output,
+    pub checkpoint: Option<CheckpointSettings>,
+    pub preview: PreviewSettings,
+    /// What the job is, in a few words: the whole image, a crop, a shard or samples.
+    pub job_label: String,
+    /// The scene file as given.
+    pub scene_file: PathBuf,
+    pub quiet: bool,
+}
+
+impl RenderPlan {
+    pub fn new(args: Args) -> Result<Self> {
+        // `--preview 8080` takes 8080 as the scene file: say what was meant.
+        let scene_arg = args.scene.scene.to_string_lossy();
+        if !args.scene.scene.exists() && preview_address(&scene_arg).is_ok() {
+            bail!(
+                "`{scene_arg}` looks like an address, not a scene file; to choose the viewer's \
+                 address write --preview={scene_arg}"
+            );
+        }
+        let options = RenderOptions {
+            threads: args.scene.threads,
+            tile: args.tile,
+            simd: args.scene.simd.path()?,
+        };
+        let every = seconds("--checkpoint-every", args.checkpoint_every)?;
+        let (scene, source) = load(&args.scene, args.depth, args.seed)?;
+        let shard = match &args.shard {
+            Some(spec) => Some(Shard::parse(spec, |k| std::env::var(k).ok())?),
+            None => None,
+        };
+        let samples = args.samples.as_deref().map(parse_samples).transpose()?;
+        let split = match args.split {
+            SplitArg::Samples => Split::Samples,
+            SplitArg::Rows => Split::Rows,
+        };
+        let job = shard::job(&scene, shard, split, samples)?;
+        let job_label = match (shard, samples) {
+            (Some(s), _) => format!("shard {}/{}", s.index, s.count),
+            (None, Some(r)) => format!("samples {}..{}", r.start, r.end),
+            (None, None)
+                if job.region != PixelRect::full(scene.settings.width, scene.settings.height) =>
+            {
+                let r = job.region;
+                format!("crop {}x{} at ({}, {})", r.width, r.height, r.x0, r.y0)
+            }
+            (None, None) => "whole image".to_owned(),
+        };
+        // Every part is a piece of the image of the scene's samples per pixel.
+        let target = scene.settings.samples_per_pixel;
+        if let Some(r) = samples
+            && r.end > target
+        {
+            bail!(
+                "--samples {}..{} goes past the {target} samples per pixel of the image; raise --spp",
+                r.start,
+                r.end
+            );
+        }
+        let path = args
+            .output
+            .unwrap_or_else(|| default_output(&args.scene.scene));
+        // A shard or sample range always writes a part, even one that happens to be the
+        // whole render (a Slurm array of one task), so a merge can take it.
+        let output = if shard.is_some() || samples.is_some() {
+            Output::Part(path)
+        } else {
+            Format::from_path(&path)?;
+            Output::Image(path)
+        };
+        // Refuse an output that cannot be written before spending minutes on the render.
+        check_output(output.path())?;
+        let checkpoint = args
+            .checkpoint
+            .map(|path| CheckpointSettings { path, every });
+        if let Some(c) = &checkpoint
+            && !c.path.exists()
+        {
+            check_output(&c.path)?;
+        }
+        // Last, so that the port is taken only once everything else is known to be right.
+        let preview = PreviewSettings::new(&args.preview)?;
+        Ok(Self {
+            render: RenderId {
+                recipe: (!args.no_provenance).then_some(source),
+                ..RenderId::of(&scene, target)
+            },
+            scene,
+            options,
+            job,
+            output,
+            checkpoint,
+            preview,
+            job_label,
+            scene_file: args.scene.scene,
+            quiet: args.quiet,
+        })
+    }
+}
+
+/// The scene file, parsed with the command line's overrides, and its recipe source: the
+/// text parsed is the text recorded.
+fn load(args: &SceneArgs, depth: Option<u32>, seed: Option<u64>) -> Result<(Scene, Source)> {
+    let overrides = Overrides {
+        width: args.width,
+        samples_per_pixel: args.spp,
+        max_depth: depth,
+        seed,
+    };
+    if !args.scene.exists() {
+        bail!("{}", missing_scene(&args.scene));
+    }
+    let text = Scene::read_text(&args.scene)?;
+    let scene = Scene::parse(&text, &args.scene, &overrides)?;
+    Ok((scene, Source::new(&args.scene, &text, overrides)))
+}
+
+/// What to say of a scene file that does not exist: the nearest names among the scene files
+/// beside where it was looked for, and in `scenes/`.
+fn missing_scene(path: &Path) -> String {
+    let mut said = format!("{}: no such scene file", path.display());
+    let wanted = path
+        .file_stem()
+        .map_or(String::new(), |s| s.to_string_lossy().to_lowercase());
+    let mut dirs = vec![match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_owned(),
+        _ => PathBuf::from("."),
+    }];
+    dirs.push(PathBuf::from("scenes"));
+    dirs.dedup();
+    let mut candidates: Vec<(usize, PathBuf)> = Vec::new();
+    for dir in dirs {
+        let Ok(entries) = std::fs::read_dir(&dir) else {
+            continue;
+        };
+        for entry in entries.flatten().take(10_000) {
+            let file = entry.path();
+            if file.extension().is_none_or(|e| e != "toml") {
+                continue;
+            }
+            let stem = file
+                .file_stem()
+                .map_or(String::new(), |s| s.to_string_lossy().to_lowercase());
+            if let Some(distance) = nearness(&wanted, &stem) {
+                let shown = if dir == Path::new(".") {
+                    PathBuf::from(entry.file_name())
+                } else {
+                    file
+                };
+                candidates.push((distance, shown));
+            }
+        }
+    }
+    candidates.sort();
+    candidates.dedup_by(|a, b| a.1 == b.1);
+    if !candidates.is_empty() {
+        let names: Vec<String> = (candidates.iter().take(3))
+            .map(|(_, p)| p.display().to_string())
+            .collect();
+        said.push_str(&format!("; did you mean {}?", names.join(" or ")));
+    } else if !Path::new("scenes").is_dir() {
+        said.push_str(
+            "; the scene files are in the repository's scenes/ directory: run tessera from \
+             there, or give the file's path",
+        );
+    }
+    said
+}
+
+/// How near a typed name is to a file's name, when near enough to suggest: 0 when one
+/// holds the other (`hollow` in `img-1.16-glass-hollow`), else one more than their edit
+/// distance, up to two or a third of the longer name.
+fn nearness(wanted: &str, name: &str) -> Option<usize> {
+    if wanted.len() >= 3 && (name.contains(wanted) || wanted.contains(name)) {
+        return Some(0);
+    }
+    let distance = edit_distance(wanted, name);
+    let longer = wanted.chars().count().max(name.chars().count());
+    (distance <= (longer / 3).max(2)).then_some(distance + 1)
+}
+
+/// Levenshtein's distance between `a` and `b`, in characters.
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut diagonal = row[0];
+        row[0] = i + 1;
+        for (j, &cb) in b.iter().enumerate() {
+            let above = row[j + 1];
+            row[j + 1] = (above + 1)
+                .min(row[j] + 1)
+                .min(diagonal + usize::from(ca != cb));
+            diagonal = above;
+        }
+    }
+    row[b.len()]
+}
+
+/// The scene's file name with `.png`.
+fn default_output(scene: &Path) -> PathBuf {
+    let stem = scene.file_stem().map_or("render".into(), |s| s.to_owned());
+    let mut name = stem;
+    name.push(".png");
+    PathBuf::from(name)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_near_a_missing_one_are_suggested() {
+        assert_eq!(edit_distance("cover", "cover"), 0);
+        assert_eq!(edit_distance("covr", "cover"), 1);
+        assert_eq!(edit_distance("", "abc"), 3);
+        assert_eq!(nearness("hollow", "img-1.16-glass-hollow"), Some(0));
+        assert_eq!(nearness("cvoer", "cover"), Some(3));
+        assert_eq!(nearness("zebra", "cover"), None);
+    }
+}

@@ -1,0 +1,131 @@
+//! The difference of two images of equal size: RMSE, PSNR and mean absolute error.
+
+use crate::error::{Error, Result};
+use std::path::Path;
+
+/// Difference statistics of two images, over all pixels and RGB channels, values in [0, 1].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Difference {
+    pub rmse: f64,
+    /// Mean absolute error.
+    pub mean_abs: f64,
+    /// Peak signal-to-noise ratio in dB for peak 1.0; infinite for identical images.
+    pub psnr_db: f64,
+}
+
+/// An RGB image as floats in [0, 1]: 8-bit formats scaled, EXR's linear values clamped (NaN
+/// counts as 0), so an over-bright float image compares as a display would show it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RgbImage {
+    pub width: u32,
+    pub height: u32,
+    pub data: Vec<f32>,
+}
+
+impl RgbImage {
+    pub fn load(path: &Path) -> Result<Self> {
+        let img = image::open(path).map_err(|e| Error::Image {
+            path: path.to_owned(),
+            message: e.to_string(),
+        })?;
+        let rgb = img.to_rgb32f();
+        Ok(Self {
+            width: rgb.width(),
+            height: rgb.height(),
+            data: rgb.into_raw().into_iter().map(unit).collect(),
+        })
+    }
+
+    /// Wraps 8-bit RGB values.
+    pub fn from_rgb8(width: u32, height: u32, bytes: &[u8]) -> Self {
+        Self {
+            width,
+            height,
+            data: bytes.iter().map(|&b| f32::from(b) / 255.0).collect(),
+        }
+    }
+}
+
+/// `c` clamped to [0, 1]; NaN is 0.
+fn unit(c: f32) -> f32 {
+    if c > 0.0 { c.min(1.0) } else { 0.0 }
+}
+
+/// The difference of two images; they must have the same size.
+pub fn difference(a: &RgbImage, b: &RgbImage) -> std::result::Result<Difference, String> {
+    if (a.width, a.height) != (b.width, b.height) {
+        return Err(format!(
+            "images differ in size: {}x{} and {}x{}",
+            a.width, a.height, b.width, b.height
+        ));
+    }
+    let n = a.data.len().max(1) as f64;
+    let (mut sq, mut abs) = (0.0f64, 0.0f64);
+    for (x, y) in a.data.iter().zip(&b.data) {
+        let d = f64::from(*x) - f64::from(*y);
+        sq += d * d;
+        abs += d.abs();
+    }
+    let rmse = (sq / n).sqrt();
+    Ok(Difference {
+        rmse,
+        mean_abs: abs / n,
+        psnr_db: if rmse == 0.0 {
+            f64::INFINITY
+        } else {
+            -20.0 * rmse.log10()
+        },
+    })
+}
+
+/// Loads two image files and gives their difference.
+pub fn difference_of_files(a: &Path, b: &Path) -> Result<Difference> {
+    let (ia, ib) = (RgbImage::load(a)?, RgbImage::load(b)?);
+    difference(&ia, &ib).map_err(|message| Error::Image {
+        path: b.to_owned(),
+        message,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn identical_images_have_infinite_psnr() {
+        let a = RgbImage::from_rgb8(2, 1, &[1, 2, 3, 4, 5, 6]);
+        let d = difference(&a, &a).unwrap();
+        assert_eq!(d.rmse, 0.0);
+        assert!(d.psnr_db.is_infinite());
+    }
+
+    #[test]
+    fn float_images_compare_clamped_to_the_unit_range() {
+        let dir = std::env::temp_dir().join(format!("tessera-compare-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        // Linear values far above 1 (and below 0) read as white (and black), as an 8-bit
+        // image of them shows.
+        let mut film = crate::film::Film::new(2, 1, 1);
+        film.sums[0] = [crate::film::to_fixed(1e5); 3];
+        film.sums[1] = [crate::film::to_fixed(0.5), 0, crate::film::to_fixed(3.0)];
+        let exr = dir.join("bright.exr");
+        film.save(&exr, 1.0, None).unwrap();
+        let loaded = RgbImage::load(&exr).unwrap();
+        assert_eq!(loaded.data, [1.0, 1.0, 1.0, 0.5, 0.0, 1.0]);
+        let white = RgbImage::from_rgb8(2, 1, &[255, 255, 255, 0, 0, 0]);
+        let d = difference(&loaded, &white).unwrap();
+        assert!(d.psnr_db > 0.0 && d.rmse <= 1.0, "{d:?}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn psnr_of_a_uniform_offset() {
+        let a = RgbImage::from_rgb8(1, 1, &[0, 0, 0]);
+        let b = RgbImage::from_rgb8(1, 1, &[255, 255, 255]);
+        let d = difference(&a, &b).unwrap();
+        assert!((d.rmse - 1.0).abs() < 1e-12);
+        assert!(d.psnr_db.abs() < 1e-9);
+        let c = RgbImage::from_rgb8(2, 1, &[0; 6]);
+        assert!(difference(&a, &c).is_err());
+    }
+}

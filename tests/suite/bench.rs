@@ -1,0 +1,238 @@
+//! `tessera bench` as a benchmark to trust: the standard workloads produce the images whose
+//! hashes the repository keeps; a result carries its context and is valid; results compare
+//! and chart; bad input is refused.
+
+use crate::common::*;
+use serde_json::Value;
+use std::path::Path;
+
+/// The quick workload, measured once on one thread: the fastest valid result.
+const ONE_QUICK_RUN: [&str; 8] = [
+    "bench",
+    "--repeat",
+    "1",
+    "--warmup",
+    "0",
+    "--no-scaling",
+    "--threads",
+    "1",
+];
+
+fn json(path: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+/// Keeps `benches/workloads.toml` true: regenerating it renders every standard workload
+/// (the full cover included) and must give the very file in the repository.
+#[test]
+fn the_standard_workloads_produce_the_images_the_repository_expects() {
+    let dir = temp_dir("bench-workloads");
+    ok(&["bench", "--write-workloads", "workloads.toml"], &dir);
+    let regenerated = std::fs::read_to_string(dir.join("workloads.toml")).unwrap();
+    let kept = std::fs::read_to_string(root().join("benches/workloads.toml")).unwrap();
+    assert!(
+        regenerated == kept,
+        "an image changed: if on purpose, run `cargo run --release -- bench \
+         --write-workloads benches/workloads.toml` and commit it\n{regenerated}"
+    );
+}
+
+#[test]
+fn a_quick_result_is_valid_and_carries_build_host_and_workload() {
+    let dir = temp_dir("bench-json");
+    let o = run(
+        &[
+            "bench", "--json", "--repeat", "2", "--warmup", "1", "--out", "r.json",
+        ],
+        &dir,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let printed: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let r = json(&dir.join("r.json"));
+    assert_eq!(printed, r, "--out writes what --json prints");
+    assert_eq!(r["schema"], "tessera-bench/3");
+    assert_eq!(r["validation"]["status"], "valid");
+    assert_eq!(r["validation"]["images"].as_array().unwrap().len(), 1);
+    assert_eq!(r["workload"]["name"], "quick");
+    assert_eq!(r["workload"]["width"], 600);
+    assert_eq!(r["workload"]["spp"], 16);
+    assert!(
+        r["workload"]["id"]
+            .as_str()
+            .unwrap()
+            .starts_with("xxh3-128:")
+    );
+    let build = &r["build"];
+    assert_eq!(build["version"], env!("CARGO_PKG_VERSION"));
+    assert!(!build["commit"].as_str().unwrap().is_empty());
+    assert!(build["rustc"].as_str().unwrap().starts_with("rustc "));
+    let reason = build["simd_reason"].as_str().unwrap();
+    assert!(reason.starts_with("auto on "), "{reason}");
+    let supported = build["simd_supported"].as_array().unwrap();
+    assert!(supported.contains(&build["simd"]));
+    let host = &r["host"];
+    let cpus = host["cpus_usable"].as_u64().unwrap() as usize;
+    assert!(cpus >= 1);
+    assert!(host["logical_cpus"].as_u64().unwrap() as usize >= cpus);
+    let machine = host["machine_id"].as_str().unwrap();
+    assert!(
+        machine.starts_with("m-") && machine.len() == 18,
+        "{machine}"
+    );
+    if cfg!(target_os = "linux") {
+        for field in ["cpu_model", "memory_bytes", "kernel", "load_average", "os"] {
+            assert!(!host[field].is_null(), "host.{field}");
+        }
+    }
+    // Scaling: 1, 2, 4, … then every CPU, each with its spread.
+    let threads: Vec<usize> = (r["scaling"].as_array().unwrap().iter())
+        .map(|row| row["threads"].as_u64().unwrap() as usize)
+        .collect();
+    assert_eq!(threads.first(), Some(&1));
+    assert_eq!(threads.last(), Some(&cpus));
+    for row in r["scaling"].as_array().unwrap() {
+        let s = &row["samples_per_sec"];
+        let (min, median, max) = (
+            s["min"].as_f64().unwrap(),
+            s["median"].as_f64().unwrap(),
+            s["max"].as_f64().unwrap(),
+        );
+        assert!(0.0 < min && min <= median && median <= max, "{row}");
+        assert_eq!(row["runs"].as_array().unwrap().len(), 2);
+        let rays = row["rays_per_sample"].as_f64().unwrap();
+        assert!((2.68..2.71).contains(&rays), "rays per sample {rays}");
+    }
+    assert_eq!(r["result"]["threads"].as_u64().unwrap() as usize, cpus);
+    assert_eq!(r["scaling"][0]["speedup"], 1.0);
+}
+
+#[test]
+fn results_compare_and_chart() {
+    let dir = temp_dir("bench-compare");
+    ok(&[&ONE_QUICK_RUN[..], &["--out", "a.json"]].concat(), &dir);
+    ok(
+        &[
+            &ONE_QUICK_RUN[..],
+            &["--out", "b.json", "--simd", "portable"],
+        ]
+        .concat(),
+        &dir,
+    );
+    let o = run(&["bench", "--compare", "a.json", "b.json"], &dir);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8(o.stdout).unwrap();
+    assert!(
+        text.contains("A: old: ") && text.contains("B: new: "),
+        "{text}"
+    );
+    assert!(text.contains("B/A"), "{text}");
+    assert!(
+        text.lines().any(|l| l.trim_start().starts_with("1 ")),
+        "{text}"
+    );
+    ok(&["bench", "--chart", "c.svg", "a.json", "b.json"], &dir);
+    let svg = std::fs::read_to_string(dir.join("c.svg")).unwrap();
+    assert!(svg.starts_with("<?xml") && svg.contains("<svg"), "{svg}");
+    assert!(svg.contains("portable") && svg.contains("threads") && svg.contains("M samples/s"));
+}
+
+#[test]
+fn a_custom_scene_is_validated_only_when_it_is_a_standard_workload() {
+    let dir = temp_dir("bench-custom");
+    let cover = cover();
+    let run_json = |extra: &[&str]| -> Value {
+        let args = [
+            &[
+                "bench",
+                &cover,
+                "--json",
+                "--repeat",
+                "1",
+                "--warmup",
+                "0",
+                "--no-scaling",
+            ][..],
+            extra,
+        ]
+        .concat();
+        let o = run(&args, &dir);
+        assert!(o.status.success(), "{}", stderr(&o));
+        serde_json::from_slice(&o.stdout).unwrap()
+    };
+    let same = run_json(&["--width", "600", "--spp", "16"]);
+    assert_eq!(same["workload"]["name"], "quick");
+    assert_eq!(same["validation"]["status"], "valid");
+    let other = run_json(&["--width", "100", "--spp", "2"]);
+    assert_eq!(other["workload"]["name"], "custom");
+    assert_eq!(other["validation"]["status"], "unvalidated");
+    assert!(other["validation"]["expected"].is_null());
+}
+
+#[test]
+fn bad_results_and_workloads_are_refused_with_status_2() {
+    let dir = temp_dir("bench-bad");
+    ok(&[&ONE_QUICK_RUN[..], &["--out", "a.json"]].concat(), &dir);
+    ok(
+        &[
+            "bench",
+            &cover(),
+            "--width",
+            "64",
+            "--spp",
+            "1",
+            "--repeat",
+            "1",
+            "--warmup",
+            "0",
+            "--no-scaling",
+            "--out",
+            "other.json",
+        ],
+        &dir,
+    );
+    std::fs::write(dir.join("foreign.json"), r#"{"samples_per_sec": 1.0}"#).unwrap();
+    std::fs::write(
+        dir.join("corrupt.json"),
+        r#"{"schema": "tessera-bench/1", "#,
+    )
+    .unwrap();
+    let a = std::fs::read_to_string(dir.join("a.json")).unwrap();
+    std::fs::write(
+        dir.join("future.json"),
+        a.replace("tessera-bench/3", "tessera-bench/9"),
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("field.json"),
+        a.replace("\"threads\"", "\"thread\""),
+    )
+    .unwrap();
+    let cases: &[(&[&str], &str)] = &[
+        (
+            &["--compare", "a.json", "foreign.json"],
+            "not a tessera bench result",
+        ),
+        (&["--compare", "a.json", "corrupt.json"], "not JSON"),
+        (
+            &["--compare", "a.json", "future.json"],
+            "schema `tessera-bench/9`",
+        ),
+        (&["--compare", "a.json", "field.json"], "not a valid"),
+        (&["--compare", "a.json", "missing.json"], "could not open"),
+        (
+            &["--compare", "a.json", "other.json"],
+            "different workloads",
+        ),
+        (
+            &["--chart", "c.svg", "a.json", "other.json"],
+            "different workloads",
+        ),
+        (&["--workload", "nope"], "unknown workload `nope`"),
+    ];
+    for (args, message) in cases {
+        let o = run(&[&["bench"][..], args].concat(), &dir);
+        assert_eq!(o.status.code(), Some(2), "{args:?}");
+        assert!(stderr(&o).contains(message), "{args:?}: {}", stderr(&o));
+    }
+    assert!(!dir.join("c.svg").exists());
+}

@@ -1,0 +1,527 @@
+//! One render spread over processes: shards and sample ranges merged must equal a single
+//! render byte for byte; a render killed at any moment and resumed must too; bad parts are
+//! refused with their reason and nothing on disk is damaged. Every case runs real processes.
+
+use crate::common::*;
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::time::Duration;
+
+fn spawn(args: &[&str], dir: &Path) -> Child {
+    tessera()
+        .args(args)
+        .current_dir(dir)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn tessera")
+}
+
+/// A scene other than the cover, for parts and checkpoints that must not mix with it.
+fn other_scene() -> String {
+    scene_path("img-1.18-view-distant.toml")
+        .to_string_lossy()
+        .into_owned()
+}
+
+/// A small cover render's settings, as arguments.
+const SMALL: [&str; 4] = ["--width", "120", "--spp", "12"];
+
+/// `render SCENE -q MORE…` at the small size.
+fn small<'a>(scene: &'a str, more: &[&'a str]) -> Vec<&'a str> {
+    with(&with(&["render", scene, "-q"], more), &SMALL)
+}
+
+fn with<'a>(base: &[&'a str], more: &[&'a str]) -> Vec<&'a str> {
+    base.iter().chain(more).copied().collect()
+}
+
+fn bytes(dir: &Path, name: &str) -> Vec<u8> {
+    std::fs::read(dir.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"))
+}
+
+#[test]
+fn parallel_sample_shards_merge_to_the_single_render() {
+    let dir = temp_dir("shards-samples");
+    let scene = cover();
+    ok(&small(&scene, &["-o", "single.png"]), &dir);
+    ok(&small(&scene, &["-o", "single.exr"]), &dir);
+    let names: Vec<String> = (0..4).map(|i| format!("part{i}.bin")).collect();
+    let specs: Vec<String> = (0..4).map(|i| format!("{i}/4")).collect();
+    let children: Vec<Child> = (0..4)
+        .map(|i| {
+            spawn(
+                &small(&scene, &["--shard", &specs[i], "-o", &names[i]]),
+                &dir,
+            )
+        })
+        .collect();
+    for c in children {
+        let o = c.wait_with_output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let parts: Vec<&str> = names.iter().map(String::as_str).collect();
+    ok(&with(&["merge", "-o", "merged.png"], &parts), &dir);
+    assert_eq!(bytes(&dir, "merged.png"), bytes(&dir, "single.png"));
+    // Any order, any output format.
+    let reversed: Vec<&str> = parts.iter().rev().copied().collect();
+    ok(&with(&["merge", "-o", "merged.exr"], &reversed), &dir);
+    assert_eq!(bytes(&dir, "merged.exr"), bytes(&dir, "single.exr"));
+}
+
+#[test]
+fn a_directory_of_parts_merges_as_its_part_files() {
+    // As a Kubernetes merge job runs it: no shell to expand `*.part`, checkpoints and other
+    // files beside the parts.
+    let dir = temp_dir("shards-directory");
+    let scene = cover();
+    ok(&small(&scene, &["-o", "single.png"]), &dir);
+    std::fs::create_dir_all(dir.join("parts")).unwrap();
+    std::fs::create_dir_all(dir.join("empty")).unwrap();
+    for i in 0..3 {
+        let spec = format!("{i}/3");
+        let out = format!("parts/shard-{i}.part");
+        let checkpoint = format!("parts/shard-{i}.ckpt");
+        ok(
+            &small(
+                &scene,
+                &["--shard", &spec, "--checkpoint", &checkpoint, "-o", &out],
+            ),
+            &dir,
+        );
+    }
+    std::fs::write(dir.join("parts/notes.txt"), "not a part").unwrap();
+    ok(&["merge", "parts", "-o", "merged.png"], &dir);
+    assert_eq!(bytes(&dir, "merged.png"), bytes(&dir, "single.png"));
+    let empty = run(&["merge", "empty", "-o", "out.png"], &dir);
+    assert_eq!(empty.status.code(), Some(2));
+    assert!(
+        stderr(&empty).contains("empty: no .part files"),
+        "{}",
+        stderr(&empty)
+    );
+    // A part named twice (the directory and the file) overlaps, as any repeated part does.
+    let twice = run(
+        &["merge", "parts", "parts/shard-0.part", "-o", "out.png"],
+        &dir,
+    );
+    assert!(stderr(&twice).contains("overlaps"), "{}", stderr(&twice));
+}
+
+#[test]
+fn row_shards_and_sample_ranges_merge_to_the_single_render() {
+    let dir = temp_dir("shards-rows");
+    let scene = cover();
+    ok(&small(&scene, &["-o", "single.ppm"]), &dir);
+    for i in 0..3 {
+        let spec = format!("{i}/3");
+        let out = format!("rows{i}.part");
+        ok(
+            &small(&scene, &["--shard", &spec, "--split", "rows", "-o", &out]),
+            &dir,
+        );
+    }
+    ok(
+        &[
+            "merge",
+            "rows0.part",
+            "rows1.part",
+            "rows2.part",
+            "-o",
+            "rows.ppm",
+        ],
+        &dir,
+    );
+    assert_eq!(bytes(&dir, "rows.ppm"), bytes(&dir, "single.ppm"));
+
+    // Sample ranges, one of them split again into row shards.
+    ok(&small(&scene, &["--samples", "0..5", "-o", "a.part"]), &dir);
+    for (spec, out) in [("0/2", "b.part"), ("1/2", "c.part")] {
+        let args = [
+            "--samples",
+            "5..12",
+            "--shard",
+            spec,
+            "--split",
+            "rows",
+            "-o",
+            out,
+        ];
+        ok(&small(&scene, &args), &dir);
+    }
+    ok(
+        &["merge", "a.part", "b.part", "c.part", "-o", "ranges.ppm"],
+        &dir,
+    );
+    assert_eq!(bytes(&dir, "ranges.ppm"), bytes(&dir, "single.ppm"));
+}
+
+#[test]
+fn shard_index_from_slurm_and_kubernetes_environments() {
+    let dir = temp_dir("shards-env");
+    let scene = cover();
+    ok(
+        &small(&scene, &["--shard", "1/3", "-o", "explicit.part"]),
+        &dir,
+    );
+    let slurm = [
+        ("SLURM_ARRAY_TASK_ID", "2"),
+        ("SLURM_ARRAY_TASK_MIN", "1"),
+        ("SLURM_ARRAY_TASK_COUNT", "3"),
+    ];
+    ok_in_env(
+        &small(&scene, &["--shard", "env", "-o", "slurm.part"]),
+        &slurm,
+        &dir,
+    );
+    ok_in_env(
+        &small(&scene, &["--shard", "env/3", "-o", "k8s.part"]),
+        &[("JOB_COMPLETION_INDEX", "1")],
+        &dir,
+    );
+    assert_eq!(bytes(&dir, "slurm.part"), bytes(&dir, "explicit.part"));
+    assert_eq!(bytes(&dir, "k8s.part"), bytes(&dir, "explicit.part"));
+}
+
+/// Size and samples of a render long enough to be killed in the middle of.
+const LONG: [&str; 4] = ["--width", "200", "--spp", "60"];
+
+/// The arguments of that render, checkpointing after every tile into `checkpoint`.
+fn long_render<'a>(scene: &'a str, out: &'a str, checkpoint: &'a str) -> Vec<&'a str> {
+    let more = [
+        "-o",
+        out,
+        "--checkpoint",
+        checkpoint,
+        "--checkpoint-every",
+        "0",
+        "--threads",
+        "2",
+    ];
+    with(&with(&["render", scene, "-q"], &LONG), &more)
+}
+
+/// The same render straight through; returns its bytes.
+fn straight_render(dir: &Path, scene: &str) -> Vec<u8> {
+    ok(
+        &with(&["render", scene, "-q", "-o", "straight.png"], &LONG),
+        dir,
+    );
+    bytes(dir, "straight.png")
+}
+
+#[test]
+fn killed_renders_resume_to_the_same_bytes() {
+    let dir = temp_dir("sigkill");
+    let scene = cover();
+    let straight = straight_render(&dir, &scene);
+    let mut caught_mid_render = 0;
+    // Kill at several moments, and kill the resumed render again, then finish.
+    for (n, delays) in [[20u64, 0, 0], [90, 0, 0], [200, 0, 0], [60, 80, 100]]
+        .iter()
+        .enumerate()
+    {
+        let (out, ck) = (format!("killed{n}.png"), format!("killed{n}.ckpt"));
+        for &ms in delays.iter().filter(|&&ms| ms > 0) {
+            let mut child = spawn(&long_render(&scene, &out, &ck), &dir);
+            std::thread::sleep(Duration::from_millis(ms));
+            child.kill().unwrap(); // SIGKILL
+            child.wait().unwrap();
+            // Killed before its first checkpoint, or between two: either way it resumes.
+            if let Ok(part) = tessera::partial::Part::load(&dir.join(&ck))
+                && !part.is_complete()
+            {
+                caught_mid_render += 1;
+            }
+        }
+        ok(&long_render(&scene, &out, &ck), &dir);
+        assert_eq!(bytes(&dir, &out), straight, "killed after {delays:?} ms");
+    }
+    assert!(
+        caught_mid_render >= 2,
+        "only {caught_mid_render} kills hit a render in progress"
+    );
+}
+
+#[test]
+fn interrupted_render_saves_says_how_to_resume_and_resumes() {
+    let dir = temp_dir("sigint");
+    let scene = cover();
+    let straight = straight_render(&dir, &scene);
+    let mut args = long_render(&scene, "int.png", "int.ckpt");
+    args.retain(|a| *a != "-q");
+    let child = spawn(&args, &dir);
+    std::thread::sleep(Duration::from_millis(150));
+    let status = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let o = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    if o.status.code() == Some(130) {
+        assert!(
+            err.contains("Run the same command again to resume"),
+            "{err}"
+        );
+        assert!(
+            !dir.join("int.png").exists(),
+            "an interrupted render wrote its image"
+        );
+    } else {
+        // The machine finished before the signal arrived.
+        assert!(o.status.success(), "{err}");
+    }
+    assert!(dir.join("int.ckpt").exists());
+    ok(&args, &dir);
+    assert_eq!(bytes(&dir, "int.png"), straight);
+}
+
+#[test]
+fn progressive_render_continues_to_more_samples() {
+    let dir = temp_dir("progressive");
+    let scene = cover();
+    let base = [
+        "render",
+        &scene,
+        "-q",
+        "--width",
+        "100",
+        "--checkpoint",
+        "prog.ckpt",
+    ];
+    ok(&with(&base, &["--spp", "8", "-o", "p8.png"]), &dir);
+    ok(&with(&base, &["--spp", "24", "-o", "p24.png"]), &dir);
+    ok(
+        &[
+            "render", &scene, "-q", "--width", "100", "--spp", "24", "-o", "d24.png",
+        ],
+        &dir,
+    );
+    assert_eq!(bytes(&dir, "p24.png"), bytes(&dir, "d24.png"));
+    // Asking for fewer samples than the checkpoint holds, or another seed, is refused.
+    let fewer = run(&with(&base, &["--spp", "4", "-o", "p4.png"]), &dir);
+    assert_eq!(fewer.status.code(), Some(2));
+    let other = run(
+        &with(&base, &["--spp", "24", "--seed", "9", "-o", "p9.png"]),
+        &dir,
+    );
+    assert_eq!(other.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&other.stderr).contains("different seed"));
+}
+
+#[test]
+fn checkpoint_of_another_scene_is_refused() {
+    let dir = temp_dir("ckpt-scene");
+    let scene = cover();
+    let other = other_scene();
+    // The same small checkpointed render of each scene, into one checkpoint file.
+    let tiny = [
+        "-q",
+        "--width",
+        "60",
+        "--spp",
+        "2",
+        "--checkpoint",
+        "c.ckpt",
+        "-o",
+    ];
+    ok(&with(&with(&["render", &other], &tiny), &["o.png"]), &dir);
+    let before = bytes(&dir, "c.ckpt");
+    let o = run(&with(&with(&["render", &scene], &tiny), &["x.png"]), &dir);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("c.ckpt"));
+    assert_eq!(
+        bytes(&dir, "c.ckpt"),
+        before,
+        "a refused checkpoint was changed"
+    );
+}
+
+#[test]
+fn bad_parts_are_refused_and_nothing_is_damaged() {
+    let dir = temp_dir("bad-parts");
+    let scene = cover();
+    for i in 0..3 {
+        let (spec, out) = (format!("{i}/3"), format!("p{i}.part"));
+        ok(&small(&scene, &["--shard", &spec, "-o", &out]), &dir);
+    }
+    ok(
+        &small(
+            &scene,
+            &["--seed", "7", "--shard", "1/3", "-o", "seed7.part"],
+        ),
+        &dir,
+    );
+    let other = other_scene();
+    ok(
+        &small(&other, &["--shard", "1/3", "-o", "other.part"]),
+        &dir,
+    );
+    ok(
+        &small(&scene, &["--samples", "3..6", "-o", "overlap.part"]),
+        &dir,
+    );
+    let good = bytes(&dir, "p1.part");
+    std::fs::write(dir.join("truncated.part"), &good[..good.len() / 2]).unwrap();
+    let mut flipped = good.clone();
+    let middle = flipped.len() / 2;
+    flipped[middle] ^= 0x01;
+    std::fs::write(dir.join("flipped.part"), &flipped).unwrap();
+    std::fs::write(dir.join("out.png"), b"precious").unwrap();
+
+    for (middle, expected) in [
+        ("truncated.part", "truncated"),
+        ("flipped.part", "corrupt"),
+        ("seed7.part", "different seed"),
+        ("other.part", "another render"),
+        ("../missing.part", "missing.part"),
+        ("scene.toml", "not a tessera partial render"),
+    ] {
+        if middle == "scene.toml" {
+            std::fs::copy(scene_path("cover.toml"), dir.join("scene.toml")).unwrap();
+        }
+        let o = run(
+            &["merge", "p0.part", middle, "p2.part", "-o", "out.png"],
+            &dir,
+        );
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{middle}: {err}");
+        assert!(
+            err.contains(expected),
+            "{middle}: expected `{expected}` in {err}"
+        );
+        assert!(!err.contains("panicked"), "{err}");
+        assert_eq!(
+            bytes(&dir, "out.png"),
+            b"precious",
+            "{middle} damaged the output"
+        );
+    }
+    let missing = run(&["merge", "p0.part", "p2.part", "-o", "out.png"], &dir);
+    let err = String::from_utf8_lossy(&missing.stderr);
+    assert_eq!(missing.status.code(), Some(2));
+    assert!(err.contains("gaps") && err.contains("missing"), "{err}");
+    let overlap = run(
+        &[
+            "merge",
+            "p0.part",
+            "p1.part",
+            "p2.part",
+            "overlap.part",
+            "-o",
+            "out.png",
+        ],
+        &dir,
+    );
+    assert!(String::from_utf8_lossy(&overlap.stderr).contains("overlaps"));
+    assert_eq!(bytes(&dir, "out.png"), b"precious");
+    // The parts themselves are untouched by all this.
+    assert_eq!(bytes(&dir, "p1.part"), good);
+    ok(
+        &["merge", "p0.part", "p1.part", "p2.part", "-o", "out.png"],
+        &dir,
+    );
+    assert_ne!(bytes(&dir, "out.png"), b"precious");
+}
+
+#[test]
+fn a_render_in_one_part_writes_a_part_that_merges() {
+    let dir = temp_dir("one-part");
+    let scene = cover();
+    ok(&small(&scene, &["-o", "single.png"]), &dir);
+    ok(
+        &small(&scene, &["--shard", "0/1", "-o", "shard.part"]),
+        &dir,
+    );
+    ok(
+        &small(&scene, &["--samples", "0..12", "-o", "samples.part"]),
+        &dir,
+    );
+    // A Slurm array of one task.
+    ok_in_env(
+        &small(&scene, &["--shard", "env", "-o", "array.part"]),
+        &[
+            ("SLURM_ARRAY_TASK_ID", "0"),
+            ("SLURM_ARRAY_TASK_COUNT", "1"),
+        ],
+        &dir,
+    );
+    for part in ["shard.part", "samples.part", "array.part"] {
+        let out = format!("{part}.png");
+        ok(&["merge", part, "-o", &out], &dir);
+        assert_eq!(bytes(&dir, &out), bytes(&dir, "single.png"), "{part}");
+    }
+}
+
+/// A 260-byte part whose header claims a 16384×16384 image, one tile per pixel.
+fn crafted_part() -> Vec<u8> {
+    let header = concat!(
+        r#"{"version":1,"fingerprint":"0","seed":0,"width":16384,"height":16384,"#,
+        r#""max_depth":1,"gamma":2.0,"window":[0,0,16384,16384],"#,
+        r#""region":[0,0,16384,16384],"samples":[0,1],"target":1,"tile":1,"done":[]}"#
+    );
+    let mut bytes = b"TESSERA-PARTIAL\n".to_vec();
+    bytes.extend_from_slice(&(header.len() as u64).to_le_bytes());
+    bytes.extend_from_slice(header.as_bytes());
+    bytes.resize(260, 0);
+    bytes
+}
+
+#[test]
+fn a_part_claiming_a_huge_image_is_refused_before_anything_is_allocated() {
+    let dir = temp_dir("crafted-part");
+    std::fs::write(dir.join("huge.part"), crafted_part()).unwrap();
+    std::fs::write(dir.join("out.png"), b"precious").unwrap();
+    let tessera = env!("CARGO_BIN_EXE_tessera");
+    // Under a 1 GiB address-space limit a reader that believed the header would abort.
+    let limited = |args: &str| {
+        Command::new("sh")
+            .args(["-c", &format!("ulimit -v 1048576; exec {tessera} {args}")])
+            .current_dir(&dir)
+            .output()
+            .unwrap()
+    };
+    let cover = cover();
+    for args in [
+        "merge huge.part -o out.png".to_owned(),
+        format!("render {cover} -q --width 40 --spp 1 --checkpoint huge.part -o out.png"),
+    ] {
+        let o = limited(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args}: {err}");
+        assert!(
+            err.contains("huge.part") && !err.contains("panicked"),
+            "{args}: {err}"
+        );
+    }
+    assert_eq!(bytes(&dir, "out.png"), b"precious");
+}
+
+#[test]
+fn a_checkpoint_on_a_full_disk_warns_once_and_the_image_is_still_written() {
+    let dir = temp_dir("full-disk");
+    let tessera = env!("CARGO_BIN_EXE_tessera");
+    let cover = cover();
+    let straight = straight_render(&dir, &cover);
+    let render = format!(
+        "{tessera} render {cover} -q --width 200 --spp 60 --checkpoint small/c.ckpt \
+         --checkpoint-every 0 -o full.png"
+    );
+    let Some(o) = in_a_small_filesystem(&dir, 16, &render) else {
+        skip(
+            "the full-disk test",
+            "`unshare -rm` cannot mount a small filesystem on this machine",
+        );
+        return;
+    };
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert_eq!(
+        err.matches("could not save the checkpoint").count(),
+        1,
+        "{err}"
+    );
+    assert!(err.contains("checkpoint saves failed in all"), "{err}");
+    assert_eq!(bytes(&dir, "full.png"), straight);
+}

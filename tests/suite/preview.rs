@@ -1,0 +1,687 @@
+//! The live preview as a user and a hostile client meet it: the viewer's HTTP answers over a
+//! plain TCP socket, statuses that only grow, frames that decode, a final frame equal to the
+//! batch render, the server's limits while a render runs, errors before a render starts,
+//! and the preview file with shards, sample ranges and checkpoints. The image of a watched
+//! render is byte-identical to an unwatched one.
+
+use crate::common::*;
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::{SocketAddr, TcpStream};
+use std::path::Path;
+use std::process::{Child, Stdio};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+/// The longest a test waits for anything; a hang guard, not a measure of speed.
+const PATIENCE: Duration = Duration::from_secs(120);
+
+/// A `tessera render --preview` running in the background, its standard error collected.
+struct Viewer {
+    child: Child,
+    addr: SocketAddr,
+    stderr: Arc<Mutex<String>>,
+}
+
+impl Viewer {
+    /// Starts tessera with `args` in `dir` and waits for it to print the viewer's address.
+    fn start(args: &[&str], dir: &Path) -> Viewer {
+        let mut child = tessera()
+            .args(args)
+            .current_dir(dir)
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("start tessera");
+        let stderr = Arc::new(Mutex::new(String::new()));
+        let (found, address) = std::sync::mpsc::channel();
+        {
+            let stderr = Arc::clone(&stderr);
+            let pipe = child.stderr.take().unwrap();
+            std::thread::spawn(move || {
+                for line in BufReader::new(pipe).lines().map_while(Result::ok) {
+                    if let Some(rest) = line.strip_prefix("tessera: preview at http://") {
+                        let _ = found.send(rest.trim_end_matches('/').to_owned());
+                    }
+                    let mut all = stderr.lock().unwrap();
+                    all.push_str(&line);
+                    all.push('\n');
+                }
+            });
+        }
+        let addr = match address.recv_timeout(PATIENCE) {
+            Ok(a) => a.parse().expect("an address"),
+            Err(_) => {
+                let _ = child.kill();
+                panic!("no preview address: {}", stderr.lock().unwrap());
+            }
+        };
+        Viewer {
+            child,
+            addr,
+            stderr,
+        }
+    }
+
+    fn get(&self, path: &str) -> Answer {
+        request(
+            self.addr,
+            &format!("GET {path} HTTP/1.1\r\n{}", self.host()),
+        )
+    }
+
+    fn host(&self) -> String {
+        format!("Host: {}\r\nConnection: close\r\n\r\n", self.addr)
+    }
+
+    fn status(&self) -> serde_json::Value {
+        let a = self.get("/status");
+        assert_eq!(a.code, 200, "{}", a.text());
+        serde_json::from_slice(&a.body).expect("status is JSON")
+    }
+
+    /// Polls the status until `done` says so.
+    fn wait_for(&self, what: &str, done: impl Fn(&serde_json::Value) -> bool) -> serde_json::Value {
+        let start = Instant::now();
+        loop {
+            let s = self.status();
+            if done(&s) {
+                return s;
+            }
+            assert!(
+                start.elapsed() < PATIENCE,
+                "waited too long for {what}: {s}"
+            );
+            std::thread::sleep(Duration::from_millis(30));
+        }
+    }
+
+    /// Waits for a finished render's `--preview-hold` message, then sends SIGINT: the
+    /// status says `finished` before the viewer starts holding, and a Ctrl-C sent in between
+    /// would end tessera by the default action (or be lost where SIGINT is ignored, as in a
+    /// shell's background job).
+    fn interrupt_held(self) -> (i32, String) {
+        let start = Instant::now();
+        while !self.stderr.lock().unwrap().contains("until Ctrl-C") {
+            assert!(
+                start.elapsed() < PATIENCE,
+                "no hold message: {}",
+                self.stderr.lock().unwrap()
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        self.interrupt()
+    }
+
+    /// Sends SIGINT (Ctrl-C) and waits for the exit status.
+    fn interrupt(mut self) -> (i32, String) {
+        let _ = std::process::Command::new("kill")
+            .args(["-INT", &self.child.id().to_string()])
+            .status();
+        let code = self.wait();
+        (code, self.stderr.lock().unwrap().clone())
+    }
+
+    fn wait(&mut self) -> i32 {
+        let start = Instant::now();
+        loop {
+            if let Some(status) = self.child.try_wait().unwrap() {
+                // Let the reader thread take the last lines.
+                std::thread::sleep(Duration::from_millis(50));
+                return status.code().unwrap_or(-1);
+            }
+            if start.elapsed() > PATIENCE {
+                let _ = self.child.kill();
+                panic!("tessera did not end: {}", self.stderr.lock().unwrap());
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+}
+
+impl Drop for Viewer {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// An HTTP answer: status code, headers (lower-case names) and body.
+struct Answer {
+    code: u16,
+    headers: Vec<(String, String)>,
+    body: Vec<u8>,
+}
+
+impl Answer {
+    fn header(&self, name: &str) -> Option<&str> {
+        (self.headers.iter())
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| v.as_str())
+    }
+
+    fn text(&self) -> String {
+        String::from_utf8_lossy(&self.body).into_owned()
+    }
+}
+
+/// Sends `raw` (a whole request, `Connection: close`) and reads the answer to the end.
+fn request(addr: SocketAddr, raw: &str) -> Answer {
+    let mut stream = TcpStream::connect_timeout(&addr, PATIENCE).expect("connect");
+    stream.set_read_timeout(Some(PATIENCE)).unwrap();
+    stream.write_all(raw.as_bytes()).expect("send");
+    let mut bytes = Vec::new();
+    let _ = stream.read_to_end(&mut bytes);
+    parse_answer(&bytes)
+}
+
+fn parse_answer(bytes: &[u8]) -> Answer {
+    let end = (bytes.windows(4))
+        .position(|w| w == b"\r\n\r\n")
+        .unwrap_or_else(|| panic!("no header end in {:?}", String::from_utf8_lossy(bytes)));
+    let head = String::from_utf8_lossy(&bytes[..end]).into_owned();
+    let mut lines = head.split("\r\n");
+    let code = (lines.next().unwrap().split(' ').nth(1))
+        .and_then(|c| c.parse().ok())
+        .expect("a status code");
+    let headers = lines
+        .filter_map(|l| l.split_once(':'))
+        .map(|(n, v)| (n.trim().to_ascii_lowercase(), v.trim().to_owned()))
+        .collect();
+    Answer {
+        code,
+        headers,
+        body: bytes[end + 4..].to_vec(),
+    }
+}
+
+fn decode_png(bytes: &[u8]) -> image::RgbImage {
+    image::load_from_memory_with_format(bytes, image::ImageFormat::Png)
+        .expect("a PNG")
+        .to_rgb8()
+}
+
+/// The cover at `width`, as arguments.
+fn cover_args(width: u32, spp: u32) -> Vec<String> {
+    vec![
+        "render".into(),
+        cover(),
+        "--width".into(),
+        width.to_string(),
+        "--spp".into(),
+        spp.to_string(),
+    ]
+}
+
+fn strs(args: &[String]) -> Vec<&str> {
+    args.iter().map(String::as_str).collect()
+}
+
+/// Renders `args` unwatched to `plain.png` in `dir` and checks that `watched` has its bytes.
+fn assert_unwatched_bytes(dir: &Path, mut args: Vec<String>, watched: &str) {
+    args.extend(["-o", "plain.png"].map(String::from));
+    ok(&strs(&args), dir);
+    assert_eq!(
+        std::fs::read(dir.join("plain.png")).unwrap(),
+        std::fs::read(dir.join(watched)).unwrap(),
+        "{watched} differs from a render nobody watched"
+    );
+}
+
+#[test]
+fn a_watched_render_shows_growing_frames_and_ends_with_the_batch_image() {
+    let dir = temp_dir("preview-watch");
+    let mut args = cover_args(240, 128);
+    args.extend(
+        [
+            "--threads",
+            "1",
+            "-o",
+            "watched.png",
+            "--preview",
+            "--preview-hold",
+        ]
+        .map(String::from),
+    );
+    let viewer = Viewer::start(&strs(&args), &dir);
+    let (mut spp, mut frames, mut last_version) = (Vec::new(), 0, 0);
+    let mut percent = Vec::new();
+    let finished = loop {
+        let s = viewer.status();
+        spp.push(s["spp_done"].as_u64().unwrap());
+        percent.push(s["percent"].as_f64().unwrap());
+        let version = s["frame"]["version"].as_u64().unwrap();
+        if version > last_version && frames < 4 {
+            let a = viewer.get("/frame.png");
+            assert_eq!(a.code, 200);
+            assert_eq!(a.header("content-type"), Some("image/png"));
+            let img = decode_png(&a.body);
+            assert_eq!(img.dimensions(), (240, 160));
+            frames += 1;
+            last_version = version;
+        }
+        if s["state"] == "finished" {
+            break s;
+        }
+        assert_eq!(s["state"], "rendering");
+        std::thread::sleep(Duration::from_millis(40));
+    };
+    assert!(spp.is_sorted(), "samples per pixel went down: {spp:?}");
+    assert!(percent.is_sorted(), "percent went down: {percent:?}");
+    assert!(frames >= 2, "saw {frames} frames");
+    assert_eq!(finished["spp_done"], 128);
+    assert_eq!(finished["spp_total"], 128);
+    assert_eq!(finished["percent"], 100.0);
+    assert_eq!(finished["about"]["scene"], "cover");
+    assert_eq!(finished["about"]["width"], 240);
+    assert_eq!(finished["passes"], 5);
+    // The final frame holds the image file's pixels, and the download is the very file,
+    // recipe included, under its own name.
+    let last = viewer.get("/frame.png");
+    let watched = image::open(dir.join("watched.png")).unwrap().to_rgb8();
+    assert!(decode_png(&last.body) == watched, "the final frame differs");
+    let file = std::fs::read(dir.join("watched.png")).unwrap();
+    assert_eq!(finished["about"]["held"], true);
+    assert_eq!(finished["download"]["name"], "watched.png");
+    assert_eq!(finished["download"]["bytes"], file.len());
+    let download = viewer.get("/download");
+    assert_eq!(download.code, 200);
+    assert_eq!(download.header("content-type"), Some("image/png"));
+    assert!((download.header("content-disposition").unwrap()).contains("filename=\"watched.png\""));
+    assert!(
+        download.body == file,
+        "the download is not the file the render wrote"
+    );
+    let (code, stderr) = viewer.interrupt_held();
+    assert_eq!(code, 0, "Ctrl-C ends a held viewer cleanly: {stderr}");
+    assert!(stderr.contains("until Ctrl-C"), "{stderr}");
+    let mut plain = cover_args(240, 128);
+    plain.extend(["--threads", "1"].map(String::from));
+    assert_unwatched_bytes(&dir, plain, "watched.png");
+}
+
+#[test]
+fn the_page_its_assets_and_the_event_stream_are_served() {
+    let dir = temp_dir("preview-page");
+    let mut args = cover_args(64, 8);
+    args.extend(["-o", "a.png", "--preview=127.0.0.1:0", "--preview-hold"].map(String::from));
+    let viewer = Viewer::start(&strs(&args), &dir);
+    viewer.wait_for("the end", |s| s["state"] == "finished");
+    let page = viewer.get("/");
+    assert_eq!(page.code, 200);
+    assert!(
+        page.header("content-type")
+            .unwrap()
+            .starts_with("text/html")
+    );
+    assert!(page.header("content-security-policy").is_some());
+    let html = page.text();
+    for asset in ["/viewer.css", "/viewer.js"] {
+        assert!(html.contains(asset), "the page links {asset}");
+        let a = viewer.get(asset);
+        assert_eq!(a.code, 200, "{asset}");
+        assert!(a.body.len() > 500, "{asset} is there");
+    }
+    assert!(
+        !html.contains("http://") && !html.contains("https://"),
+        "nothing from outside"
+    );
+    let head = request(
+        viewer.addr,
+        &format!("HEAD /frame.png HTTP/1.1\r\n{}", viewer.host()),
+    );
+    assert_eq!(head.code, 200);
+    assert!(head.body.is_empty(), "HEAD has no body");
+    // The event stream sends the latest status at once.
+    let mut stream = TcpStream::connect(viewer.addr).unwrap();
+    stream.set_read_timeout(Some(PATIENCE)).unwrap();
+    write!(
+        stream,
+        "GET /events HTTP/1.1\r\nHost: {}\r\n\r\n",
+        viewer.addr
+    )
+    .unwrap();
+    let mut seen = Vec::new();
+    let mut buf = [0u8; 4096];
+    while !String::from_utf8_lossy(&seen).contains("\"state\":\"finished\"") {
+        let n = stream.read(&mut buf).expect("events arrive");
+        assert!(
+            n > 0,
+            "the stream closed: {}",
+            String::from_utf8_lossy(&seen)
+        );
+        seen.extend_from_slice(&buf[..n]);
+    }
+    let text = String::from_utf8_lossy(&seen);
+    assert!(text.contains("text/event-stream"), "{text}");
+    assert!(text.contains("event: status\ndata: {"), "{text}");
+    drop(stream);
+    assert_eq!(viewer.interrupt_held().0, 0);
+}
+
+#[test]
+fn the_server_refuses_what_it_does_not_serve_while_the_render_goes_on() {
+    let dir = temp_dir("preview-limits");
+    let mut args = cover_args(300, 384);
+    args.extend(["-o", "limited.png", "--preview", "--preview-hold"].map(String::from));
+    let viewer = Viewer::start(&strs(&args), &dir);
+    let addr = viewer.addr;
+    let host = viewer.host();
+    // Nothing to download before the render has finished.
+    let early = viewer.get("/download");
+    assert_eq!(early.code, 404, "{}", early.text());
+    assert!(early.text().contains("when the render has finished"));
+    // A client that asks for frame after frame and never reads an answer.
+    let mut stuck = TcpStream::connect(addr).unwrap();
+    let pipelined = format!("GET /frame.png HTTP/1.1\r\nHost: {addr}\r\n\r\n").repeat(200);
+    stuck
+        .set_write_timeout(Some(Duration::from_secs(5)))
+        .unwrap();
+    let _ = stuck.write_all(pipelined.as_bytes());
+    // A client that floods status requests on one connection, for a while.
+    let flood = std::thread::spawn(move || {
+        let start = Instant::now();
+        let mut answered = 0;
+        if let Ok(mut s) = TcpStream::connect(addr) {
+            s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+            let one = format!("GET /status HTTP/1.1\r\nHost: {addr}\r\n\r\n");
+            let mut reader = BufReader::new(s.try_clone().unwrap());
+            while start.elapsed() < Duration::from_secs(2) {
+                if s.write_all(one.as_bytes()).is_err() {
+                    break;
+                }
+                // Read one answer: headers, then the body by its length.
+                let mut length = 0;
+                let mut line = String::new();
+                loop {
+                    line.clear();
+                    if reader.read_line(&mut line).unwrap_or(0) == 0 {
+                        return answered;
+                    }
+                    if let Some(v) = line.to_ascii_lowercase().strip_prefix("content-length:") {
+                        length = v.trim().parse().unwrap_or(0);
+                    }
+                    if line == "\r\n" {
+                        break;
+                    }
+                }
+                let mut body = vec![0u8; length];
+                if reader.read_exact(&mut body).is_err() {
+                    return answered;
+                }
+                answered += 1;
+            }
+        }
+        answered
+    });
+    // Unknown paths, other methods, huge headers, other hosts.
+    for path in [
+        "/nope",
+        "/../../etc/passwd",
+        "/frame.png/x",
+        "/statusx",
+        "//",
+    ] {
+        let a = viewer.get(path);
+        assert_eq!(a.code, 404, "{path}");
+    }
+    for method in ["POST", "PUT", "DELETE", "OPTIONS", "PATCH"] {
+        let a = request(addr, &format!("{method} /status HTTP/1.1\r\n{host}"));
+        assert_eq!(a.code, 405, "{method}");
+        assert_eq!(a.header("allow"), Some("GET, HEAD"));
+    }
+    let huge = format!(
+        "GET /status HTTP/1.1\r\nX-Padding: {}\r\n{host}",
+        "a".repeat(16 * 1024)
+    );
+    assert_eq!(request(addr, &huge).code, 431);
+    let many = format!("GET /status HTTP/1.1\r\n{}{host}", "X-A: b\r\n".repeat(100));
+    assert_eq!(request(addr, &many).code, 431);
+    let elsewhere =
+        "GET /status HTTP/1.1\r\nHost: attacker.example:80\r\nConnection: close\r\n\r\n";
+    assert_eq!(request(addr, elsewhere).code, 421);
+    // Too many clients: fill the places with event streams; the next one gets 503.
+    let mut holders = Vec::new();
+    let mut refused = None;
+    for _ in 0..32 {
+        let mut s = TcpStream::connect(addr).unwrap();
+        s.set_read_timeout(Some(PATIENCE)).unwrap();
+        write!(s, "GET /events HTTP/1.1\r\nHost: {addr}\r\n\r\n").unwrap();
+        let mut first = [0u8; 12];
+        s.read_exact(&mut first).unwrap();
+        if &first == b"HTTP/1.1 503" {
+            refused = Some(holders.len());
+            break;
+        }
+        assert_eq!(&first, b"HTTP/1.1 200");
+        holders.push(s);
+    }
+    let served = refused.expect("some client was refused");
+    assert!(served <= 8, "{served} clients at once");
+    drop(holders);
+    drop(stuck);
+    let flooded = flood.join().unwrap();
+    assert!(flooded > 0, "the flooding client was served too");
+    // The render finished, with the bytes of an unwatched one, and the viewer answers.
+    let end = viewer.wait_for("the end", |s| s["state"] == "finished");
+    assert_eq!(end["spp_done"], 384);
+    let (code, stderr) = viewer.interrupt_held();
+    assert_eq!(code, 0, "{stderr}");
+    assert_unwatched_bytes(&dir, cover_args(300, 384), "limited.png");
+}
+
+#[test]
+fn bad_preview_addresses_are_errors_before_the_render() {
+    let dir = temp_dir("preview-errors");
+    let taken = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = taken.local_addr().unwrap().port();
+    let in_use = format!("--preview=127.0.0.1:{port}");
+    let foreign = "--preview=192.0.2.1:8080".to_owned(); // TEST-NET-1: no machine's own
+    let cases: [(&str, &str); 5] = [
+        (&in_use, "is in use"),
+        ("--preview=nonsense", "is not an address"),
+        ("--preview=127.0.0.1:99999", "is not an address"),
+        (&foreign, "is not an address of this machine"),
+        ("--preview=", "is not an address"),
+    ];
+    for (flag, message) in cases {
+        let o = run(
+            &["render", &cover(), "--width", "32", "-o", "x.png", flag],
+            &dir,
+        );
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{flag}: {err}");
+        assert!(err.contains(message), "{flag}: {err}");
+        assert!(!dir.join("x.png").exists(), "{flag} rendered anyway");
+    }
+    // `--preview ADDR` (no `=`) makes ADDR the scene, or an argument too many after one;
+    // the error says what was meant either way.
+    let scene = cover();
+    for args in [
+        &["render", "--preview", "127.0.0.1:8080"][..],
+        &["render", "--preview", "8080"],
+        &["render", &scene, "--preview", "8080", "--width", "32"],
+        &[
+            "render",
+            &scene,
+            "--width",
+            "32",
+            "--preview",
+            "localhost:8080",
+        ],
+    ] {
+        let o = run(args, &dir);
+        assert_eq!(o.status.code(), Some(2), "{args:?}");
+        let spec = args[args.iter().position(|a| *a == "--preview").unwrap() + 1];
+        assert!(
+            stderr(&o).contains(&format!("--preview={spec}")),
+            "{args:?}: {}",
+            stderr(&o)
+        );
+    }
+    // A port below 1024 needs root.
+    let root = std::process::Command::new("id")
+        .arg("-u")
+        .output()
+        .is_ok_and(|o| o.stdout.starts_with(b"0"));
+    if !root {
+        let o = run(
+            &["render", &cover(), "--width", "32", "--preview=127.0.0.1:1"],
+            &dir,
+        );
+        assert_eq!(o.status.code(), Some(2));
+        assert!(stderr(&o).contains("permission"), "{}", stderr(&o));
+    }
+    // Preview files are PNG, and their flags go together.
+    for args in [
+        &["--preview-file", "p.jpg"][..],
+        &["--preview-file", "p.png", "--preview-every", "0"],
+        &["--preview-file", "p.png", "--preview-every", "-1"],
+        &["--preview-every", "5"],
+        &["--preview-hold"],
+    ] {
+        let mut all = vec!["render", "--width", "32", "-o", "x.png"];
+        all.extend_from_slice(args);
+        let o = run(&all, &dir);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(!dir.join("x.png").exists());
+    }
+}
+
+#[test]
+fn a_public_address_warns_that_anyone_can_see() {
+    let dir = temp_dir("preview-public");
+    let mut args = cover_args(32, 2);
+    args.extend(["-o", "a.png", "--preview=0.0.0.0:0"].map(String::from));
+    let viewer = Viewer::start(&strs(&args), &dir);
+    let mut viewer = viewer;
+    assert_eq!(viewer.wait(), 0);
+    let err = viewer.stderr.lock().unwrap().clone();
+    assert!(err.contains("warning") && err.contains("anyone"), "{err}");
+}
+
+#[test]
+fn preview_files_show_the_jobs_own_pixels() {
+    let dir = temp_dir("preview-file");
+    let base = cover_args(120, 16);
+    let with = |extra: &[&str]| {
+        let mut a = strs(&base);
+        a.extend_from_slice(extra);
+        ok(&a, &dir);
+    };
+    with(&["-o", "whole.png", "--preview-file", "whole-preview.png"]);
+    let whole = image::open(dir.join("whole.png")).unwrap().to_rgb8();
+    let preview = image::open(dir.join("whole-preview.png"))
+        .unwrap()
+        .to_rgb8();
+    assert!(whole == preview, "the last preview is the image");
+    // A band of rows: the preview is that band.
+    with(&[
+        "--shard",
+        "1/2",
+        "--split",
+        "rows",
+        "-o",
+        "rows.part",
+        "--preview-file",
+        "rows.png",
+    ]);
+    let band = image::open(dir.join("rows.png")).unwrap().to_rgb8();
+    assert_eq!(band.dimensions(), (120, 40));
+    assert!(band == image::imageops::crop_imm(&whole, 0, 40, 120, 40).to_image());
+    // A sample range: every pixel, its own samples.
+    with(&[
+        "--samples",
+        "0..4",
+        "-o",
+        "s.part",
+        "--preview-file",
+        "samples.png",
+    ]);
+    let samples = image::open(dir.join("samples.png")).unwrap().to_rgb8();
+    assert_eq!(samples.dimensions(), (120, 80));
+    assert!(samples != whole);
+    // Parts still merge to the image.
+    with(&[
+        "--samples",
+        "4..16",
+        "-o",
+        "t.part",
+        "--preview-file",
+        "samples.png",
+    ]);
+    ok(&["merge", "s.part", "t.part", "-o", "merged.png"], &dir);
+    assert_eq!(
+        std::fs::read(dir.join("merged.png")).unwrap(),
+        std::fs::read(dir.join("whole.png")).unwrap()
+    );
+}
+
+#[test]
+fn ctrl_c_in_a_watched_render_saves_the_checkpoint_and_resumes_to_the_same_bytes() {
+    let dir = temp_dir("preview-checkpoint");
+    let mut args = cover_args(400, 256);
+    args.extend(
+        [
+            "--threads",
+            "1",
+            "-o",
+            "resumed.png",
+            "--checkpoint",
+            "c.part",
+            "--preview",
+            "--preview-file",
+            "p.png",
+        ]
+        .map(String::from),
+    );
+    let viewer = Viewer::start(&strs(&args), &dir);
+    let seen = viewer.wait_for("the second pass", |s| s["spp_done"].as_u64() >= Some(4));
+    assert_eq!(seen["state"], "rendering");
+    let (code, stderr) = viewer.interrupt();
+    if code == 0 {
+        // The machine rendered it all before the signal came: nothing to resume.
+        return skip(
+            "ctrl_c_in_a_watched_render",
+            "the render ended before Ctrl-C",
+        );
+    }
+    assert_eq!(code, 130, "{stderr}");
+    assert!(stderr.contains("Run the same command again"), "{stderr}");
+    assert!(dir.join("c.part").exists() && dir.join("p.png").exists());
+    assert!(!dir.join("resumed.png").exists());
+    let mut quiet = strs(&args);
+    quiet.retain(|a| *a != "--preview");
+    ok(&quiet, &dir);
+    assert_unwatched_bytes(&dir, cover_args(400, 256), "resumed.png");
+    let preview = image::open(dir.join("p.png")).unwrap().to_rgb8();
+    let image = image::open(dir.join("resumed.png")).unwrap().to_rgb8();
+    assert!(preview == image, "the last preview is the final image");
+}
+
+#[test]
+fn watched_renders_of_the_cover_and_every_figure_are_byte_identical() {
+    let dir = temp_dir("preview-bytes");
+    let mut scenes: Vec<String> = std::fs::read_dir(root().join("scenes"))
+        .unwrap()
+        .map(|e| e.unwrap().path().to_string_lossy().into_owned())
+        .filter(|p| p.ends_with(".toml"))
+        .collect();
+    scenes.sort();
+    assert!(scenes.len() >= 22);
+    for scene in &scenes {
+        for threads in ["1", "2"] {
+            let common = ["render", scene, "--width", "96", "--threads", threads];
+            let mut plain = common.to_vec();
+            plain.extend(["-o", "plain.png"]);
+            ok(&plain, &dir);
+            let mut watched = common.to_vec();
+            watched.extend(["-o", "watched.png", "--preview-file", "p.png"]);
+            ok(&watched, &dir);
+            assert_eq!(
+                std::fs::read(dir.join("plain.png")).unwrap(),
+                std::fs::read(dir.join("watched.png")).unwrap(),
+                "{scene}, {threads} threads"
+            );
+        }
+    }
+}

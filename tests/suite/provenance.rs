@@ -1,0 +1,461 @@
+//! Every image carries its recipe: render → `info` → `reproduce` gives `identical` for whole
+//! renders, crops, merged shards and resumed checkpoints, with other thread counts and SIMD
+//! paths; an edited pixel gives `differs`, a stripped image `no recipe`; and hostile
+//! metadata (bombs, nesting, newer schemas, absurd renders, lies about lengths) is refused
+//! by name, exit 2. The PNG is read back with the `png` crate's own decoder too.
+
+use crate::common::*;
+use std::path::{Path, PathBuf};
+use std::process::Output;
+use tessera::recipe::{self, Recipe};
+
+fn out_text(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// `tessera reproduce` of `image` with one thread on the portable path (the renders below
+/// use every core and the widest path).
+fn reproduce(image: &Path, dir: &Path) -> Output {
+    run(
+        &[
+            "reproduce",
+            image.to_str().unwrap(),
+            "--threads",
+            "1",
+            "--simd",
+            "portable",
+            "-q",
+        ],
+        dir,
+    )
+}
+
+fn assert_identical(image: &Path, dir: &Path) {
+    let o = reproduce(image, dir);
+    assert_eq!(o.status.code(), Some(0), "{}{}", out_text(&o), stderr(&o));
+    assert!(out_text(&o).starts_with("identical: "), "{}", out_text(&o));
+}
+
+/// The recipe text in a PNG, read with the `png` crate (not tessera's reader).
+fn png_recipe_text(path: &Path) -> Option<String> {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    reader.next_frame(&mut buf).unwrap();
+    reader.finish().unwrap();
+    let info = reader.info();
+    info.utf8_text
+        .iter()
+        .find(|c| c.keyword == recipe::KEY)
+        .map(|c| c.get_text().unwrap())
+}
+
+/// The PNG's pixels (8-bit RGB) and size, read with the `png` crate.
+fn png_pixels(path: &Path) -> (u32, u32, Vec<u8>) {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let frame = reader.next_frame(&mut buf).unwrap();
+    (frame.width, frame.height, buf)
+}
+
+/// Writes a PNG of `pixels` with `chunks` (keyword, text, compressed) as iTXt chunks, as
+/// another program might.
+fn write_png(path: &Path, (w, h, pixels): &(u32, u32, Vec<u8>), chunks: &[(&str, &str, bool)]) {
+    let file = std::fs::File::create(path).unwrap();
+    let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), *w, *h);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    let mut writer = encoder.write_header().unwrap();
+    for &(key, text, compressed) in chunks {
+        let mut chunk = png::text_metadata::ITXtChunk::new(key, text);
+        chunk.compressed = compressed;
+        writer.write_text_chunk(&chunk).unwrap();
+    }
+    writer.write_image_data(pixels).unwrap();
+    writer.finish().unwrap();
+}
+
+/// A small cover render in `dir`, with `extra` arguments (its recipe unless they say not).
+fn small_cover_with(dir: &Path, name: &str, extra: &[&str]) -> PathBuf {
+    let mut args = vec!["render", "--width", "96", "--spp", "4", "-o", name, "-q"];
+    args.extend(extra);
+    let scene = cover();
+    args.insert(1, &scene);
+    ok(&args, dir);
+    dir.join(name)
+}
+
+fn small_cover(dir: &Path, name: &str) -> PathBuf {
+    small_cover_with(dir, name, &[])
+}
+
+#[test]
+fn the_cover_reproduces_identically_from_its_recipe_alone() {
+    let dir = temp_dir("provenance-cover");
+    let image = small_cover(&dir, "cover.png");
+    // The recipe, as a standard decoder reads it: tessera's JSON with the whole scene.
+    let text = png_recipe_text(&image).expect("a recipe chunk");
+    let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(json["schema"], recipe::SCHEMA);
+    assert_eq!(json["scene"]["name"], "cover.toml");
+    assert_eq!(
+        json["scene"]["text"],
+        std::fs::read_to_string(scene_path("cover.toml")).unwrap()
+    );
+    assert_eq!(json["overrides"]["width"], 96);
+    assert_eq!(json["image"]["samples_per_pixel"], 4);
+    assert!(
+        text.len() < 4096,
+        "the cover's recipe is {} bytes",
+        text.len()
+    );
+
+    let o = run(&["info", "cover.png"], &dir);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let info = out_text(&o);
+    for expected in [
+        "cover.png: PNG 96x64, with a recipe (tessera-recipe/1)",
+        "scene      cover.toml",
+        "settings   96x64, 4 spp, depth 50, seed 1, gamma 2",
+        "overrides  --width 96 --spp 4",
+        "[random_spheres]",
+    ] {
+        assert!(info.contains(expected), "`{expected}` not in:\n{info}");
+    }
+    let o = run(&["info", "cover.png", "--json"], &dir);
+    let parsed = Recipe::parse(out_text(&o).trim(), Path::new("x")).unwrap();
+    assert_eq!(parsed.sums, json["sums"].as_str().unwrap());
+
+    // Again from the recipe alone: the scene file is elsewhere and unused.
+    let elsewhere = temp_dir("provenance-cover-elsewhere");
+    std::fs::copy(&image, elsewhere.join("copy.png")).unwrap();
+    assert_identical(&elsewhere.join("copy.png"), &elsewhere);
+    let o = run(
+        &["reproduce", "copy.png", "-o", "again.png", "-q"],
+        &elsewhere,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        std::fs::read(&image).unwrap(),
+        std::fs::read(elsewhere.join("again.png")).unwrap(),
+        "the re-render, recipe and all, is the same file"
+    );
+    ok(
+        &["reproduce", "copy.png", "--extract-scene", "scene.toml"],
+        &elsewhere,
+    );
+    assert_eq!(
+        std::fs::read(elsewhere.join("scene.toml")).unwrap(),
+        std::fs::read(scene_path("cover.toml")).unwrap()
+    );
+}
+
+#[test]
+fn a_cropped_figure_in_exr_reproduces_identically() {
+    let dir = temp_dir("provenance-crop");
+    let scene = scene_path("img-1.06-antialias-before-after.toml");
+    ok(
+        &[
+            "render",
+            scene.to_str().unwrap(),
+            "--spp",
+            "16",
+            "-o",
+            "crop.exr",
+            "-q",
+        ],
+        &dir,
+    );
+    let info = out_text(&run(&["info", "crop.exr"], &dir));
+    assert!(info.contains("crop 40x40 at (116, 105)"), "{info}");
+    assert_identical(&dir.join("crop.exr"), &dir);
+}
+
+#[test]
+fn merged_shards_and_resumed_checkpoints_carry_the_single_renders_recipe() {
+    let dir = temp_dir("provenance-parts");
+    let single = small_cover(&dir, "single.png");
+    for i in 0..3 {
+        let shard = format!("{i}/3");
+        let extra = ["--split", "rows", "--shard", &shard];
+        small_cover_with(&dir, &format!("p{i}.part"), &extra);
+    }
+    ok(
+        &["merge", "p0.part", "p1.part", "p2.part", "-o", "merged.png"],
+        &dir,
+    );
+    assert_eq!(
+        std::fs::read(&single).unwrap(),
+        std::fs::read(dir.join("merged.png")).unwrap()
+    );
+    assert_identical(&dir.join("merged.png"), &dir);
+
+    // A render continued from a checkpoint of fewer samples.
+    for spp in ["2", "4"] {
+        ok(
+            &[
+                "render",
+                &cover(),
+                "--width",
+                "96",
+                "--spp",
+                spp,
+                "--checkpoint",
+                "c.part",
+                "-o",
+                "resumed.png",
+                "-q",
+            ],
+            &dir,
+        );
+    }
+    assert_eq!(
+        std::fs::read(&single).unwrap(),
+        std::fs::read(dir.join("resumed.png")).unwrap()
+    );
+    assert_identical(&dir.join("resumed.png"), &dir);
+
+    // --no-provenance leaves it out of parts and images, and a merge of such parts.
+    small_cover_with(&dir, "bare.png", &["--no-provenance"]);
+    assert_eq!(png_recipe_text(&dir.join("bare.png")), None);
+    let o = run(&["reproduce", "bare.png"], &dir);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("no recipe"), "{}", stderr(&o));
+    ok(
+        &[
+            "merge",
+            "p0.part",
+            "p1.part",
+            "p2.part",
+            "-o",
+            "m.png",
+            "--no-provenance",
+        ],
+        &dir,
+    );
+    assert_eq!(png_recipe_text(&dir.join("m.png")), None);
+}
+
+#[test]
+fn an_edited_or_stripped_image_is_never_called_identical() {
+    let dir = temp_dir("provenance-edits");
+    let image = small_cover(&dir, "cover.png");
+    let recipe_text = png_recipe_text(&image).unwrap();
+    let (w, h, pixels) = png_pixels(&image);
+
+    // Re-saved by another program, recipe kept: still identical.
+    write_png(
+        &dir.join("resaved.png"),
+        &(w, h, pixels.clone()),
+        &[(recipe::KEY, &recipe_text, false)],
+    );
+    assert_identical(&dir.join("resaved.png"), &dir);
+
+    // One pixel changed by one level.
+    let mut edited = pixels.clone();
+    let at = 3 * (17 * w as usize + 40);
+    edited[at + 1] ^= 1;
+    write_png(
+        &dir.join("edited.png"),
+        &(w, h, edited),
+        &[(recipe::KEY, &recipe_text, true)],
+    );
+    let o = reproduce(&dir.join("edited.png"), &dir);
+    assert_eq!(o.status.code(), Some(1), "{}", out_text(&o));
+    let text = out_text(&o);
+    assert!(text.starts_with("differs: "), "{text}");
+    assert!(
+        text.contains("1 of 6144 pixels differ, the first at (40, 17)"),
+        "{text}"
+    );
+
+    // Stripped of its metadata.
+    write_png(&dir.join("stripped.png"), &(w, h, pixels.clone()), &[]);
+    let o = reproduce(&dir.join("stripped.png"), &dir);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("no recipe"), "{}", stderr(&o));
+
+    // A recipe edited to claim other sums: the pixels are right, the claim is not.
+    let mut lying: serde_json::Value = serde_json::from_str(&recipe_text).unwrap();
+    lying["sums"] = serde_json::Value::from(format!("xxh3-128:{}", "0".repeat(32)));
+    write_png(
+        &dir.join("lying.png"),
+        &(w, h, pixels.clone()),
+        &[(recipe::KEY, &lying.to_string(), true)],
+    );
+    let o = reproduce(&dir.join("lying.png"), &dir);
+    assert_eq!(o.status.code(), Some(1), "{}", out_text(&o));
+    assert!(
+        out_text(&o).contains("the recipe says xxh3-128:000"),
+        "{}",
+        out_text(&o)
+    );
+
+    // A recipe whose settings its scene does not give (the seed changed in one place only).
+    let mut seeded: serde_json::Value = serde_json::from_str(&recipe_text).unwrap();
+    seeded["image"]["seed"] = serde_json::Value::from(2);
+    write_png(
+        &dir.join("seeded.png"),
+        &(w, h, pixels.clone()),
+        &[(recipe::KEY, &seeded.to_string(), true)],
+    );
+    let o = reproduce(&dir.join("seeded.png"), &dir);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("not what its scene and overrides give"),
+        "{}",
+        stderr(&o)
+    );
+
+    // Cropped by another program: another size than the recipe makes.
+    let cropped: Vec<u8> = pixels[..3 * w as usize * (h as usize - 1)].to_vec();
+    write_png(
+        &dir.join("cropped.png"),
+        &(w, h - 1, cropped),
+        &[(recipe::KEY, &recipe_text, true)],
+    );
+    let o = reproduce(&dir.join("cropped.png"), &dir);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        out_text(&o).contains("is 96x63, its recipe makes 96x64"),
+        "{}",
+        out_text(&o)
+    );
+}
+
+/// Runs `info` and `reproduce` on a PNG whose recipe chunk holds `text` (compressed or
+/// not), expecting a refusal naming `expected`.
+fn assert_refused(dir: &Path, name: &str, text: &str, compressed: bool, expected: &str) {
+    let pixels = (2, 2, vec![0u8; 12]);
+    let path = dir.join(format!("{name}.png"));
+    write_png(&path, &pixels, &[(recipe::KEY, text, compressed)]);
+    for command in ["info", "reproduce"] {
+        let o = run(&[command, path.to_str().unwrap()], dir);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{name} {command}: {err}");
+        assert!(!err.contains("panicked"), "{name}: {err}");
+        assert!(
+            err.contains(expected),
+            "{name} {command}: `{expected}` not in {err}"
+        );
+    }
+}
+
+#[test]
+fn hostile_recipes_are_refused_by_name() {
+    let dir = temp_dir("provenance-hostile");
+    let image = small_cover(&dir, "cover.png");
+    let good = png_recipe_text(&image).unwrap();
+    let json: serde_json::Value = serde_json::from_str(&good).unwrap();
+
+    // A decompression bomb: 64 MiB of spaces in a few kilobytes.
+    let bomb = format!("{good}{}", " ".repeat(64 << 20));
+    assert_refused(
+        &dir,
+        "bomb",
+        &bomb,
+        true,
+        "inflates beyond the 1048576 bytes",
+    );
+    // Deep nesting, and text that is not JSON.
+    let deep = format!("{}{}", "[".repeat(100_000), "]".repeat(100_000));
+    assert_refused(&dir, "deep", &deep, true, "is not a tessera recipe");
+    assert_refused(
+        &dir,
+        "junk",
+        "not json at all",
+        false,
+        "is not a tessera recipe",
+    );
+    // A newer tessera's recipe, and one with a field this tessera does not know.
+    let newer = good.replace(recipe::SCHEMA, "tessera-recipe/2");
+    assert_refused(&dir, "newer", &newer, true, "needs tessera-recipe/2");
+    let mut extra = json.clone();
+    extra["image"]["tonemap"] = serde_json::Value::from("aces");
+    assert_refused(
+        &dir,
+        "unknown-field",
+        &extra.to_string(),
+        true,
+        "does not know",
+    );
+    // An absurd render: checked as a scene file is, before anything is allocated for it.
+    let mut absurd = json.clone();
+    let text = absurd["scene"]["text"].as_str().unwrap().replace(
+        "width = 1200\nheight = 800",
+        "width = 65536\nheight = 65536",
+    );
+    absurd["scene"]["text"] = serde_json::Value::from(text);
+    absurd["overrides"] = serde_json::json!({"samples_per_pixel": 1000000});
+    let path = dir.join("absurd.png");
+    write_png(
+        &path,
+        &(2, 2, vec![0; 12]),
+        &[(recipe::KEY, &absurd.to_string(), true)],
+    );
+    let o = run(&["reproduce", "absurd.png"], &dir);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("more than the 268435456 pixels"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(
+        stderr(&o).contains("absurd.png (recipe scene cover.toml)"),
+        "{}",
+        stderr(&o)
+    );
+
+    // Not UTF-8 inside the chunk: written by hand, with a correct CRC.
+    let bytes = itxt_png(b"tessera-recipe\0\0\0\0\0{\"schema\":\"\xff\xfe\"}");
+    std::fs::write(dir.join("latin.png"), &bytes).unwrap();
+    let o = run(&["info", "latin.png"], &dir);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("not UTF-8"), "{}", stderr(&o));
+    // A chunk claiming more bytes than the file has, and a damaged CRC.
+    let mut long = itxt_png(b"tessera-recipe\0\0\0\0\0{}");
+    long[33..37].copy_from_slice(&0x7fff_0000u32.to_be_bytes());
+    std::fs::write(dir.join("long.png"), &long).unwrap();
+    let o = run(&["info", "long.png"], &dir);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("past the file's end"), "{}", stderr(&o));
+    let mut damaged = itxt_png(b"tessera-recipe\0\0\0\0\0{}");
+    damaged[45] ^= 1;
+    std::fs::write(dir.join("damaged.png"), &damaged).unwrap();
+    let o = run(&["info", "damaged.png"], &dir);
+    assert!(stderr(&o).contains("bad CRC"), "{}", stderr(&o));
+    // A terminal escape in the scene's name is shown escaped.
+    let mut named = json.clone();
+    named["scene"]["name"] = serde_json::Value::from("evil\u{1b}[2J.toml");
+    write_png(
+        &dir.join("named.png"),
+        &(2, 2, vec![0; 12]),
+        &[(recipe::KEY, &named.to_string(), true)],
+    );
+    let o = run(&["info", "named.png"], &dir);
+    assert!(!out_text(&o).contains('\u{1b}'), "{}", out_text(&o));
+    assert!(
+        out_text(&o).contains("evil\\u{1b}[2J.toml"),
+        "{}",
+        out_text(&o)
+    );
+}
+
+/// A 1x1 PNG whose first chunk after IHDR is an iTXt chunk of `data` (CRC correct).
+fn itxt_png(data: &[u8]) -> Vec<u8> {
+    let mut out = vec![0x89, b'P', b'N', b'G', 0x0d, 0x0a, 0x1a, 0x0a];
+    let mut chunk = |kind: &[u8], body: &[u8]| {
+        out.extend((body.len() as u32).to_be_bytes());
+        let mut crc = crc32fast::Hasher::new();
+        crc.update(kind);
+        crc.update(body);
+        out.extend(kind);
+        out.extend(body);
+        out.extend(crc.finalize().to_be_bytes());
+    };
+    chunk(b"IHDR", &[0, 0, 0, 1, 0, 0, 0, 1, 8, 2, 0, 0, 0]);
+    chunk(b"iTXt", data);
+    chunk(b"IEND", &[]);
+    out
+}

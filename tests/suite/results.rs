@@ -1,0 +1,794 @@
+//! The results database as a user meets it: `bench` records every run (in `--db`,
+//! `TESSERA_DB` or the XDG data directory), `results list` shows and filters them, `results
+//! import` adds others' results once each; hostile imports are refused with the reason and
+//! add nothing; databases it cannot use (not SQLite, damaged, another program's, a newer
+//! tessera's, on a full or read-only disk) are refused and left as they were; concurrent and
+//! killed writers lose nothing.
+
+use crate::common::*;
+use serde_json::Value;
+use std::os::unix::fs::PermissionsExt;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+
+/// A quick custom bench of the cover, recorded in `db` (or not, with `None`), its result
+/// also written to `out`.
+fn bench(dir: &Path, db: Option<&Path>, out: &str) -> Output {
+    let mut c = tessera();
+    c.args(["bench", &cover()])
+        .args("--width 48 --spp 1 --repeat 1 --warmup 0 --no-scaling".split(' '))
+        .args(["--out", out])
+        .current_dir(dir);
+    match db {
+        Some(db) => c.env("TESSERA_DB", db),
+        None => c.arg("--no-save"),
+    };
+    let o = c.output().unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    o
+}
+
+/// `tessera results ARGS` on `db`.
+fn results(dir: &Path, db: &Path, args: &[&str]) -> Output {
+    tessera()
+        .arg("results")
+        .args(args)
+        .env("TESSERA_DB", db)
+        .current_dir(dir)
+        .output()
+        .unwrap()
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// The runs `results list` shows (its lines less the heading).
+fn listed(dir: &Path, db: &Path, filter: &[&str]) -> Vec<String> {
+    let o = results(dir, db, &[&["list"][..], filter].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = stdout(&o);
+    if text.trim() == "no results" {
+        return Vec::new();
+    }
+    text.lines().skip(1).map(str::to_owned).collect()
+}
+
+fn json(path: &Path) -> Value {
+    serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
+}
+
+fn write_json(path: &Path, value: &Value) {
+    std::fs::write(path, serde_json::to_vec_pretty(value).unwrap()).unwrap();
+}
+
+/// Two results of this machine that are not recorded anywhere yet.
+fn two_results(dir: &Path) -> (PathBuf, PathBuf) {
+    bench(dir, None, "a.json");
+    bench(dir, None, "b.json");
+    (dir.join("a.json"), dir.join("b.json"))
+}
+
+#[test]
+fn bench_records_every_run_and_list_shows_and_filters_them() {
+    let dir = temp_dir("results-record");
+    let db = dir.join("r.db");
+    bench(&dir, Some(&db), "one.json");
+    let o = bench(&dir, Some(&db), "two.json");
+    assert!(stderr(&o).contains("recorded in"), "{}", stderr(&o));
+    bench(&dir, None, "unsaved.json");
+    let all = listed(&dir, &db, &[]);
+    assert_eq!(all.len(), 2, "{all:?}");
+    assert!(
+        all[0].contains("custom") && all[0].contains("unvalidated"),
+        "{}",
+        all[0]
+    );
+    let mode = std::fs::metadata(&db).unwrap().permissions().mode();
+    assert_eq!(mode & 0o777, 0o600, "the database is readable by others");
+    let one = json(&dir.join("one.json"));
+    let machine = one["host"]["machine_id"].as_str().unwrap();
+    let commit = one["build"]["commit"].as_str().unwrap();
+    assert_eq!(listed(&dir, &db, &["--machine", &machine[..6]]).len(), 2);
+    let cpu = one["host"]["cpu_model"].as_str().unwrap_or("unknown");
+    let word = cpu.split_whitespace().next().unwrap().to_lowercase();
+    assert_eq!(listed(&dir, &db, &["--machine", &word]).len(), 2);
+    assert_eq!(
+        listed(&dir, &db, &["--machine", "no-such-machine"]).len(),
+        0
+    );
+    assert_eq!(listed(&dir, &db, &["--commit", &commit[..7]]).len(), 2);
+    assert_eq!(listed(&dir, &db, &["--workload", "quick"]).len(), 0);
+    assert_eq!(listed(&dir, &db, &["--limit", "1"]).len(), 1);
+    // A LIKE pattern's own characters match only themselves.
+    assert_eq!(listed(&dir, &db, &["--commit", "%"]).len(), 0);
+}
+
+#[test]
+fn the_default_database_is_in_the_data_directory() {
+    let dir = temp_dir("results-default");
+    let run = |env: &[(&str, &Path)]| {
+        let mut c = tessera();
+        c.env_remove("TESSERA_DB").env_remove("XDG_DATA_HOME");
+        for (k, v) in env {
+            c.env(k, v);
+        }
+        c.args([
+            "bench",
+            &cover(),
+            "--width",
+            "32",
+            "--spp",
+            "1",
+            "--repeat",
+            "1",
+        ])
+        .args(["--warmup", "0", "--no-scaling"])
+        .current_dir(&dir)
+        .output()
+        .unwrap()
+    };
+    let xdg = dir.join("xdg");
+    let o = run(&[("XDG_DATA_HOME", &xdg), ("HOME", &dir.join("home"))]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let db = xdg.join("tessera/results.db");
+    assert!(db.is_file(), "{}", stderr(&o));
+    let mode = std::fs::metadata(xdg.join("tessera"))
+        .unwrap()
+        .permissions()
+        .mode();
+    assert_eq!(mode & 0o777, 0o700);
+    let o = run(&[("HOME", &dir.join("home"))]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(dir.join("home/.local/share/tessera/results.db").is_file());
+    // A data directory that cannot be made (here: under a file) only costs the record.
+    std::fs::write(dir.join("file"), "").unwrap();
+    let o = run(&[("XDG_DATA_HOME", &dir.join("file"))]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("will not be recorded"),
+        "{}",
+        stderr(&o)
+    );
+    // One named with --db or TESSERA_DB must work.
+    let o = tessera()
+        .args(["results", "--db"])
+        .arg(dir.join("file/r.db"))
+        .arg("list")
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+}
+
+#[test]
+fn imports_add_each_result_once_and_a_bad_file_adds_nothing() {
+    let dir = temp_dir("results-import");
+    let db = dir.join("r.db");
+    let (a, b) = two_results(&dir);
+    let (a, b) = (a.to_str().unwrap(), b.to_str().unwrap());
+    let o = results(&dir, &db, &["import", a, b]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(stdout(&o), "imported 2 new results, 0 already present\n");
+    let o = results(&dir, &db, &["import", b, a]);
+    assert_eq!(stdout(&o), "imported 0 new results, 2 already present\n");
+    // A result recorded by bench and then imported from its --out file is one run.
+    bench(&dir, Some(&db), "c.json");
+    let o = results(&dir, &db, &["import", "c.json"]);
+    assert_eq!(stdout(&o), "imported 0 new results, 1 already present\n");
+    std::fs::write(dir.join("bad.json"), "{}").unwrap();
+    let mut fresh = json(&dir.join("a.json"));
+    fresh["method"]["started_unix_s"] = Value::from(1_700_000_000u64);
+    write_json(&dir.join("fresh.json"), &fresh);
+    let o = results(&dir, &db, &["import", "fresh.json", "bad.json"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("bad.json"), "{}", stderr(&o));
+    assert_eq!(listed(&dir, &db, &[]).len(), 3, "a bad file let others in");
+    let o = results(&dir, &db, &["import", "fresh.json"]);
+    assert_eq!(stdout(&o), "imported 1 new result, 0 already present\n");
+}
+
+#[test]
+fn hostile_imports_are_refused_with_the_reason() {
+    let dir = temp_dir("results-hostile");
+    let db = dir.join("r.db");
+    let (a, _) = two_results(&dir);
+    let good = json(&a);
+    let text = std::fs::read_to_string(&a).unwrap();
+    let edited = |edit: &dyn Fn(&mut Value)| {
+        let mut v = good.clone();
+        edit(&mut v);
+        serde_json::to_vec(&v).unwrap()
+    };
+    let cases: Vec<(&str, Vec<u8>, &str)> = vec![
+        (
+            "huge",
+            [vec![b' '; 2 << 20], text.clone().into_bytes()].concat(),
+            "larger than",
+        ),
+        ("deep", "[".repeat(100_000).into_bytes(), "not JSON"),
+        ("binary", vec![0xff, 0xfe, 0x00, 0x7b], "not UTF-8"),
+        (
+            "infinite",
+            text.replacen("\"median\": ", "\"median\": 1e999, \"x\": ", 1)
+                .into_bytes(),
+            "not JSON",
+        ),
+        (
+            "type",
+            edited(&|v| v["method"]["threads"] = Value::from("two")),
+            "not a valid result",
+        ),
+        (
+            "unknown-field",
+            edited(&|v| v["surprise"] = Value::from(1)),
+            "not a valid result",
+        ),
+        (
+            "future",
+            edited(&|v| v["schema"] = Value::from("tessera-bench/99")),
+            "newer tessera",
+        ),
+        (
+            "billion-threads",
+            edited(&|v| {
+                v["method"]["threads"] = Value::from(1_000_000_000u64);
+                v["result"]["threads"] = Value::from(1_000_000_000u64);
+            }),
+            "not 1 to 65536",
+        ),
+        (
+            "negative-time",
+            edited(&|v| v["result"]["wall_s"]["min"] = Value::from(-1.0)),
+            "not a positive number",
+        ),
+        (
+            "unordered",
+            edited(&|v| v["result"]["samples_per_sec"]["max"] = Value::from(1.0)),
+            "out of order",
+        ),
+        (
+            "long-text",
+            edited(&|v| v["host"]["cpu_model"] = Value::from("x".repeat(10_000))),
+            "longer than",
+        ),
+        (
+            "forged-validation",
+            edited(&|v| {
+                v["validation"]["status"] = Value::from("valid");
+                v["validation"]["expected"] = Value::from("xxh3-128:00");
+            }),
+            "does not agree",
+        ),
+        (
+            "from-the-past",
+            edited(&|v| v["method"]["started_unix_s"] = Value::from(0)),
+            "not a time a run took place",
+        ),
+        (
+            "headless",
+            edited(&|v| v["scaling"] = Value::Array(Vec::new())),
+            "scaling rows is 0",
+        ),
+    ];
+    for (name, bytes, reason) in &cases {
+        let file = dir.join(format!("{name}.json"));
+        std::fs::write(&file, bytes).unwrap();
+        let o = results(&dir, &db, &["import", file.to_str().unwrap()]);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{name}: {err}");
+        assert!(err.contains(&format!("{name}.json")), "{name}: {err}");
+        assert!(err.contains(reason), "{name}: expected `{reason}` in {err}");
+        assert!(!err.contains("panicked"), "{name}: {err}");
+    }
+    assert!(!db.exists() || listed(&dir, &db, &[]).is_empty());
+}
+
+#[test]
+fn what_a_result_says_is_shown_escaped_in_the_terminal() {
+    let dir = temp_dir("results-escape");
+    let db = dir.join("r.db");
+    let (a, _) = two_results(&dir);
+    let mut v = json(&a);
+    v["host"]["cpu_model"] = Value::from("Evil\u{1b}[2J\u{1b}]0;pwned\u{7} CPU\u{202e}");
+    write_json(&dir.join("evil.json"), &v);
+    let o = results(&dir, &db, &["import", "evil.json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = results(&dir, &db, &["list"]);
+    let text = stdout(&o);
+    assert!(!text.contains('\u{1b}') && !text.contains('\u{7}') && !text.contains('\u{202e}'));
+    assert!(text.contains("Evil\\u{1b}[2J"), "{text}");
+}
+
+/// Bytes of `path`, to check a refused database was left as it was.
+fn bytes(path: &Path) -> Vec<u8> {
+    std::fs::read(path).unwrap()
+}
+
+#[test]
+fn databases_it_cannot_use_are_refused_and_left_as_they_were() {
+    let dir = temp_dir("results-refused");
+    let (a, _) = two_results(&dir);
+    let a = a.to_str().unwrap();
+    let refuse = |name: &str, reason: &str| {
+        let db = dir.join(name);
+        let before = bytes(&db);
+        for args in [&["list"][..], &["import", a]] {
+            let o = results(&dir, &db, args);
+            let err = stderr(&o);
+            assert_eq!(o.status.code(), Some(2), "{name} {args:?}: {err}");
+            assert!(err.contains(reason), "{name}: expected `{reason}` in {err}");
+        }
+        let o = tessera()
+            .args([
+                "bench",
+                &cover(),
+                "--width",
+                "16",
+                "--spp",
+                "1",
+                "--repeat",
+                "1",
+            ])
+            .env("TESSERA_DB", &db)
+            .current_dir(&dir)
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(2), "bench on {name}: {}", stderr(&o));
+        assert!(bytes(&db) == before, "{name} was changed");
+    };
+    std::fs::write(dir.join("text.db"), "my notes, not a database\n").unwrap();
+    refuse("text.db", "not an SQLite database");
+    let other = rusqlite::Connection::open(dir.join("other.db")).unwrap();
+    other
+        .execute_batch("CREATE TABLE photos (id INTEGER)")
+        .unwrap();
+    drop(other);
+    refuse("other.db", "something else");
+    let newer = rusqlite::Connection::open(dir.join("newer.db")).unwrap();
+    newer
+        .execute_batch("CREATE TABLE runs (id INTEGER); PRAGMA user_version = 99;")
+        .unwrap();
+    drop(newer);
+    refuse("newer.db", "newer tessera");
+    // A real database, damaged in the middle.
+    let good = dir.join("good.db");
+    assert!(results(&dir, &good, &["import", a]).status.success());
+    let mut damaged = bytes(&good);
+    for b in &mut damaged[4096..8192] {
+        *b = 0xa5;
+    }
+    std::fs::write(dir.join("damaged.db"), damaged).unwrap();
+    refuse("damaged.db", "damaged");
+}
+
+/// The first schema (user_version 1) as tessera 0.1.0 made it: never edit this copy.
+const FIRST_SCHEMA: &str = "CREATE TABLE runs (
+    id INTEGER PRIMARY KEY, digest TEXT NOT NULL UNIQUE, added_unix_s INTEGER NOT NULL,
+    source TEXT NOT NULL, started_unix_s INTEGER NOT NULL, machine_id TEXT NOT NULL,
+    cpu_model TEXT, logical_cpus INTEGER NOT NULL, version TEXT NOT NULL,
+    commit_id TEXT NOT NULL, simd TEXT NOT NULL, workload TEXT NOT NULL,
+    workload_id TEXT NOT NULL, threads INTEGER NOT NULL, sps_median REAL NOT NULL,
+    sps_min REAL NOT NULL, sps_max REAL NOT NULL, validation TEXT NOT NULL,
+    result TEXT NOT NULL) STRICT;
+CREATE TABLE scaling (
+    run_id INTEGER NOT NULL REFERENCES runs (id) ON DELETE CASCADE,
+    threads INTEGER NOT NULL, sps_median REAL NOT NULL, sps_min REAL NOT NULL,
+    sps_max REAL NOT NULL, PRIMARY KEY (run_id, threads)) STRICT;
+CREATE INDEX runs_by_machine ON runs (machine_id, workload_id, started_unix_s);
+PRAGMA user_version = 1;";
+
+#[test]
+fn a_database_of_the_first_schema_still_opens_with_its_runs() {
+    let dir = temp_dir("results-first-schema");
+    let db = dir.join("first.db");
+    let (a, _) = two_results(&dir);
+    let conn = rusqlite::Connection::open(&db).unwrap();
+    conn.execute_batch(FIRST_SCHEMA).unwrap();
+    conn.execute(
+        "INSERT INTO runs VALUES (1, 'd', 1, 'import', 1700000000, 'm-0', 'Old CPU', 4,
+         '0.1.0', 'abc', 'avx2', 'cover', 'id', 4, 1e6, 9e5, 1.1e6, 'valid', '{}')",
+        [],
+    )
+    .unwrap();
+    drop(conn);
+    let runs = listed(&dir, &db, &[]);
+    assert_eq!(runs.len(), 1);
+    assert!(runs[0].contains("Old CPU"), "{}", runs[0]);
+    let o = results(&dir, &db, &["import", a.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(listed(&dir, &db, &[]).len(), 2);
+}
+
+/// `n` distinct results made from `base` (each started a second apart, from `first`), as
+/// files in `dir`.
+fn variants(dir: &Path, base: &Value, first: u64, n: usize, tag: &str) -> Vec<String> {
+    (0..n)
+        .map(|i| {
+            let mut v = base.clone();
+            v["method"]["started_unix_s"] = Value::from(first + i as u64);
+            let name = format!("{tag}-{i}.json");
+            write_json(&dir.join(&name), &v);
+            name
+        })
+        .collect()
+}
+
+#[test]
+fn concurrent_writers_all_land_and_a_killed_one_loses_nothing() {
+    let dir = temp_dir("results-concurrent");
+    let db = dir.join("r.db");
+    let (a, _) = two_results(&dir);
+    let base = json(&a);
+    // Four importers and a bench at once, on a new database.
+    let import = |files: &[String]| {
+        tessera()
+            .args(["results", "import"])
+            .args(files)
+            .env("TESSERA_DB", &db)
+            .current_dir(&dir)
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap()
+    };
+    let mut children: Vec<std::process::Child> = (0..4)
+        .map(|k| {
+            import(&variants(
+                &dir,
+                &base,
+                1_700_000_000 + k * 1000,
+                25,
+                &format!("w{k}"),
+            ))
+        })
+        .collect();
+    bench(&dir, Some(&db), "bench.json");
+    for c in children.drain(..) {
+        let o = c.wait_with_output().unwrap();
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    assert_eq!(listed(&dir, &db, &[]).len(), 101);
+    // An importer killed mid-way: its transaction is all or nothing, and what was there
+    // stays.
+    let mut child = import(&variants(&dir, &base, 1_710_000_000, 2000, "k"));
+    std::thread::sleep(std::time::Duration::from_millis(150));
+    let _ = Command::new("kill")
+        .args(["-KILL", &child.id().to_string()])
+        .status();
+    let _ = child.wait();
+    let n = listed(&dir, &db, &[]).len();
+    assert!(n == 101 || n == 2101, "{n} runs after the kill");
+}
+
+/// `base` as machine `machine` measured it at build `commit`, started at `started`, with
+/// every samples/s scaled by `speed` and spread 2% either side.
+fn as_if(base: &Value, machine: &str, commit: &str, started: u64, speed: f64) -> Value {
+    let mut v = base.clone();
+    v["host"]["machine_id"] = Value::from(machine);
+    v["build"]["commit"] = Value::from(commit);
+    v["method"]["started_unix_s"] = Value::from(started);
+    // Each row as if its runs spread 2% either side of the median.
+    let scale = |row: &mut Value| {
+        let median = row["samples_per_sec"]["median"].as_f64().unwrap() * speed;
+        for (key, x) in [("median", 1.0), ("min", 0.98), ("max", 1.02)] {
+            row["samples_per_sec"][key] = Value::from(median * x);
+        }
+    };
+    scale(&mut v["result"]);
+    for row in v["scaling"].as_array_mut().unwrap() {
+        scale(row);
+    }
+    v
+}
+
+#[test]
+fn rank_compare_history_and_export_read_the_kept_runs() {
+    let dir = temp_dir("results-analysis");
+    let db = dir.join("r.db");
+    let (a, _) = two_results(&dir);
+    let base = json(&a);
+    // Machine m-fast at twice the speed; machine m-slow over three commits, the third 30%
+    // slower (beyond any spread of one run), the second 0.1% slower (within).
+    let made = [
+        as_if(&base, "m-fast000000000000", "aaaa", 1_700_000_000, 2.0),
+        as_if(&base, "m-slow000000000000", "c1c1", 1_700_000_100, 1.0),
+        as_if(&base, "m-slow000000000000", "c2c2", 1_700_000_200, 0.999),
+        as_if(&base, "m-slow000000000000", "c3c3", 1_700_000_300, 0.7),
+    ];
+    let mut files = Vec::new();
+    for (i, v) in made.iter().enumerate() {
+        let name = format!("r{i}.json");
+        write_json(&dir.join(&name), v);
+        files.push(name);
+    }
+    let files: Vec<&str> = files.iter().map(String::as_str).collect();
+    assert!(
+        results(&dir, &db, &[&["import"][..], &files].concat())
+            .status
+            .success()
+    );
+
+    // A custom workload is unvalidated: ranked only with --all.
+    let o = results(&dir, &db, &["rank", "--workload", "custom"]);
+    assert!(stdout(&o).contains("no valid runs"), "{}", stdout(&o));
+    let o = results(&dir, &db, &["rank", "--workload", "custom", "--all"]);
+    let text = stdout(&o);
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines.len(), 2 + 4, "{text}");
+    assert_eq!(lines[0], "workload custom: 4 runs", "{text}");
+    assert!(
+        lines[2].contains("m-fast") && lines[2].trim_start().starts_with('1'),
+        "{text}"
+    );
+    assert!(
+        lines[5].contains("c3c3"),
+        "the slowest build ranks last: {text}"
+    );
+
+    let o = results(&dir, &db, &["compare", "m-slow", "m-fast"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = stdout(&o);
+    assert!(text.contains("faster, beyond the spread"), "{text}");
+    // A slow portable run of c2c2, older than its newest: compare keeps each side to one
+    // SIMD path (its newest run's), so it does not drag c2c2 down.
+    let mut portable = as_if(&base, "m-slow000000000000", "c2c2", 1_700_000_150, 0.5);
+    portable["build"]["simd"] = Value::from("portable");
+    write_json(&dir.join("portable.json"), &portable);
+    assert!(
+        results(&dir, &db, &["import", "portable.json"])
+            .status
+            .success()
+    );
+    let o = results(&dir, &db, &["compare", "commit:c1c1", "commit:c2c2"]);
+    let text = stdout(&o);
+    assert!(text.contains("0.999  within the runs' spread"), "{text}");
+    let path = base["build"]["simd"].as_str().unwrap();
+    assert!(
+        text.contains(&format!("commit:c2c2 (1 run on {path}, ")),
+        "{text}"
+    );
+    let only_portable = [
+        "compare",
+        "commit:c1c1",
+        "commit:c2c2",
+        "--simd",
+        "portable",
+    ];
+    let o = results(&dir, &db, &only_portable);
+    assert!(
+        stderr(&o).contains("no runs of that workload on SIMD path portable"),
+        "{}",
+        stderr(&o)
+    );
+    let o = results(&dir, &db, &["compare", "run:1", "nothing-like-this"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("selects no runs"), "{}", stderr(&o));
+
+    let o = results(
+        &dir,
+        &db,
+        &["history", "--machine", "m-slow", "--workload", "custom"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = stdout(&o);
+    let flagged: Vec<&str> = text.lines().filter(|l| l.contains("REGRESSION")).collect();
+    assert_eq!(flagged.len(), 1, "{text}");
+    assert!(flagged[0].contains("c3c3"), "{text}");
+    let o = results(
+        &dir,
+        &db,
+        &["history", "--machine", "m-", "--workload", "custom"],
+    );
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("matches 2 machines"), "{}", stderr(&o));
+
+    // Export gives every result back, one per line, and importing it adds nothing.
+    let o = results(&dir, &db, &["export", "--jsonl"]);
+    let text = stdout(&o);
+    assert_eq!(text.lines().count(), 5);
+    let mut exported = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        exported.push(format!("e{i}.json"));
+        std::fs::write(dir.join(&exported[i]), line).unwrap();
+    }
+    let exported: Vec<&str> = exported.iter().map(String::as_str).collect();
+    let o = results(&dir, &db, &[&["import"][..], &exported].concat());
+    assert_eq!(stdout(&o), "imported 0 new results, 5 already present\n");
+}
+
+/// The README's steps as a new user takes them: `bench` records the quick workload, and then
+/// `results rank`, `history` and `report` with no flags show that run; two runs on
+/// different SIMD paths compare by their numbers (or `latest~1 latest`).
+#[test]
+fn with_no_flags_results_show_the_runs_the_user_has() {
+    let dir = temp_dir("results-defaults");
+    let db = dir.join("r.db");
+    let quick = tessera()
+        .args("bench --repeat 1 --warmup 0 --no-scaling --threads 1".split(' '))
+        .args(["--simd", "portable", "--out", "quick.json"])
+        .env("TESSERA_DB", &db)
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    assert!(quick.status.success(), "{}", stderr(&quick));
+    let o = results(&dir, &db, &["rank"]);
+    let text = stdout(&o);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(text.starts_with("workload quick: 1 run\n"), "{text}");
+    assert!(
+        text.lines()
+            .nth(2)
+            .is_some_and(|l| l.trim_start().starts_with("1 ")),
+        "{text}"
+    );
+    let o = results(&dir, &db, &["history"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let machine = json(&dir.join("quick.json"))["host"]["machine_id"]
+        .as_str()
+        .unwrap()
+        .to_owned();
+    assert!(
+        stdout(&o).starts_with(&format!(
+            "machine {machine}, workload quick, 1 thread, SIMD portable"
+        )),
+        "{}",
+        stdout(&o)
+    );
+    let o = results(&dir, &db, &["report", "-o", "report.html"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let page = std::fs::read_to_string(dir.join("report.html")).unwrap();
+    assert!(page.contains("Workload quick"), "{page}");
+    assert_eq!(page.matches("<td class=\"n rankno\">").count(), 1, "{page}");
+
+    // A second run on another path; the two compare by number, whatever their paths.
+    let mut other = json(&dir.join("quick.json"));
+    other["build"]["simd"] = Value::from("avx2");
+    other["method"]["started_unix_s"] =
+        Value::from(other["method"]["started_unix_s"].as_u64().unwrap() + 60);
+    write_json(&dir.join("avx2.json"), &other);
+    assert!(
+        results(&dir, &db, &["import", "avx2.json"])
+            .status
+            .success()
+    );
+    for (a, b) in [("1", "2"), ("latest~1", "latest"), ("run:2", "run:1")] {
+        let o = results(&dir, &db, &["compare", a, b]);
+        assert!(o.status.success(), "compare {a} {b}: {}", stderr(&o));
+        let text = stdout(&o);
+        assert!(
+            text.contains("run on portable") && text.contains("run on avx2"),
+            "{text}"
+        );
+    }
+    let o = results(&dir, &db, &["compare", "latest~2", "latest"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("the database holds 2 runs"),
+        "{}",
+        stderr(&o)
+    );
+    // A busy run is marked as such.
+    let mut busy = json(&dir.join("quick.json"));
+    busy["method"]["started_unix_s"] =
+        Value::from(busy["method"]["started_unix_s"].as_u64().unwrap() + 120);
+    busy["busy"] = serde_json::json!({
+        "busy": true,
+        "reasons": ["other processes kept 1.70 of its 2 CPUs busy while it ran"],
+        "others_cpus": 1.7,
+        "steal": 0.0
+    });
+    write_json(&dir.join("busy.json"), &busy);
+    assert!(
+        results(&dir, &db, &["import", "busy.json"])
+            .status
+            .success()
+    );
+    assert!(listed(&dir, &db, &["--limit", "1"])[0].contains("valid (busy)"));
+}
+
+/// A result's "busy" record is checked like the rest of a stranger's file.
+#[test]
+fn a_busy_record_that_no_run_makes_is_refused() {
+    let dir = temp_dir("results-busy-hostile");
+    let db = dir.join("r.db");
+    let (a, _) = two_results(&dir);
+    let base = json(&a);
+    for (name, busy) in [
+        (
+            "nan",
+            serde_json::json!({"busy": true, "reasons": [], "others_cpus": -1.0, "steal": 0.0}),
+        ),
+        (
+            "long",
+            serde_json::json!({"busy": true, "reasons": ["x".repeat(5000)], "others_cpus": 1.0, "steal": 0.0}),
+        ),
+        (
+            "many",
+            serde_json::json!({"busy": true, "reasons": vec!["r"; 100], "others_cpus": 1.0, "steal": 0.0}),
+        ),
+        (
+            "steal",
+            serde_json::json!({"busy": true, "reasons": ["r"], "others_cpus": 1.0, "steal": 2.0}),
+        ),
+        (
+            "field",
+            serde_json::json!({"busy": false, "reasons": [], "others_cpus": 0.0, "steal": 0.0, "x": 1}),
+        ),
+    ] {
+        let mut v = base.clone();
+        v["busy"] = busy;
+        write_json(&dir.join(format!("{name}.json")), &v);
+        let o = results(&dir, &db, &["import", &format!("{name}.json")]);
+        assert_eq!(o.status.code(), Some(2), "{name}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains(&format!("{name}.json")),
+            "{name}: {}",
+            stderr(&o)
+        );
+    }
+}
+
+#[test]
+fn a_result_of_the_first_schema_imports_on_the_same_machine() {
+    let dir = temp_dir("results-schema-1");
+    let db = dir.join("r.db");
+    let (a, _) = two_results(&dir);
+    let now = json(&a);
+    // What tessera-bench/1 wrote: no machine id, SMT, clocks or SIMD reason.
+    let mut old = now.clone();
+    old["schema"] = Value::from("tessera-bench/1");
+    old["method"]["started_unix_s"] = Value::from(1_700_000_000u64);
+    for field in ["machine_id", "smt", "cpu_base_mhz", "cpu_max_mhz"] {
+        old["host"].as_object_mut().unwrap().remove(field);
+    }
+    old["build"].as_object_mut().unwrap().remove("simd_reason");
+    write_json(&dir.join("old.json"), &old);
+    let o = results(&dir, &db, &["import", "old.json", a.to_str().unwrap()]);
+    assert_eq!(
+        stdout(&o),
+        "imported 2 new results, 0 already present\n",
+        "{}",
+        stderr(&o)
+    );
+    // The old result's machine id comes from the same facts: one machine.
+    let machine = now["host"]["machine_id"].as_str().unwrap();
+    assert_eq!(listed(&dir, &db, &["--machine", machine]).len(), 2);
+}
+
+#[test]
+fn a_full_or_read_only_disk_is_an_error_that_keeps_what_was_there() {
+    let test = "a_full_or_read_only_disk_is_an_error_that_keeps_what_was_there";
+    let dir = temp_dir("results-disk");
+    let (a, _) = two_results(&dir);
+    let base = json(&a);
+    // Enough results to outgrow 256 KiB: their JSON is kept whole.
+    let many = variants(&dir, &base, 1_720_000_000, 200, "m").join(" ");
+    let tessera = env!("CARGO_BIN_EXE_tessera");
+    let script = format!(
+        "export TESSERA_DB=small/r.db; {tessera} results import a.json && {tessera} results import {many}; echo \"full=$?\"; \
+         {tessera} results list | tail -n +2 | wc -l; \
+         mount -o remount,ro small && {tessera} results import b.json; echo \"ro=$?\"; \
+         {tessera} results list | tail -n +2 | wc -l"
+    );
+    let Some(o) = in_a_small_filesystem(&dir, 256, &script) else {
+        return skip(
+            test,
+            "this machine cannot make a private filesystem (unshare -rm)",
+        );
+    };
+    let (out, err) = (stdout(&o), stderr(&o));
+    let lines: Vec<&str> = (out.lines())
+        .filter(|l| !l.starts_with("imported"))
+        .collect();
+    assert_eq!(lines.first(), Some(&"full=2"), "{out}{err}");
+    assert!(err.contains("disk is full"), "{err}");
+    assert_eq!(
+        lines.get(1).map(|l| l.trim()),
+        Some("1"),
+        "the first import was lost: {out}"
+    );
+    assert_eq!(lines.get(2), Some(&"ro=2"), "{out}{err}");
+    assert!(err.contains("read-only"), "{err}");
+    assert_eq!(lines.get(3).map(|l| l.trim()), Some("1"), "{out}");
+    assert!(!err.contains("panicked"), "{err}");
+}

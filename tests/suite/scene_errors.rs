@@ -1,0 +1,375 @@
+//! Bad scene files: each is refused with its file, line, column and field, exit status 2,
+//! and the old output left intact; values f32 cannot represent are refused by name, and the
+//! largest ones allowed render right.
+
+use crate::common::*;
+use std::path::PathBuf;
+
+/// Writes `text` as a scene, renders it over an existing output, and checks the failure:
+/// exit status 2, every expected fragment in the message, no panic, the old output intact.
+fn assert_rejected(name: &str, text: &str, expected: &[&str]) {
+    let dir = temp_dir(&format!("bad-{name}"));
+    let scene = dir.join("scene.toml");
+    std::fs::write(&scene, text).unwrap();
+    let out = dir.join("out.png");
+    std::fs::write(&out, b"precious").unwrap();
+    let o = run(&["render", "scene.toml", "-o", "out.png"], &dir);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{name}: {err}");
+    assert!(!err.contains("panicked"), "{name}: {err}");
+    for e in expected {
+        assert!(err.contains(e), "{name}: expected `{e}` in: {err}");
+    }
+    assert_eq!(
+        std::fs::read(&out).unwrap(),
+        b"precious",
+        "{name} damaged the old output"
+    );
+    let leftovers: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    assert_eq!(
+        leftovers.len(),
+        2,
+        "{name} left files behind: {leftovers:?}"
+    );
+}
+
+#[test]
+fn the_good_scene_renders() {
+    let dir = dir_with_scene("good", GOOD);
+    let o = run(&["render", "scene.toml", "-o", "out.png", "-q"], &dir);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+#[test]
+fn unknown_key_is_named_with_its_line_and_column() {
+    let text = GOOD.replace("max_depth = 5", "max_depth = 5\nwidht = 3");
+    assert_rejected(
+        "unknown-key",
+        &text,
+        &["scene.toml:6:1", "unknown field `widht`"],
+    );
+}
+
+#[test]
+fn unknown_material_name_lists_the_defined_ones() {
+    let text = GOOD.replace("material = \"red\"", "material = \"blue\"");
+    assert_rejected(
+        "unknown-material",
+        &text,
+        &[
+            "scene.toml:14:12",
+            "spheres[0].material",
+            "unknown material `blue`",
+            "red",
+        ],
+    );
+}
+
+#[test]
+fn unknown_material_type_is_rejected() {
+    let text = GOOD.replace("type = \"lambertian\"", "type = \"plastic\"");
+    assert_rejected(
+        "material-type",
+        &text,
+        &["scene.toml:8:8", "materials.red.type", "plastic"],
+    );
+}
+
+#[test]
+fn missing_field_is_named() {
+    assert_rejected(
+        "missing-height",
+        &GOOD.replace("height = 9\n", ""),
+        &["scene.toml:1:1", "[image]: missing key `height`"],
+    );
+    let no_albedo = GOOD.replace("albedo = [0.9, 0.1, 0.1]\n", "");
+    assert_rejected(
+        "missing-albedo",
+        &no_albedo,
+        &["scene.toml:7:1", "materials.red.albedo", "missing"],
+    );
+}
+
+#[test]
+fn negative_and_zero_sizes_are_rejected() {
+    assert_rejected(
+        "negative-width",
+        &GOOD.replace("width = 16", "width = -16"),
+        &["scene.toml:2:9", "image.width", "must be positive, got -16"],
+    );
+    assert_rejected(
+        "zero-spp",
+        &GOOD.replace("samples_per_pixel = 1", "samples_per_pixel = 0"),
+        &[
+            "scene.toml:4:21",
+            "image.samples_per_pixel",
+            "must be positive",
+        ],
+    );
+    assert_rejected(
+        "zero-radius",
+        &GOOD.replace("radius = 0.5", "radius = 0.0"),
+        &["scene.toml:13:10", "spheres[0].radius", "non-zero"],
+    );
+}
+
+#[test]
+fn t_min_is_auto_or_a_distance() {
+    let with = |value: &str| {
+        GOOD.replace(
+            "max_depth = 5\n",
+            &format!("max_depth = 5\n[render]\nt_min = {value}\n"),
+        )
+    };
+    for good in ["\"auto\"", "0", "0.001", "2"] {
+        let dir = dir_with_scene("t-min-good", with(good));
+        let o = run(&["render", "scene.toml", "-o", "out.png", "-q"], &dir);
+        assert!(o.status.success(), "t_min = {good}: {}", stderr(&o));
+    }
+    assert_rejected(
+        "t-min-word",
+        &with("\"automatic\""),
+        &["scene.toml:7:9", "\"auto\" or a distance", "automatic"],
+    );
+    assert_rejected(
+        "t-min-negative",
+        &with("-0.5"),
+        &[
+            "scene.toml:7:9",
+            "render.t_min",
+            "must be \"auto\" or zero or positive, got -0.5",
+        ],
+    );
+    assert_rejected(
+        "t-min-array",
+        &with("[0.001]"),
+        &["scene.toml:7:9", "\"auto\" or a distance"],
+    );
+}
+
+#[test]
+fn nan_and_infinity_are_rejected() {
+    assert_rejected(
+        "nan-radius",
+        &GOOD.replace("radius = 0.5", "radius = nan"),
+        &["scene.toml:13:10", "spheres[0].radius", "finite", "NaN"],
+    );
+    assert_rejected(
+        "inf-center",
+        &GOOD.replace("[0.0, 0.0, -1.0]", "[0.0, inf, -1.0]"),
+        &["scene.toml:12:10", "spheres[0].center", "finite"],
+    );
+}
+
+#[test]
+fn malformed_toml_is_located() {
+    assert_rejected(
+        "syntax",
+        &GOOD.replace("width = 16", "width = = 16"),
+        &["scene.toml:2:"],
+    );
+    assert_rejected(
+        "wrong-type",
+        &GOOD.replace("width = 16", "width = \"wide\""),
+        &["scene.toml:2:9", "integer"],
+    );
+}
+
+#[test]
+fn fields_of_another_material_type_are_rejected() {
+    let text = GOOD.replace(
+        "albedo = [0.9, 0.1, 0.1]",
+        "albedo = [0.9, 0.1, 0.1]\nir = 1.5",
+    );
+    assert_rejected(
+        "foreign-field",
+        &text,
+        &["scene.toml:10:6", "materials.red.ir", "does not apply"],
+    );
+}
+
+#[test]
+fn arrays_of_the_wrong_length_are_rejected() {
+    assert_rejected(
+        "long-center",
+        &GOOD.replace("[0.0, 0.0, -1.0]", "[0, 0, -1, \"junk\", [1, 2]]"),
+        &["scene.toml:12:10", "invalid length 5", "array of 3"],
+    );
+    assert_rejected(
+        "short-center",
+        &GOOD.replace("[0.0, 0.0, -1.0]", "[0, 0]"),
+        &["scene.toml:12:10", "invalid length 2", "array of 3"],
+    );
+    assert_rejected(
+        "long-albedo",
+        &GOOD.replace("[0.9, 0.1, 0.1]", "[0.9, 0.1, 0.1, 0.5, 0.5]"),
+        &["scene.toml:9:10", "invalid length 5"],
+    );
+    assert_rejected(
+        "long-crop",
+        &GOOD.replace("max_depth = 5", "max_depth = 5\ncrop = [0, 0, 4, 4, 1, 1]"),
+        &["scene.toml:6:8", "invalid length 6", "array of 4"],
+    );
+}
+
+#[test]
+fn a_crop_not_inside_the_image_is_rejected_without_overflow() {
+    // x + width overflows i64: it must not wrap round to a small right edge.
+    let text = GOOD
+        .replace("width = 16", "width = 32")
+        .replace("height = 9", "height = 18")
+        .replace(
+            "max_depth = 5",
+            "max_depth = 5\ncrop = [1, 0, 9223372036854775807, 4]",
+        );
+    assert_rejected(
+        "crop-overflow",
+        &text,
+        &["scene.toml:6:8", "image.crop", "inside the 32x18 image"],
+    );
+    assert_rejected(
+        "crop-outside",
+        &GOOD.replace("max_depth = 5", "max_depth = 5\ncrop = [10, 0, 7, 4]"),
+        &["scene.toml:6:8", "image.crop"],
+    );
+}
+
+#[test]
+fn invalid_utf8_is_located() {
+    let dir = temp_dir("bad-utf8");
+    let mut text = GOOD.as_bytes().to_vec();
+    let at = GOOD.find("[materials").unwrap();
+    text.splice(at..at, b"# caf\xe9\n".iter().copied());
+    std::fs::write(dir.join("scene.toml"), &text).unwrap();
+    let o = run(&["render", "scene.toml", "-o", "out.png"], &dir);
+    assert_eq!(o.status.code(), Some(2));
+    let err = stderr(&o);
+    assert!(
+        err.contains("scene.toml:7:6") && err.contains("UTF-8"),
+        "{err}"
+    );
+}
+
+/// The scene `GOOD` seen from inside a sphere of `radius` and `material` around the camera.
+fn inside_sphere(radius: &str, camera: &str) -> String {
+    format!(
+        "{GOOD}\n[materials.black]\ntype = \"lambertian\"\nalbedo = [0, 0, 0]\n\n\
+         [[spheres]]\ncenter = [0, 0, 0]\nradius = {radius}\nmaterial = \"black\"\n\n\
+         [camera]\n{camera}\n"
+    )
+}
+
+const LOOK_DOWN_Z: &str = "lookfrom = [0, 0, 0]\nlookat = [0, 0, -1]\nvfov_deg = 90";
+
+/// Renders `text` as a small PPM; returns its pixel values, or the failure.
+fn render_ppm(name: &str, text: &str) -> Result<Vec<u8>, String> {
+    let dir = dir_with_scene(name, text);
+    let o = run(&["render", "scene.toml", "-o", "out.ppm", "-q"], &dir);
+    if !o.status.success() {
+        return Err(stderr(&o));
+    }
+    Ok(std::fs::read(dir.join("out.ppm")).unwrap())
+}
+
+#[test]
+fn geometry_beyond_f32_is_refused_and_within_it_renders_right() {
+    // A black sphere around the camera renders black at the largest radius allowed...
+    let black = render_ppm("huge-sphere", &inside_sphere("1e18", LOOK_DOWN_Z)).unwrap();
+    let text = String::from_utf8(black).unwrap();
+    assert!(
+        text.lines().skip(3).all(|l| l == "0 0 0"),
+        "a camera inside a black sphere sees light"
+    );
+    // ...and beyond it the radius is refused, not silently lost to overflow.
+    let err = render_ppm("huger-sphere", &inside_sphere("1e20", LOOK_DOWN_Z)).unwrap_err();
+    assert!(
+        err.contains("spheres[1].radius") && err.contains("1e18") && err.contains("1e20"),
+        "{err}"
+    );
+    let err = render_ppm("tiny-sphere", &inside_sphere("1e-30", LOOK_DOWN_Z)).unwrap_err();
+    assert!(
+        err.contains("spheres[1].radius") && err.contains("1e-18"),
+        "{err}"
+    );
+    let far = "lookfrom = [3e38, 0, 0]\nlookat = [-3e38, 0, 0]\nvfov_deg = 90";
+    let err = render_ppm(
+        "far-camera",
+        &GOOD.replace("[image]", &format!("[camera]\n{far}\n\n[image]")),
+    )
+    .unwrap_err();
+    assert!(
+        err.contains("scene.toml:2:12") && err.contains("camera.lookfrom") && err.contains("1e18"),
+        "{err}"
+    );
+    let wide = "lookfrom = [0, 0, 0]\nlookat = [0, 0, -1]\nvfov_deg = 90\nfocus_dist = 1e18";
+    let err = render_ppm(
+        "wide-view",
+        &GOOD
+            .replace("width = 16", "width = 200000000")
+            .replace("height = 9", "height = 1")
+            .replace("[image]", &format!("[camera]\n{wide}\n\n[image]")),
+    )
+    .unwrap_err();
+    assert!(
+        err.contains("field `camera`") && err.contains("f32"),
+        "{err}"
+    );
+}
+
+#[test]
+fn vup_is_a_direction_whatever_its_length() {
+    let camera = |vup: &str| {
+        GOOD.replace(
+            "[image]",
+            &format!(
+                "[camera]\nlookfrom = [0, 1, 2]\nlookat = [0, 0, -1]\nvfov_deg = 60\nvup = {vup}\n\n[image]"
+            ),
+        )
+    };
+    let unit = render_ppm("vup-unit", &camera("[0, 1, 0]")).unwrap();
+    for (name, vup) in [("vup-huge", "[0, 1e20, 0]"), ("vup-tiny", "[0, 1e-18, 0]")] {
+        let other = render_ppm(name, &camera(vup)).unwrap_or_else(|e| panic!("{vup}: {e}"));
+        assert!(
+            other == unit,
+            "vup = {vup} renders differently from [0, 1, 0]"
+        );
+    }
+    let err = render_ppm("vup-zero", &camera("[0, 0, 0]")).unwrap_err();
+    assert!(
+        err.contains("camera.vup") && err.contains("non-zero"),
+        "{err}"
+    );
+}
+
+#[test]
+fn a_bad_random_spheres_generator_is_rejected_with_its_line() {
+    let with = |extra: &str| format!("{GOOD}\n[random_spheres]\ngrid = 1\n{extra}\n");
+    // The table starts on line 16; its third line is 18.
+    assert_rejected(
+        "generator-unknown",
+        &with("generator = \"mt19937\""),
+        &["scene.toml:18", "mt19937", "pcg", "glibc"],
+    );
+    assert_rejected(
+        "glibc-seed-too-big",
+        &with("generator = \"glibc\"\nseed = 4294967296"),
+        &["scene.toml:19", "random_spheres.seed", "4294967295"],
+    );
+    assert_rejected(
+        "after-too-many",
+        &with("after_spheres = 2"),
+        &[
+            "scene.toml:18",
+            "random_spheres.after_spheres",
+            "the 1 listed spheres",
+        ],
+    );
+    assert_rejected(
+        "after-negative",
+        &with("after_spheres = -1"),
+        &["random_spheres.after_spheres"],
+    );
+}

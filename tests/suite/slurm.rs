@@ -1,0 +1,301 @@
+//! The Slurm scripts in `deploy/slurm/` against a real Slurm cluster: an array of shards and
+//! its merge give the bytes of a single render, also when a task is requeued mid-render,
+//! when the array has one task, and when tessera runs from the container image.
+//!
+//! The cluster is whatever `sinfo` reaches (`SLURM_CONF`); `deploy/slurm/local-cluster.sh
+//! start` makes a single-node one, as `.ci/run` does. Without one the tests are skipped, saying
+//! why, except under `CI=true`, where a missing cluster fails them.
+
+use crate::common::*;
+use std::path::PathBuf;
+use std::process::{Command, Output};
+use std::time::{Duration, Instant};
+
+/// How long a submitted render and its merge may take before the test gives up.
+const PATIENCE: Duration = Duration::from_secs(240);
+
+fn command(program: &str, args: &[&str]) -> std::io::Result<Output> {
+    Command::new(program).args(args).output()
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+/// True when a Slurm cluster answers; otherwise says why the test is skipped (or, under
+/// `CI=true`, fails it).
+fn cluster_answers() -> bool {
+    if !heavy("the Slurm test") {
+        return false;
+    }
+    let why = match command("sinfo", &["-h", "-o", "%t"]) {
+        Ok(o) if o.status.success() && !o.stdout.is_empty() => return true,
+        Ok(o) => format!("`sinfo` finds no cluster: {}", text(&o.stderr).trim()),
+        Err(e) => format!("`sinfo` cannot run ({e}): Slurm is not installed"),
+    };
+    let start = "start one with `eval \"$(deploy/slurm/local-cluster.sh start)\"` (as root)";
+    skip(
+        "the Slurm test",
+        &format!("no Slurm cluster: {why}; {start}"),
+    );
+    false
+}
+
+/// The jobs one test submitted; cancelled when the test ends, however it ends.
+struct Jobs(Vec<String>);
+
+impl Drop for Jobs {
+    fn drop(&mut self) {
+        if !self.0.is_empty() {
+            let _ = Command::new("scancel").args(&self.0).output();
+        }
+    }
+}
+
+/// A render of the cover through `deploy/slurm/submit.sh` in its own directory.
+struct SlurmRender {
+    dir: PathBuf,
+    extra: String,
+    /// More variables for submit.sh (CONTAINER, …).
+    env: Vec<(String, String)>,
+}
+
+impl SlurmRender {
+    fn new(name: &str, extra: &str) -> Self {
+        Self {
+            dir: temp_dir(&format!("slurm-{name}")),
+            extra: extra.to_owned(),
+            env: Vec::new(),
+        }
+    }
+
+    /// Submits `tasks` array tasks and the merge; returns (render array id, merge id).
+    fn submit(&self, tasks: u32, jobs: &mut Jobs) -> (String, String) {
+        let o = Command::new(root().join("deploy/slurm/submit.sh"))
+            .arg(tasks.to_string())
+            .current_dir(&self.dir)
+            .env("SCENE", scene_path("cover.toml"))
+            .env("EXTRA", &self.extra)
+            .env("OUTDIR", self.dir.join("parts"))
+            .env("IMAGE", self.dir.join("merged.png"))
+            .env("TESSERA", env!("CARGO_BIN_EXE_tessera"))
+            .envs(self.env.iter().map(|(k, v)| (k, v)))
+            .output()
+            .expect("run submit.sh");
+        assert!(o.status.success(), "submit.sh: {}", text(&o.stderr));
+        let out = text(&o.stdout);
+        let id = |what: &str| {
+            out.lines()
+                .find_map(|l| l.strip_prefix(what))
+                .unwrap_or_else(|| panic!("no `{what}` line in: {out}"))
+                .trim()
+                .to_owned()
+        };
+        let ids = (id("render "), id("merge "));
+        jobs.0.extend([ids.0.clone(), ids.1.clone()]);
+        ids
+    }
+
+    /// The same render straight through, on this machine.
+    fn single(&self) -> Vec<u8> {
+        let o = tessera()
+            .arg("render")
+            .arg(scene_path("cover.toml"))
+            .args(["-q", "-o", "single.png"])
+            .args(self.extra.split_whitespace())
+            .current_dir(&self.dir)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", text(&o.stderr));
+        std::fs::read(self.dir.join("single.png")).unwrap()
+    }
+
+    /// Checks that the merged image has the single render's bytes.
+    fn assert_merged_equals_single(&self) {
+        assert!(self.merged() == self.single(), "merged != single render");
+    }
+
+    fn merged(&self) -> Vec<u8> {
+        std::fs::read(self.dir.join("merged.png")).unwrap_or_else(|e| {
+            panic!("no merged image ({e}); logs:\n{}", self.logs());
+        })
+    }
+
+    fn logs(&self) -> String {
+        let mut all = String::new();
+        for entry in std::fs::read_dir(&self.dir).unwrap().flatten() {
+            let path = entry.path();
+            if path.extension().is_some_and(|e| e == "log") {
+                let body = std::fs::read_to_string(&path).unwrap_or_default();
+                all.push_str(&format!("--- {}\n{body}", path.display()));
+            }
+        }
+        all
+    }
+}
+
+/// `scontrol show job`'s fields of `job`, one map per job (an array job has one per task);
+/// empty once Slurm has forgotten the job.
+fn job_fields(job: &str) -> Vec<Vec<(String, String)>> {
+    let Ok(o) = command("scontrol", &["show", "job", "-o", job]) else {
+        return Vec::new();
+    };
+    text(&o.stdout)
+        .lines()
+        .map(|line| {
+            line.split_whitespace()
+                .filter_map(|kv| kv.split_once('='))
+                .map(|(k, v)| (k.to_owned(), v.to_owned()))
+                .collect()
+        })
+        .collect()
+}
+
+fn field<'a>(job: &'a [(String, String)], name: &str) -> &'a str {
+    job.iter()
+        .find(|(k, _)| k == name)
+        .map_or("", |(_, v)| v.as_str())
+}
+
+/// Waits until job `id` has finished; panics, with the logs, if it failed or takes too long.
+fn wait_for(render: &SlurmRender, id: &str) {
+    let start = Instant::now();
+    loop {
+        let jobs = job_fields(id);
+        let states: Vec<&str> = jobs.iter().map(|j| field(j, "JobState")).collect();
+        if !states.is_empty() && states.iter().all(|&s| s == "COMPLETED") {
+            return;
+        }
+        if let Some(bad) = states.iter().find(|&&s| {
+            [
+                "FAILED",
+                "CANCELLED",
+                "TIMEOUT",
+                "NODE_FAIL",
+                "OUT_OF_MEMORY",
+            ]
+            .contains(&s)
+        }) {
+            panic!("job {id} ended {bad}; logs:\n{}", render.logs());
+        }
+        assert!(
+            start.elapsed() < PATIENCE,
+            "job {id} still {states:?} after {PATIENCE:?}; logs:\n{}",
+            render.logs()
+        );
+        std::thread::sleep(Duration::from_millis(200));
+    }
+}
+
+#[test]
+fn an_array_of_shards_merges_to_the_single_render() {
+    if !cluster_answers() {
+        return;
+    }
+    let mut jobs = Jobs(Vec::new());
+    let render = SlurmRender::new("four", "--width 120 --spp 16");
+    let (_, merge) = render.submit(4, &mut jobs);
+    wait_for(&render, &merge);
+    render.assert_merged_equals_single();
+    let parts = render.dir.join("parts");
+    for task in 0..4 {
+        assert!(parts.join(format!("shard-{task}.part")).exists());
+    }
+    assert!(
+        !parts.join("checkpoints").exists(),
+        "checkpoints were left beside the parts"
+    );
+}
+
+#[test]
+fn an_array_of_one_task_works() {
+    if !cluster_answers() {
+        return;
+    }
+    let mut jobs = Jobs(Vec::new());
+    let render = SlurmRender::new("one", "--width 90 --spp 6");
+    let (_, merge) = render.submit(1, &mut jobs);
+    wait_for(&render, &merge);
+    render.assert_merged_equals_single();
+}
+
+#[test]
+fn an_array_can_run_tessera_from_the_container_image() {
+    if !cluster_answers() {
+        return;
+    }
+    let image = match container_image() {
+        Ok(image) => image,
+        Err(why) => return skip("an_array_can_run_tessera_from_the_container_image", &why),
+    };
+    let mut jobs = Jobs(Vec::new());
+    let mut render = SlurmRender::new("container", "--width 120 --spp 16");
+    render.env = vec![
+        ("CONTAINER".into(), image),
+        ("PODMAN_FLAGS".into(), PODMAN_FLAGS.join(" ")),
+        // No binary to fall back on: the image must do the work.
+        ("TESSERA".into(), "/nonexistent/tessera".into()),
+    ];
+    let (_, merge) = render.submit(2, &mut jobs);
+    wait_for(&render, &merge);
+    render.assert_merged_equals_single();
+}
+
+/// Waits until job `job` is `what`, as `test` tells from its fields.
+fn wait_until(
+    render: &SlurmRender,
+    job: &str,
+    what: &str,
+    test: impl Fn(&[(String, String)]) -> bool,
+) {
+    let start = Instant::now();
+    while !job_fields(job).first().is_some_and(|j| test(j)) {
+        assert!(
+            start.elapsed() < PATIENCE,
+            "job {job} never {what}; logs:\n{}",
+            render.logs()
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+fn scontrol(args: &[&str]) {
+    let o = command("scontrol", args).expect("run scontrol");
+    assert!(o.status.success(), "scontrol {args:?}: {}", text(&o.stderr));
+}
+
+#[test]
+fn a_task_requeued_while_running_still_gives_the_same_bytes() {
+    if !cluster_answers() {
+        return;
+    }
+    let mut jobs = Jobs(Vec::new());
+    // Long enough per task (a few seconds) to be caught in the middle.
+    let render = SlurmRender::new("requeue", "--width 240 --spp 1200 --checkpoint-every 0.1");
+    let (array, merge) = render.submit(4, &mut jobs);
+    let task = format!("{array}_0");
+    let checkpoint = render.dir.join("parts/checkpoints/shard-0.ckpt");
+    wait_until(&render, &task, "ran with a checkpoint saved", |j| {
+        field(j, "JobState") == "RUNNING" && checkpoint.exists()
+    });
+    scontrol(&["requeue", &task]);
+    // Once its render has stopped, Slurm holds the requeued task back for two minutes; let
+    // it start again at once.
+    wait_until(&render, &task, "pending again after the requeue", |j| {
+        field(j, "JobState") == "PENDING"
+    });
+    // It stopped mid-render, its progress saved (SIGTERM), to be resumed.
+    let saved = tessera::partial::Part::load(&checkpoint)
+        .unwrap_or_else(|e| panic!("no checkpoint after the requeue: {e}"));
+    assert!(
+        !saved.is_complete(),
+        "task 0 had finished before the requeue"
+    );
+    scontrol(&["update", &format!("JobId={task}"), "StartTime=now"]);
+    wait_for(&render, &merge);
+    let restarts = job_fields(&task)
+        .first()
+        .map(|j| field(j, "Restarts").to_owned());
+    assert_eq!(restarts.as_deref(), Some("1"), "task 0 was not requeued");
+    render.assert_merged_equals_single();
+}
