@@ -4,6 +4,7 @@
 //! round ticks (1, 2 or 5 times a power of ten) and their units. `bench --chart` writes the
 //! first as a standalone file; `results report` puts both in its page.
 
+use super::record::host::short_commit;
 use super::record::stats::{Pooled, Scaling};
 use std::fmt::Write;
 use tessera::text::html_safe;
@@ -191,7 +192,7 @@ pub fn history_svg(steps: &[(String, Pooled, bool)]) -> String {
                  aria-label=\"samples per second over commits\">"
         .to_owned();
     let labels: Vec<(f64, String)> = (steps.iter().enumerate())
-        .map(|(i, (commit, _, _))| (x(i), commit.chars().take(8).collect()))
+        .map(|(i, (commit, _, _))| (x(i), short_commit(commit, 8)))
         .collect();
     axes(&mut s, plot, y_top, y_step, &labels);
     let points: Vec<String> = (steps.iter().enumerate())

@@ -53,6 +53,17 @@ enum Command {
     /// follow over commits, report and export them.
     #[cfg(feature = "results")]
     Results(results::Args),
+    /// The benchmark results database: not in this build (cargo feature `results`).
+    #[cfg(not(feature = "results"))]
+    Results(NoResults),
+}
+
+/// `tessera results …` in a build without the results database: refused, saying why.
+#[cfg(not(feature = "results"))]
+#[derive(clap::Args)]
+struct NoResults {
+    #[arg(trailing_var_arg = true, allow_hyphen_values = true, hide = true)]
+    args: Vec<std::ffi::OsString>,
 }
 
 /// Runs the command line: parses it, runs the command and turns its outcome into the exit
@@ -71,6 +82,11 @@ pub fn main() -> ExitCode {
         Command::Compare(args) => compare::run(args),
         #[cfg(feature = "results")]
         Command::Results(args) => results::run(args),
+        #[cfg(not(feature = "results"))]
+        Command::Results(_) => Err(anyhow::anyhow!(
+            "this tessera was built without the results database (cargo feature `results`); \
+             `bench --out FILE` keeps a result to import elsewhere"
+        )),
     };
     output::exit_code(outcome)
 }

@@ -134,7 +134,10 @@ const HEAVY: &[(&str, &str)] = &[
     ),
     ("render scenes/cover.toml --preview", "the full cover"),
     ("--shard {}/8", "the full cover in eight shards"),
-    ("tessera merge part-*.bin", "it merges the eight shards before it"),
+    (
+        "tessera merge part-*.bin",
+        "it merges the eight shards before it",
+    ),
     ("valgrind", "a render under valgrind"),
     ("./A bench", "eight rounds of two benchmarks"),
     ("--simd avx2", "two benchmarks of the quick workload"),

@@ -7,7 +7,7 @@
 use crate::cli::output::{self, count, note, out};
 #[cfg(feature = "results")]
 use crate::cli::record::db::{self, ResultsDb};
-use crate::cli::record::host::{Build, Busy, CpuTimes, Host};
+use crate::cli::record::host::{Build, Busy, CpuTimes, Host, short_commit};
 use crate::cli::record::result::{
     BenchResult, Method, Row, SCHEMA, Spread, Validation, WorkloadInfo,
 };
@@ -272,7 +272,7 @@ fn text(r: &BenchResult) -> String {
     t.push_str(&format!(
         "build {} {} ({}), SIMD {}\nhost {}, {} CPUs{}{}, load {}{}\n",
         r.build.version,
-        r.build.commit.chars().take(12).collect::<String>(),
+        short_commit(&r.build.commit, 12),
         r.build.rustc,
         r.build.simd,
         h.cpu_model.as_deref().unwrap_or("unknown CPU"),

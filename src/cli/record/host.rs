@@ -92,6 +92,15 @@ impl Build {
     }
 }
 
+/// The first `digits` of a commit, keeping its `-dirty` mark: `9e648ea3-dirty`.
+pub fn short_commit(commit: &str, digits: usize) -> String {
+    let (hash, dirty) = match commit.strip_suffix("-dirty") {
+        Some(hash) => (hash, "-dirty"),
+        None => (commit, ""),
+    };
+    format!("{}{dirty}", hash.chars().take(digits).collect::<String>())
+}
+
 /// The value of `key` in a `key : value` listing such as /proc/cpuinfo.
 fn field<'a>(line: &'a str, key: &str) -> Option<&'a str> {
     let (k, v) = line.split_once(':')?;
@@ -439,6 +448,13 @@ mod tests {
         assert_eq!(loaded.others_cpus, None);
         assert!(CpuTimes::parse("intr 5\n", OWN_BEFORE, None).is_none());
         assert!(CpuTimes::parse(STAT_BEFORE, "garbage", None).is_none());
+    }
+
+    #[test]
+    fn short_commits_keep_their_dirty_mark() {
+        assert_eq!(short_commit("9e648ea39d40e67d", 8), "9e648ea3");
+        assert_eq!(short_commit("9e648ea39d40e67d-dirty", 8), "9e648ea3-dirty");
+        assert_eq!(short_commit("unknown", 12), "unknown");
     }
 
     #[test]

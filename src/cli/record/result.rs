@@ -310,7 +310,7 @@ impl BenchResult {
 
     /// A short label: workload, CPU, SIMD path and commit.
     pub fn label(&self) -> String {
-        let commit: String = self.build.commit.chars().take(8).collect();
+        let commit = super::host::short_commit(&self.build.commit, 8);
         format!(
             "{} · {} · {} · {commit}",
             self.workload.name,

@@ -5,12 +5,13 @@
 use super::utc;
 use crate::cli::output::count;
 use crate::cli::record::db::Run;
+use crate::cli::record::host::short_commit;
 use crate::cli::record::stats::{Pooled, pool, sps};
 use std::collections::BTreeMap;
 use tessera::text::terminal_safe;
 
 pub fn build(r: &Run) -> String {
-    let commit: String = r.commit.chars().take(8).collect();
+    let commit = short_commit(&r.commit, 8);
     format!("{} {commit} {}", r.version, r.simd)
 }
 
@@ -144,7 +145,7 @@ pub fn history_text(
     simd: &str,
 ) -> String {
     let mut t = format!(
-        "machine {}, workload {}, {}, SIMD {}\n{:<16}  {:<12}  {:>4}  {:<26}  {:>7}\n",
+        "machine {}, workload {}, {}, SIMD {}\n{:<16}  {:<18}  {:>4}  {:<26}  {:>7}\n",
         terminal_safe(machine, 80),
         terminal_safe(workload, 32),
         count(threads.max(0) as u64, "thread"),
@@ -161,9 +162,9 @@ pub fn history_text(
             None => "-".into(),
         };
         t.push_str(&format!(
-            "{:<16}  {:<12}  {:>4}  {:<26}  {versus:>7}{}\n",
+            "{:<16}  {:<18}  {:>4}  {:<26}  {versus:>7}{}\n",
             utc(s.first_seen),
-            terminal_safe(&s.commit.chars().take(12).collect::<String>(), 12),
+            terminal_safe(&short_commit(&s.commit, 12), 18),
             s.score.runs,
             sps(&s.score),
             if s.regression {

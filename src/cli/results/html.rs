@@ -8,6 +8,7 @@
 use super::analysis::{self, Ranked, Step};
 use super::utc;
 use crate::cli::charts::{self, COLOURS};
+use crate::cli::record::host::short_commit;
 use crate::cli::record::stats::{Pooled, Scaling};
 use std::fmt::Write;
 use tessera::text::html_safe;
@@ -191,7 +192,7 @@ fn section_html(h: &mut String, s: &Section) {
         h.push_str(&charts::history_svg(&steps));
         let flagged: Vec<String> = (history.steps.iter())
             .filter(|s| s.regression)
-            .map(|s| html_safe(&s.commit.chars().take(12).collect::<String>()))
+            .map(|s| html_safe(&short_commit(&s.commit, 12)))
             .collect();
         if !flagged.is_empty() {
             let _ = write!(
