@@ -41,8 +41,17 @@ fn commit() -> String {
 /// as `container` that inherits from one.
 fn profile() -> String {
     let from_dir = std::env::var("OUT_DIR").ok().and_then(|out| {
-        let dir = Path::new(&out).ancestors().nth(3)?.file_name()?;
-        Some(dir.to_string_lossy().into_owned())
+        let dir = Path::new(&out)
+            .ancestors()
+            .nth(3)?
+            .file_name()?
+            .to_str()?
+            .to_owned();
+        // A profile's name, not a directory of another layout.
+        let plausible = !dir.is_empty()
+            && !["build", "deps", "target", "out"].contains(&dir.as_str())
+            && (dir.bytes()).all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_');
+        plausible.then_some(dir)
     });
     from_dir
         .or_else(|| std::env::var("PROFILE").ok())

@@ -36,7 +36,8 @@ pub fn round_ticks(max: f64) -> (f64, f64) {
     (step, top)
 }
 
-/// A tick's value as few digits as it needs: `0`, `2.5`, `0.02`, `15`.
+/// A tick's value with the decimals its step needs, the same for every tick of an axis:
+/// `0, 5, 10` for a step of 5; `0.0, 2.5, 5.0` for 2.5; `0.00, 0.02` for 0.02.
 fn tick_label(value: f64, step: f64) -> String {
     let whole = |d: i32| {
         let scaled = step * 10f64.powi(d);
@@ -84,8 +85,9 @@ fn axes(s: &mut String, plot: Plot, y_top: f64, y_step: f64, x_labels: &[(f64, S
     }
 }
 
-/// Samples/s against threads (on a log scale), one line per series (up to eight), the
-/// median as a point and the spread as a whisker; the SVG element alone.
+/// Samples/s against threads (on a log scale), one line per series (the first eight: the
+/// caller says so of the rest), the median as a point and the spread as a whisker; the SVG
+/// element alone.
 pub fn scaling_svg(lines: &[(String, Scaling)]) -> String {
     let plot = (58.0, 10.0, 470.0, 230.0);
     let lines = &lines[..lines.len().min(COLOURS.len())];
@@ -110,7 +112,7 @@ pub fn scaling_svg(lines: &[(String, Scaling)]) -> String {
         }
     };
     let y = |v: f64| plot.3 - (plot.3 - plot.1) * v / y_top;
-    let mut s = "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"480\" height=\"272\" viewBox=\"0 0 480 272\" role=\"img\" \
+    let mut s = "<svg width=\"480\" height=\"272\" viewBox=\"0 0 480 272\" role=\"img\" \
                  aria-label=\"samples per second against threads\">"
         .to_owned();
     let labels: Vec<(f64, String)> = threads.iter().map(|&t| (x(t), t.to_string())).collect();
@@ -188,7 +190,7 @@ pub fn history_svg(steps: &[(String, Pooled, bool)]) -> String {
         _ => plot.0 + 30.0 + (plot.2 - plot.0 - 60.0) * i as f64 / (n - 1) as f64,
     };
     let y = |v: f64| plot.3 - (plot.3 - plot.1) * v / y_top;
-    let mut s = "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"480\" height=\"215\" viewBox=\"0 0 480 215\" role=\"img\" \
+    let mut s = "<svg width=\"480\" height=\"215\" viewBox=\"0 0 480 215\" role=\"img\" \
                  aria-label=\"samples per second over commits\">"
         .to_owned();
     let labels: Vec<(f64, String)> = (steps.iter().enumerate())

@@ -59,9 +59,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
     };
     film.save(&output, render.gamma, recipe.as_ref())?;
     note(format_args!(
-        "{}: merged {} parts, {}x{}, {} spp",
+        "{}: merged {}, {}x{}, {} spp",
         output.display(),
-        paths.len(),
+        super::output::count(paths.len() as u64, "part"),
         film.width,
         film.height,
         film.samples_per_pixel

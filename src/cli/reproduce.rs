@@ -219,7 +219,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
 fn check_pixels(film: &Film, gamma: f32, pixels: &Pixels) -> Result<(), String> {
     let (w, h) = (film.width, film.height);
     let expected = film.to_rgb8(gamma);
-    // Both sides as 8-bit values for `compare`'s figures; equality is checked exactly.
+    // Both sides as 8-bit values for the difference's figures; equality is checked exactly.
     let (differing, first, actual) = match pixels {
         Pixels::Other(layout) => {
             return Err(format!(

@@ -19,41 +19,71 @@ pub fn check_output(path: &Path) -> Result<()> {
         _ => None,
     };
     let dir = directory_of(path);
-    match kind {
-        Some(ErrorKind::NotFound) if !dir.exists() => {
-            let mut why = format!(
+    let container = confinement::this_container();
+    let why = match kind {
+        Some(ErrorKind::NotFound) if !dir.exists() => match &container {
+            Some(c) => format!(
+                "{}: the directory {} does not exist in this {c} container: mount a \
+                 directory of yours there; {}",
+                path.display(),
+                dir.display(),
+                mount_advice(c, &dir)
+            ),
+            None => format!(
                 "{}: the directory {} does not exist; create it first (mkdir -p {})",
                 path.display(),
                 dir.display(),
                 dir.display()
-            );
-            if let Some(container) = confinement::this_container() {
-                why.push_str(&format!(
-                    ". In this {container} container, mount a directory of yours there, e.g. \
-                     {}",
-                    run_example(&dir)
-                ));
+            ),
+        },
+        Some(kind @ (ErrorKind::PermissionDenied | ErrorKind::ReadOnlyFilesystem)) => {
+            let what = if kind == ErrorKind::ReadOnlyFilesystem {
+                format!("{} is on a read-only file system", dir.display())
+            } else {
+                format!(
+                    "permission denied: this user ({}) may not create files in {}",
+                    user(),
+                    dir.display()
+                )
+            };
+            match &container {
+                Some(c) => format!(
+                    "{}: {what}. In this {c} container, write to a mounted directory that \
+                     you own, running as yourself; {}",
+                    path.display(),
+                    mount_advice(c, &dir)
+                ),
+                None => format!(
+                    "{}: {what}; choose another directory with -o",
+                    path.display()
+                ),
             }
-            Err(anyhow!(why))
         }
-        Some(ErrorKind::PermissionDenied) => {
-            let mut why = format!(
-                "{}: permission denied: this user ({}) may not create files in {}",
-                path.display(),
-                user(),
-                dir.display()
-            );
-            match confinement::this_container() {
-                Some(container) => why.push_str(&format!(
-                    ". In this {container} container, write to a mounted directory that \
-                     you own, running as yourself: {}",
-                    run_example(&dir)
-                )),
-                None => why.push_str("; choose another directory with -o"),
-            }
-            Err(anyhow!(why))
-        }
-        _ => Err(e.into()),
+        _ => return Err(e.into()),
+    };
+    Err(anyhow!(why))
+}
+
+/// How to give a container a writable directory for its output, for the runtime `container`
+/// names.
+fn mount_advice(container: &str, dir: &Path) -> String {
+    if container == "kubernetes" {
+        return format!(
+            "mount a volume at {} (deploy/k8s/render-job.yaml shows one, with the pod's fsGroup \
+             so that its user can write there)",
+            mount_point(dir)
+        );
+    }
+    run_example(dir)
+}
+
+/// Where the example mounts the output directory: `dir` when it is absolute and not the
+/// image's own, else `/out`.
+fn mount_point(dir: &Path) -> String {
+    if dir.is_absolute() && dir != Path::new("/") && !dir.starts_with("/app") {
+        dir.display().to_string()
+    } else {
+        "/out".to_owned()
     }
 }
 
@@ -65,17 +95,13 @@ fn directory_of(path: &Path) -> PathBuf {
     }
 }
 
-/// The command line that runs the image with a writable output directory: the directory
-/// `dir` when it is absolute and not the image's own, else `/out`.
+/// The command lines that run the image with a writable output directory mounted.
 fn run_example(dir: &Path) -> String {
-    let mount = if dir.is_absolute() && dir != Path::new("/") && !dir.starts_with("/app") {
-        dir.display().to_string()
-    } else {
-        "/out".to_owned()
-    };
+    let mount = mount_point(dir);
     format!(
-        "mkdir -p out && podman run --rm --user \"$(id -u):$(id -g)\" -v \"$PWD/out:{mount}\" \
-         IMAGE render -o {mount}/NAME.png (Docker: the same flags)"
+        "mkdir -p out && podman run --rm --userns=keep-id --user \"$(id -u):$(id -g)\" -v \
+         \"$PWD/out:{mount}\" IMAGE render -o {mount}/NAME.png (Docker, or Podman as root: \
+         the same without --userns=keep-id)"
     )
 }
 
@@ -84,6 +110,6 @@ fn user() -> String {
     use std::os::unix::fs::MetadataExt;
     match std::fs::metadata("/proc/self") {
         Ok(m) => format!("uid {}, gid {}", m.uid(), m.gid()),
-        Err(_) => "this user".to_owned(),
+        Err(_) => "unknown ids".to_owned(),
     }
 }

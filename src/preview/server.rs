@@ -32,6 +32,9 @@ const HEADER_TIMEOUT: Duration = Duration::from_secs(5);
 /// that stops reading holds a place for no longer. Browsers reconnect by themselves.
 const CONNECTION_LIFETIME: Duration = Duration::from_secs(60);
 const GRACE: Duration = Duration::from_secs(5);
+/// When the server stops, a response being sent (the finished image to a page that keeps
+/// it) may finish for this long; event streams end at once.
+const STOP_GRACE: Duration = Duration::from_secs(3);
 /// An event stream ends after this (before the connection's lifetime); the page's
 /// EventSource reconnects after `retry`.
 const STREAM_LIFETIME: Duration = Duration::from_secs(45);
@@ -60,7 +63,8 @@ pub struct ServerStats {
     pub clients: AtomicUsize,
     /// The newest frame version sent to any client (0: none).
     pub frame_served: AtomicU64,
-    /// How many times the finished image was downloaded.
+    /// How many times the finished image was asked for (its sending finishes, within a
+    /// grace, before the server stops).
     pub downloads: AtomicU64,
     /// Connections refused because too many were open.
     pub refused: AtomicU64,
@@ -101,8 +105,18 @@ impl Server {
         let thread = std::thread::Builder::new()
             .name("preview-server".into())
             .spawn(move || {
-                runtime.block_on(accept_loop(listener, shared));
-                // Dropping the runtime here closes every connection still open.
+                let stats = Arc::clone(&shared.stats);
+                runtime.block_on(async move {
+                    accept_loop(listener, shared).await;
+                    // Connections finish what they are sending, within STOP_GRACE; dropping
+                    // the runtime then closes whatever is still open.
+                    let until = tokio::time::Instant::now() + STOP_GRACE;
+                    while stats.clients.load(Ordering::Relaxed) > 0
+                        && tokio::time::Instant::now() < until
+                    {
+                        tokio::time::sleep(Duration::from_millis(10)).await;
+                    }
+                });
             })?;
         Ok(Server {
             addr,
@@ -121,7 +135,8 @@ impl Server {
         &self.stats
     }
 
-    /// Stops accepting, closes every connection and waits for the server's thread.
+    /// Stops accepting, lets responses being sent finish (at most `STOP_GRACE`), closes
+    /// every connection and waits for the server's thread.
     pub fn stop(mut self) {
         self.halt();
     }
@@ -253,7 +268,12 @@ async fn serve(stream: tokio::net::TcpStream, shared: Arc<Shared>, client: Clien
             connection.as_mut().graceful_shutdown();
             let _ = tokio::time::timeout(GRACE, connection.as_mut()).await;
         }
-        _ = stopping.changed() => {}
+        _ = stopping.changed() => {
+            // A response being sent finishes (the event stream ends by itself); an idle
+            // keep-alive connection closes at once.
+            connection.as_mut().graceful_shutdown();
+            let _ = tokio::time::timeout(STOP_GRACE, connection.as_mut()).await;
+        }
     }
     drop(client);
 }

@@ -242,10 +242,20 @@ impl Scene {
     }
 }
 
-/// Serde names Rust types in its messages; a scene author knows TOML's.
-/// A missing key's message with the table it is missing from: the table whose header
-/// starts the line at `start` (where the parser points), `[[spheres]]` counted (`#2`), or
-/// the file's top level for a whole table that is missing.
+/// The tables a scene file holds at its top level (`desc::SceneDesc`'s fields).
+const TOP_LEVEL: [&str; 7] = [
+    "image",
+    "render",
+    "camera",
+    "background",
+    "materials",
+    "spheres",
+    "random_spheres",
+];
+
+/// A missing key's message with the table it is missing from: for a whole table, the
+/// file's top level; else the table whose header starts the line at `start` (where the
+/// parser points), `[[spheres]]` counted (`#2`), or the key of an inline table on it.
 fn name_the_table(text: &str, start: usize, message: &str) -> String {
     let Some(key) = message
         .strip_prefix("missing field `")
@@ -253,6 +263,12 @@ fn name_the_table(text: &str, start: usize, message: &str) -> String {
     else {
         return message.to_owned();
     };
+    if TOP_LEVEL.contains(&key) {
+        return format!(
+            "missing table [{key}] at the top level of the file; docs/scene-format.md lists \
+             every key"
+        );
+    }
     let line_start = text
         .get(..start)
         .map_or(0, |t| t.rfind('\n').map_or(0, |i| i + 1));
@@ -263,12 +279,19 @@ fn name_the_table(text: &str, start: usize, message: &str) -> String {
         .next()
         .unwrap_or("");
     let header = line.split('#').next().unwrap_or("").trim();
+    let inline = header
+        .split_once('=')
+        .filter(|(_, value)| value.trim_start().starts_with(['{', '[']))
+        .map(|(name, _)| name.trim());
+    if let Some(name) = inline {
+        return format!("`{name}`: missing key `{key}`; docs/scene-format.md lists every key");
+    }
     let Some(name) = header
         .strip_prefix('[')
         .and_then(|h| h.strip_suffix(']'))
         .map(|h| h.trim_matches(['[', ']']).trim())
     else {
-        return format!("missing table or key `{key}` at the top level of the file");
+        return format!("missing key `{key}`; docs/scene-format.md lists every key");
     };
     let table = if header.starts_with("[[") {
         // Which of the array's tables: count the headers of the same name up to here.
@@ -290,6 +313,7 @@ fn name_the_table(text: &str, start: usize, message: &str) -> String {
     format!("{table}: missing key `{key}`{hint}; docs/scene-format.md lists every key")
 }
 
+/// Serde names Rust types in its messages; a scene author knows TOML's.
 fn plain_types(message: &str) -> String {
     message
         .replace("expected i64", "expected an integer")
@@ -326,7 +350,25 @@ mod tests {
             "s.toml:13:1: [[spheres]] #2: missing key `radius`; docs/scene-format.md lists \
              every key"
         );
-        assert!(error("# nothing\n").contains("missing table or key `image` at the top level"));
+        let top = "missing table [image] at the top level";
+        assert!(error("# nothing\n").contains(top));
+        // A file that starts with another table still lacks its [image] at the top level.
+        let render_first = "[render]\ngamma = 2.0\n";
+        assert!(
+            error(render_first).starts_with("s.toml:1:1: missing table [image]"),
+            "{}",
+            error(render_first)
+        );
+        // A key missing from an inline table names that table.
+        let inline = "spheres = [{ center = [0.0, 0.0, -1.0], material = \"m\" }]\n\
+                      [image]\nwidth = 4\nheight = 2\nsamples_per_pixel = 1\nmax_depth = 2\n\
+                      [materials.m]\ntype = \"lambertian\"\nalbedo = [1.0, 1.0, 1.0]\n";
+        assert!(
+            error(inline).contains(":1:")
+                && error(inline).contains("`spheres`: missing key `radius`"),
+            "{}",
+            error(inline)
+        );
     }
 
     #[test]

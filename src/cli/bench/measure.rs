@@ -172,7 +172,7 @@ pub fn run(m: Measure) -> Result<ExitCode> {
         note(format_args!("tessera: recorded in {}", path.display()));
     }
     #[cfg(not(feature = "results"))]
-    if m.save.is_none() && !m.json {
+    if m.out.is_none() && !m.json {
         note(format_args!(
             "tessera: note: this tessera was built without the results database (cargo \
              feature `results`): --out FILE keeps the result"
@@ -243,7 +243,7 @@ fn confinement_text(h: &Host) -> String {
         limits.push(format!("a quota of {quota:.2} CPUs"));
     }
     if let Some(n) = h.cpus_allowed {
-        limits.push(format!("an affinity of {n} CPUs"));
+        limits.push(format!("an affinity of {}", count(n as u64, "CPU")));
     }
     let mut t = h
         .container
@@ -270,13 +270,13 @@ fn text(r: &BenchResult) -> String {
         w.name, w.scene, w.width, w.height, w.spp, w.max_depth, w.seed, w.id
     );
     t.push_str(&format!(
-        "build {} {} ({}), SIMD {}\nhost {}, {} CPUs{}{}, load {}{}\n",
+        "build {} {} ({}), SIMD {}\nhost {}, {}{}{}, load {}{}\n",
         r.build.version,
         short_commit(&r.build.commit, 12),
         r.build.rustc,
         r.build.simd,
         h.cpu_model.as_deref().unwrap_or("unknown CPU"),
-        h.logical_cpus,
+        count(h.logical_cpus as u64, "CPU"),
         h.physical_cores
             .map_or(String::new(), |c| format!(" ({c} cores)")),
         h.memory_bytes.map_or(String::new(), |b| format!(

@@ -9,7 +9,7 @@ mod measure;
 
 use super::charts;
 use super::flags::{self, DbArg, SimdArg};
-use super::output::out;
+use super::output::{note, out};
 use super::record::result::BenchResult;
 use super::record::stats::{self, Scaling};
 use super::record::workload::{self, Workload, hash_text};
@@ -118,6 +118,13 @@ pub fn run(args: Args) -> Result<ExitCode> {
             let lines: Vec<(String, Scaling)> = (results.iter())
                 .map(|r| (r.label(), stats::scaling_of(r)))
                 .collect();
+            if lines.len() > charts::COLOURS.len() {
+                note(format_args!(
+                    "tessera: note: the chart shows the first {} of the {} results",
+                    charts::COLOURS.len(),
+                    lines.len()
+                ));
+            }
             let w = &results[0].workload;
             let title = format!(
                 "tessera bench: {} ({}x{}, {} spp)",

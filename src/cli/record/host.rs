@@ -207,8 +207,11 @@ pub struct Busy {
     pub steal: Option<f64>,
 }
 
-/// Other processes keeping this many CPUs busy on average, or more, make a run busy.
-const BUSY_OTHERS_CPUS: f64 = 0.25;
+/// Other processes keeping this many of `cpus` CPUs busy on average, or more, make a run
+/// busy: a quarter of a CPU, or a twentieth of them on a large machine.
+fn busy_others_cpus(cpus: usize) -> f64 {
+    f64::max(0.25, 0.05 * cpus as f64)
+}
 /// Steal time above this share of the CPUs' time makes a run busy.
 const BUSY_STEAL: f64 = 0.02;
 
@@ -217,30 +220,37 @@ impl Busy {
     /// its renders.
     pub fn judge(host: &Host, before: Option<&CpuTimes>, after: Option<&CpuTimes>) -> Self {
         let mut reasons = Vec::new();
-        // The load average is the machine's, so it is weighed against all its CPUs: a run
-        // confined to one of them (a paired measurement) is not busy because the other is.
-        if let Some([load, ..]) = host.load_average
-            && load > host.logical_cpus as f64
-        {
-            reasons.push(format!(
-                "a load average of {load:.2} on {} when it started",
-                crate::cli::output::count(host.logical_cpus as u64, "CPU")
-            ));
-        }
         let used = before.zip(after).and_then(|(a, b)| b.since(a));
-        if let Some(u) = &used {
-            if u.others_cpus >= BUSY_OTHERS_CPUS {
-                reasons.push(format!(
-                    "other processes kept {:.2} of its {} busy while it ran",
-                    u.others_cpus,
-                    crate::cli::output::count(u.cpus as u64, "CPU")
-                ));
+        match &used {
+            Some(u) => {
+                // Measured on the CPUs this run could use: a paired measurement confined to
+                // one core is not busy because the other core is, and the load average
+                // (which counts this bench's own earlier renders) is not needed.
+                if u.others_cpus >= busy_others_cpus(u.cpus) {
+                    reasons.push(format!(
+                        "other processes kept {:.2} of its {} busy while it ran",
+                        u.others_cpus,
+                        crate::cli::output::count(u.cpus as u64, "CPU")
+                    ));
+                }
+                if u.steal >= BUSY_STEAL {
+                    reasons.push(format!(
+                        "the hypervisor took {:.1}% of its CPUs' time (steal)",
+                        100.0 * u.steal
+                    ));
+                }
             }
-            if u.steal >= BUSY_STEAL {
-                reasons.push(format!(
-                    "the hypervisor took {:.1}% of its CPUs' time (steal)",
-                    100.0 * u.steal
-                ));
+            // Without /proc/stat, the machine's load average as it started, against all of
+            // its CPUs.
+            None => {
+                if let Some([load, ..]) = host.load_average
+                    && load > host.logical_cpus as f64
+                {
+                    reasons.push(format!(
+                        "a load average of {load:.2} on {} when it started",
+                        crate::cli::output::count(host.logical_cpus as u64, "CPU")
+                    ));
+                }
             }
         }
         Self {
@@ -416,7 +426,8 @@ mod tests {
         let used = after.since(&before).unwrap();
         assert!((used.others_cpus - 0.5).abs() < 1e-9);
         assert!((used.steal - 0.05).abs() < 1e-9);
-        let busy = Busy::judge(&host(0.5, 2), Some(&before), Some(&after));
+        // The measurement decides, whatever the load average says.
+        let busy = Busy::judge(&host(0.1, 2), Some(&before), Some(&after));
         assert!(busy.busy);
         assert_eq!(busy.reasons.len(), 2, "{:?}", busy.reasons);
         assert!(busy.reasons[0].contains("other processes kept 0.50 of its 2 CPUs busy"));
@@ -435,10 +446,15 @@ mod tests {
             cpus: vec![(150, 550, 0), (150, 550, 0)],
             own: 150 + 100,
         };
-        // A load of 1.8 on 2 CPUs, from a run on each: neither is busy.
-        let calm = Busy::judge(&host(1.8, 2), Some(&quiet), Some(&ours_only));
+        // A load of 3 on 2 CPUs, from this bench's own earlier renders: not busy, as
+        // nothing else ran while it measured.
+        let calm = Busy::judge(&host(3.0, 2), Some(&quiet), Some(&ours_only));
         assert!(!calm.busy, "{:?}", calm.reasons);
         assert_eq!(calm.others_cpus, Some(0.0));
+        assert!(!Busy::judge(&host(1.5, 2), None, None).busy);
+        assert_eq!(busy_others_cpus(2), 0.25);
+        assert!((busy_others_cpus(96) - 4.8).abs() < 1e-9);
+        // Without /proc/stat, the load average at the start decides.
         let loaded = Busy::judge(&host(5.0, 2), None, None);
         assert!(loaded.busy);
         assert_eq!(

@@ -17,10 +17,16 @@ pub fn build(r: &Run) -> String {
 
 pub fn cpu(r: &Run) -> String {
     format!(
-        "{} ({} CPUs)",
+        "{} ({})",
         r.cpu_model.as_deref().unwrap_or("unknown CPU"),
-        r.logical_cpus
+        count(r.logical_cpus.max(0) as u64, "CPU")
     )
+}
+
+/// Whether a run counts in a ranking or a history: its image was the workload's, and the
+/// machine was not busy with other work while it ran.
+pub fn counts(r: &Run) -> bool {
+    r.validation == "valid" && !r.busy
 }
 
 /// One line of a ranking: a machine and build, its score and spread.
@@ -35,10 +41,10 @@ pub struct Ranked<'a> {
 
 /// The runs of one workload grouped by machine and build (version, commit, SIMD path), each
 /// scored by its headline samples/s (all threads, as bench measures by default), best
-/// first. Runs not `valid` are left out unless `all`.
+/// first. Runs that do not count (`counts`) are left out unless `all`.
 pub fn rank(runs: &[Run], all: bool) -> Vec<Ranked<'_>> {
     let mut groups: BTreeMap<(&str, &str, &str, &str, i64), Vec<&Run>> = BTreeMap::new();
-    for r in runs.iter().filter(|r| all || r.validation == "valid") {
+    for r in runs.iter().filter(|r| all || counts(r)) {
         let key = (
             r.machine_id.as_str(),
             r.version.as_str(),
@@ -71,22 +77,22 @@ pub fn rank_text(ranked: &[Ranked], runs: &[Run], all: bool) -> String {
             "no runs to rank\n".to_owned()
         } else {
             format!(
-                "no valid runs to rank; --all ranks the other {}\n",
+                "no valid runs of an idle machine to rank; --all ranks the other {}\n",
                 count(runs.len() as u64, "run")
             )
         };
     }
     let mut t = format!(
-        "{:>4}  {:<18}  {:<36}  {:<24}  {:>4}  {:>7}  {:<26}  {:>14}\n",
+        "{:>4}  {:<18}  {:<36}  {:<30}  {:>4}  {:>7}  {:<26}  {:>14}\n",
         "rank", "machine", "CPU", "build", "runs", "threads", "M samples/s [spread]", "per thread"
     );
     for (i, r) in ranked.iter().enumerate() {
         t.push_str(&format!(
-            "{:>4}  {:<18}  {:<36}  {:<24}  {:>4}  {:>7}  {:<26}  {:>14.3}\n",
+            "{:>4}  {:<18}  {:<36}  {:<30}  {:>4}  {:>7}  {:<26}  {:>14.3}\n",
             i + 1,
             terminal_safe(&r.example.machine_id, 18),
             terminal_safe(&cpu(r.example), 36),
-            terminal_safe(&build(r.example), 24),
+            terminal_safe(&build(r.example), 30),
             r.score.runs,
             r.threads,
             sps(&r.score),
@@ -111,7 +117,7 @@ pub struct Step {
 /// beyond both spreads.
 pub fn history(runs: &[Run], threads: i64, simd: &str) -> Vec<Step> {
     let mut by_commit: BTreeMap<&str, (i64, Vec<[f64; 3]>)> = BTreeMap::new();
-    for r in (runs.iter()).filter(|r| r.threads == threads && r.simd == simd) {
+    for r in (runs.iter()).filter(|r| r.threads == threads && r.simd == simd && !r.busy) {
         let entry = by_commit
             .entry(r.commit.as_str())
             .or_insert((r.started_unix_s, Vec::new()));
@@ -216,6 +222,16 @@ mod tests {
         assert_eq!((a.median, a.min, a.max, a.runs), (12.0, 9.0, 15.0, 3));
         assert_eq!(rank(&runs, true)[0].example.machine_id, "m-c");
         assert!(rank_text(&rank(&runs[4..], false), &runs[4..], false).contains("--all ranks"));
+    }
+
+    #[test]
+    fn runs_of_a_busy_machine_count_only_with_all() {
+        let mut slow = run("m-a", "c1", 2, [5.0, 4.0, 6.0], true);
+        slow.busy = true;
+        let runs = [run("m-a", "c1", 1, [10.0, 9.0, 11.0], true), slow];
+        assert_eq!(rank(&runs, false)[0].score.runs, 1);
+        assert_eq!(rank(&runs, true)[0].score.runs, 2);
+        assert_eq!(history(&runs, 4, "avx2")[0].score.runs, 1);
     }
 
     #[test]

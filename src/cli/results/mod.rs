@@ -407,6 +407,9 @@ fn history(
     let threads = threads.unwrap_or(newest.threads);
     let simd = simd.map_or_else(|| newest.simd.clone(), str::to_owned);
     let steps = analysis::history(&runs, threads, &simd);
+    let busy = (runs.iter())
+        .filter(|r| r.busy && r.threads == threads && r.simd == simd)
+        .count();
     if steps.is_empty() {
         bail!(
             "no runs of {} at {} on SIMD path {} on {}",
@@ -416,13 +419,14 @@ fn history(
             terminal_safe(&id, 18)
         );
     }
-    out(&analysis::history_text(
-        &steps,
-        &id,
-        &newest.workload,
-        threads,
-        &simd,
-    ))
+    let mut text = analysis::history_text(&steps, &id, &newest.workload, threads, &simd);
+    if busy > 0 {
+        text.push_str(&format!(
+            "({} of a busy machine left out)\n",
+            count(busy as u64, "run")
+        ));
+    }
+    out(&text)
 }
 
 /// `results report`: one HTML page, a section for each workload (or the one named).
@@ -434,7 +438,7 @@ fn report(path: &Path, output: &Path, workload: Option<&str>, all: bool) -> Resu
     let mut sections = Vec::new();
     for group in &groups {
         let runs: Vec<Run> = (group.runs.iter())
-            .filter(|r| all || r.validation == "valid")
+            .filter(|r| all || analysis::counts(r))
             .cloned()
             .collect();
         let ranked = analysis::rank(&runs, all);
@@ -586,7 +590,7 @@ fn list_text(runs: &[Run]) -> String {
         return "no results\n".into();
     }
     let mut t = format!(
-        "{:>5}  {:<16}  {:<18}  {:<36}  {:<24}  {:<8}  {:>7}  {:<26}  {}\n",
+        "{:>5}  {:<16}  {:<18}  {:<36}  {:<30}  {:<8}  {:>7}  {:<26}  {}\n",
         "run",
         "when (UTC)",
         "machine",
@@ -605,12 +609,12 @@ fn list_text(runs: &[Run]) -> String {
             r.sps[2] / 1e6
         );
         t.push_str(&format!(
-            "{:>5}  {:<16}  {:<18}  {:<36}  {:<24}  {:<8}  {:>7}  {:<26}  {}\n",
+            "{:>5}  {:<16}  {:<18}  {:<36}  {:<30}  {:<8}  {:>7}  {:<26}  {}\n",
             r.id,
             utc(r.started_unix_s),
             terminal_safe(&r.machine_id, 18),
             terminal_safe(&analysis::cpu(r), 36),
-            terminal_safe(&analysis::build(r), 24),
+            terminal_safe(&analysis::build(r), 30),
             terminal_safe(&r.workload, 8),
             r.threads,
             sps,

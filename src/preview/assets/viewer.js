@@ -79,16 +79,17 @@ async function loadFrame() {
   if (again) setTimeout(loadFrame, 0);
 }
 
-// Sizes the image in the stage: a whole number of screen pixels per image pixel when it
-// fits at least once (drawn sharp, no smoothing), else shrunk to fit.
+// Sizes the image in the stage: a whole number of device pixels per image pixel when it
+// fits at least once (drawn sharp, no smoothing, even on a 1.5x screen), else shrunk to fit.
 function layout() {
   const frame = $("frame");
   const actual = $("stage").classList.contains("actual");
+  const dpr = window.devicePixelRatio || 1;
   const ratio = Math.min(frame.clientWidth / image.width, frame.clientHeight / image.height);
-  const whole = !actual && ratio >= 1;
+  const k = Math.floor(ratio * dpr) / dpr;
+  const whole = !actual && k * dpr >= 1 && ratio >= 1;
   image.classList.toggle("whole", whole);
   if (whole) {
-    const k = Math.floor(ratio);
     image.style.width = `${image.width * k}px`;
     image.style.height = `${image.height * k}px`;
   } else {
@@ -241,9 +242,11 @@ $("stage").addEventListener("click", () => {
   layout();
   drawTiles();
 });
-window.addEventListener("resize", () => {
+// The stage changes size with the window and with the bars around it (a wrapped line of
+// settings, the download link appearing).
+new ResizeObserver(() => {
   layout();
   drawTiles();
-});
+}).observe($("frame"));
 $("frame").classList.add("empty");
 listen();
