@@ -37,6 +37,7 @@ pub struct Measure {
     /// Whether `--simd` (or `TESSERA_SIMD`) named it, rather than `auto`.
     pub simd_chosen: bool,
     /// The results database to record the result in; `None`: not recorded.
+    #[cfg_attr(not(feature = "results"), allow(dead_code))]
     pub save: Option<SaveTo>,
 }
 
