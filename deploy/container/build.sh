@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Builds tessera's container image without pulling anything: first the static binary
-# (target x86_64-unknown-linux-musl, cargo profile `container`, without the results
-# database: pure Rust, so no C compiler is needed), then the image from
-# deploy/container/Containerfile, labelled with the version, the commit and the source.
+# (target x86_64-unknown-linux-musl, cargo profile `container`, render only: pure Rust, so
+# no C compiler is needed), then the image from deploy/container/Containerfile, labelled
+# with the version, the commit and the source.
 # Prints the image's two tags, the version's first:
 #
 #   tessera:0.1.0
@@ -17,10 +17,17 @@ target=x86_64-unknown-linux-musl
 if command -v rustup >/dev/null && ! rustup target list --installed | grep -qx "$target"; then
   rustup target add "$target" >&2
 fi
-# The image renders, merges, benchmarks and reproduces, and serves the live viewer; a
-# results database belongs where results are kept, not in a container.
-cargo build --locked --profile container --target "$target" \
-  --no-default-features --features preview >&2
+# The image renders, merges, benchmarks and reproduces: render only, without the results
+# database (kept where results are kept, not in a container) or the live viewer's server.
+cargo build --locked --profile container --target "$target" --no-default-features >&2
+# The binary where the Containerfile (and .dockerignore) take it, when CARGO_TARGET_DIR put
+# it elsewhere.
+binary=target/$target/container/tessera
+built=${CARGO_TARGET_DIR:-target}/$target/container/tessera
+if [ "$(realpath -m "$built")" != "$(realpath -m "$binary")" ]; then
+  mkdir -p "$(dirname "$binary")"
+  cp "$built" "$binary"
+fi
 
 version=$(sed -n 's/^version = "\(.*\)"$/\1/p' Cargo.toml | head -n 1)
 revision=$(git rev-parse HEAD 2>/dev/null || echo unknown)

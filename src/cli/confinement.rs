@@ -22,6 +22,13 @@ pub fn this_container() -> Option<String> {
     container(&read_file, &|name| std::env::var(name).ok())
 }
 
+/// The container whose entry point this process is (process 1 of its container, as
+/// `podman run IMAGE render …` makes it), if one is recognised: where advice about what
+/// to mount helps, unlike a shell's child in a development container.
+pub fn entry_point_of_container() -> Option<String> {
+    (std::process::id() == 1).then(this_container).flatten()
+}
+
 /// The container runtime this process runs in, where one is recognised: `kubernetes`,
 /// `podman`, `docker`, or what `$container` names (systemd-nspawn, lxc, …).
 pub fn container(files: Files, var: &dyn Fn(&str) -> Option<String>) -> Option<String> {

@@ -19,7 +19,7 @@ pub fn check_output(path: &Path) -> Result<()> {
         _ => None,
     };
     let dir = directory_of(path);
-    let container = confinement::this_container();
+    let container = confinement::entry_point_of_container();
     let why = match kind {
         Some(ErrorKind::NotFound) if !dir.exists() => match &container {
             Some(c) => format!(

@@ -432,9 +432,12 @@ fn the_image_is_small_labelled_and_runs_without_privileges() {
         "the image is not this build"
     );
     assert!(inside.contains("x86_64-unknown-linux-musl"), "{inside}");
-    // The image's own build: its profile, and no results database (render only).
+    // The image's own build: its profile, render only.
     assert!(inside.contains("(container build, "), "{inside}");
-    assert!(inside.contains("\nfeatures preview\n"), "{inside}");
+    assert!(
+        inside.contains("\nfeatures none (render only)\n"),
+        "{inside}"
+    );
     // The root filesystem is read-only, and the user cannot write to /app.
     let o = run_image(
         &image,
@@ -527,7 +530,7 @@ fn the_readme_s_podman_command_writes_the_cover() {
         .output()
         .unwrap();
     assert!(
-        text(&info.stdout).contains("PNG 1200x800, with a recipe"),
+        text(&info.stdout).contains("PNG 600x400, with a recipe"),
         "{}{}",
         text(&info.stdout),
         text(&info.stderr)

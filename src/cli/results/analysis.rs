@@ -23,10 +23,9 @@ pub fn cpu(r: &Run) -> String {
     )
 }
 
-/// Whether a run counts in a ranking or a history: its image was the workload's, and the
-/// machine was not busy with other work while it ran.
+/// Whether a run counts in a ranking: its image was the workload's.
 pub fn counts(r: &Run) -> bool {
-    r.validation == "valid" && !r.busy
+    r.validation == "valid"
 }
 
 /// One line of a ranking: a machine and build, its score and spread.
@@ -37,6 +36,9 @@ pub struct Ranked<'a> {
     pub threads: i64,
     /// The runs pooled.
     pub ids: Vec<i64>,
+    /// How many of them ran on a busy machine (their speed is the machine's and the other
+    /// work's): the line says so.
+    pub busy: usize,
 }
 
 /// The runs of one workload grouped by machine and build (version, commit, SIMD path), each
@@ -63,6 +65,7 @@ pub fn rank(runs: &[Run], all: bool) -> Vec<Ranked<'_>> {
                 score,
                 threads: runs[0].threads,
                 ids: runs.iter().map(|r| r.id).collect(),
+                busy: runs.iter().filter(|r| r.busy).count(),
             })
         })
         .collect();
@@ -77,7 +80,7 @@ pub fn rank_text(ranked: &[Ranked], runs: &[Run], all: bool) -> String {
             "no runs to rank\n".to_owned()
         } else {
             format!(
-                "no valid runs of an idle machine to rank; --all ranks the other {}\n",
+                "no valid runs to rank; --all ranks the other {}\n",
                 count(runs.len() as u64, "run")
             )
         };
@@ -88,7 +91,7 @@ pub fn rank_text(ranked: &[Ranked], runs: &[Run], all: bool) -> String {
     );
     for (i, r) in ranked.iter().enumerate() {
         t.push_str(&format!(
-            "{:>4}  {:<18}  {:<36}  {:<30}  {:>4}  {:>7}  {:<26}  {:>14.3}\n",
+            "{:>4}  {:<18}  {:<36}  {:<30}  {:>4}  {:>7}  {:<26}  {:>14.3}{}\n",
             i + 1,
             terminal_safe(&r.example.machine_id, 18),
             terminal_safe(&cpu(r.example), 36),
@@ -97,9 +100,22 @@ pub fn rank_text(ranked: &[Ranked], runs: &[Run], all: bool) -> String {
             r.threads,
             sps(&r.score),
             r.score.median / 1e6 / r.threads.max(1) as f64,
+            busy_note(r.busy, r.score.runs),
         ));
     }
     t
+}
+
+/// `  (1 of 3 runs on a busy machine)`, or nothing.
+pub fn busy_note(busy: usize, runs: usize) -> String {
+    if busy == 0 {
+        String::new()
+    } else {
+        format!(
+            "  ({busy} of {} on a busy machine)",
+            count(runs as u64, "run")
+        )
+    }
 }
 
 /// One commit's place in a machine's history.
@@ -110,35 +126,51 @@ pub struct Step {
     pub score: Pooled,
     /// Slower than the commit before it by more than either's spread.
     pub regression: bool,
+    /// Measured only on a busy machine: shown, but neither flagged nor compared with.
+    pub busy: bool,
 }
 
 /// A machine's headline speed over commits (in the order each was first measured), at
 /// `threads` on SIMD path `simd`, each commit flagged when it is slower than the one before
-/// beyond both spreads.
+/// beyond both spreads. A commit's runs on a busy machine count only where it has no other.
 pub fn history(runs: &[Run], threads: i64, simd: &str) -> Vec<Step> {
-    let mut by_commit: BTreeMap<&str, (i64, Vec<[f64; 3]>)> = BTreeMap::new();
-    for r in (runs.iter()).filter(|r| r.threads == threads && r.simd == simd && !r.busy) {
-        let entry = by_commit
-            .entry(r.commit.as_str())
-            .or_insert((r.started_unix_s, Vec::new()));
+    // Per commit: its first run's start, and its measurements on an idle and a busy machine.
+    type Measured = (i64, Vec<[f64; 3]>, Vec<[f64; 3]>);
+    let mut by_commit: BTreeMap<&str, Measured> = BTreeMap::new();
+    for r in (runs.iter()).filter(|r| r.threads == threads && r.simd == simd) {
+        let entry = by_commit.entry(r.commit.as_str()).or_insert((
+            r.started_unix_s,
+            Vec::new(),
+            Vec::new(),
+        ));
         entry.0 = entry.0.min(r.started_unix_s);
-        entry.1.push(r.sps);
+        if r.busy {
+            entry.2.push(r.sps);
+        } else {
+            entry.1.push(r.sps);
+        }
     }
     let mut steps: Vec<Step> = by_commit
         .into_iter()
-        .filter_map(|(commit, (first_seen, ms))| {
+        .filter_map(|(commit, (first_seen, idle, busy))| {
+            let only_busy = idle.is_empty();
             Some(Step {
                 commit: commit.to_owned(),
                 first_seen,
-                score: pool(&ms)?,
+                score: pool(if only_busy { &busy } else { &idle })?,
                 regression: false,
+                busy: only_busy,
             })
         })
         .collect();
     steps.sort_by_key(|s| s.first_seen);
-    for i in 1..steps.len() {
-        let (before, now) = (steps[i - 1].score, steps[i].score);
-        steps[i].regression = now.median < before.median && !now.overlaps(&before);
+    // Each commit against the last one before it measured on an idle machine.
+    let mut before: Option<Pooled> = None;
+    for step in steps.iter_mut().filter(|s| !s.busy) {
+        if let Some(b) = before {
+            step.regression = step.score.median < b.median && !step.score.overlaps(&b);
+        }
+        before = Some(step.score);
     }
     steps
 }
@@ -175,6 +207,8 @@ pub fn history_text(
             sps(&s.score),
             if s.regression {
                 "  REGRESSION: slower beyond the runs' spread"
+            } else if s.busy {
+                "  (on a busy machine only: not compared)"
             } else {
                 ""
             }
@@ -225,13 +259,27 @@ mod tests {
     }
 
     #[test]
-    fn runs_of_a_busy_machine_count_only_with_all() {
-        let mut slow = run("m-a", "c1", 2, [5.0, 4.0, 6.0], true);
-        slow.busy = true;
-        let runs = [run("m-a", "c1", 1, [10.0, 9.0, 11.0], true), slow];
-        assert_eq!(rank(&runs, false)[0].score.runs, 1);
-        assert_eq!(rank(&runs, true)[0].score.runs, 2);
-        assert_eq!(history(&runs, 4, "avx2")[0].score.runs, 1);
+    fn runs_of_a_busy_machine_are_ranked_marked_and_flag_no_regression() {
+        let busy = |mut r: Run| {
+            r.busy = true;
+            r
+        };
+        let runs = [
+            run("m-a", "c1", 1, [10.0, 9.0, 11.0], true),
+            busy(run("m-a", "c1", 2, [5.0, 4.0, 6.0], true)),
+            busy(run("m-a", "c2", 3, [2.0, 1.9, 2.1], true)),
+            run("m-a", "c3", 4, [10.0, 9.5, 10.5], true),
+        ];
+        let ranked = rank(&runs, false);
+        let c1 = ranked.iter().find(|l| l.example.commit == "c1").unwrap();
+        assert_eq!((c1.score.runs, c1.busy), (2, 1));
+        assert!(rank_text(&ranked, &runs, false).contains("(1 of 2 runs on a busy machine)"));
+        let steps = history(&runs, 4, "avx2");
+        // c1 from its idle run; c2 only busy, shown but not compared; c3 against c1.
+        assert_eq!(steps[0].score.runs, 1);
+        assert!(steps[1].busy && !steps[1].regression);
+        assert!(!steps[2].regression && !steps[2].busy);
+        assert!(history_text(&steps, "m-a", "cover", 4, "avx2").contains("busy machine only"));
     }
 
     #[test]

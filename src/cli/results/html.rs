@@ -20,6 +20,8 @@ pub struct Line {
     pub build: String,
     pub threads: i64,
     pub score: Pooled,
+    /// Runs of the line measured on a busy machine.
+    pub busy: usize,
 }
 
 impl Line {
@@ -30,6 +32,7 @@ impl Line {
             build: analysis::build(ranked.example),
             threads: ranked.threads,
             score: ranked.score,
+            busy: ranked.busy,
         }
     }
 
@@ -154,7 +157,7 @@ fn section_html(h: &mut String, s: &Section) {
             "<tr><td class=\"n rankno\">{}</td><td class=\"n score\" data-label=\"M samples/s\">{:.3}</td>\
              <td class=\"cpu\">{} <span class=\"id\">{}</span></td><td data-label=\"build\">{}</td>\
              <td class=\"n\" data-label=\"threads\">{}</td><td class=\"n\" data-label=\"spread\">{:.3}–{:.3}</td>\
-             <td class=\"n\" data-label=\"per thread\">{:.3}</td><td class=\"n\" data-label=\"runs\">{}</td></tr>",
+             <td class=\"n\" data-label=\"per thread\">{:.3}</td><td class=\"n\" data-label=\"runs\">{}{}</td></tr>",
             i + 1,
             p.median / 1e6,
             html_safe(&line.cpu),
@@ -165,6 +168,11 @@ fn section_html(h: &mut String, s: &Section) {
             p.max / 1e6,
             p.median / 1e6 / line.threads.max(1) as f64,
             p.runs,
+            if line.busy > 0 {
+                format!(" <span class=\"bad\">({} busy)</span>", line.busy)
+            } else {
+                String::new()
+            },
         );
     }
     h.push_str("</tbody></table></div>");
@@ -301,6 +309,7 @@ mod tests {
                 max: 18.5e6,
                 runs: 3,
             },
+            busy: 0,
         }
     }
 

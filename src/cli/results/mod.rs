@@ -407,9 +407,6 @@ fn history(
     let threads = threads.unwrap_or(newest.threads);
     let simd = simd.map_or_else(|| newest.simd.clone(), str::to_owned);
     let steps = analysis::history(&runs, threads, &simd);
-    let busy = (runs.iter())
-        .filter(|r| r.busy && r.threads == threads && r.simd == simd)
-        .count();
     if steps.is_empty() {
         bail!(
             "no runs of {} at {} on SIMD path {} on {}",
@@ -419,14 +416,13 @@ fn history(
             terminal_safe(&id, 18)
         );
     }
-    let mut text = analysis::history_text(&steps, &id, &newest.workload, threads, &simd);
-    if busy > 0 {
-        text.push_str(&format!(
-            "({} of a busy machine left out)\n",
-            count(busy as u64, "run")
-        ));
-    }
-    out(&text)
+    out(&analysis::history_text(
+        &steps,
+        &id,
+        &newest.workload,
+        threads,
+        &simd,
+    ))
 }
 
 /// `results report`: one HTML page, a section for each workload (or the one named).
