@@ -28,7 +28,9 @@ fn commit() -> String {
     let Some(head) = output("git", &["rev-parse", "HEAD"]).filter(|h| !h.is_empty()) else {
         return "unknown".into();
     };
-    let mut status = vec!["status", "--porcelain", "--"];
+    // Without optional locks git does not refresh its index, whose change would make cargo
+    // run this script, and compile tessera, again.
+    let mut status = vec!["--no-optional-locks", "status", "--porcelain", "--"];
     status.extend(COMPILED_IN);
     match output("git", &status) {
         Some(changes) if changes.is_empty() => head,
@@ -70,14 +72,10 @@ fn main() {
         std::env::var("TARGET").unwrap_or_default()
     );
     println!("cargo:rustc-env=TESSERA_PROFILE={}", profile());
-    // A new commit or checkout changes HEAD or the branch it points to (and the index); an
-    // edit or a new file among what is compiled in changes whether the build is dirty.
-    let git = [
-        ".git/HEAD",
-        ".git/refs/heads",
-        ".git/packed-refs",
-        ".git/index",
-    ];
+    // A new commit or checkout changes HEAD or the branch it points to; an edit or a new
+    // file among what is compiled in changes whether the build is dirty. Not the index: any
+    // git command may rewrite it without changing what is compiled in.
+    let git = [".git/HEAD", ".git/refs/heads", ".git/packed-refs"];
     for path in git.into_iter().chain(COMPILED_IN) {
         if Path::new(path).exists() {
             println!("cargo:rerun-if-changed={path}");

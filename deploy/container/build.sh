@@ -33,7 +33,7 @@ version=$(sed -n 's/^version = "\(.*\)"$/\1/p' Cargo.toml | head -n 1)
 revision=$(git rev-parse HEAD 2>/dev/null || echo unknown)
 # As the binary's own commit says: `-dirty` when what is compiled in differs from it.
 if [ "$revision" != unknown ] &&
-  [ -n "$(git status --porcelain -- src benches scenes Cargo.toml Cargo.lock build.rs)" ]; then
+  [ -n "$(git --no-optional-locks status --porcelain -- src benches scenes Cargo.toml Cargo.lock build.rs)" ]; then
   revision="$revision-dirty"
 fi
 source=${SOURCE:-$(git config --get remote.origin.url 2>/dev/null || echo unknown)}
