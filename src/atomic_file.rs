@@ -4,22 +4,36 @@
 
 use crate::error::{Error, Result};
 use std::io::Write;
+use std::os::unix::fs::PermissionsExt;
 use std::path::{Path, PathBuf};
 
-/// The temporary file beside `path` that `write_atomically` writes first.
-fn temporary_beside(path: &Path) -> Result<PathBuf> {
-    let dir = match path.parent() {
+/// The directory `path` is written in.
+fn directory_of(path: &Path) -> PathBuf {
+    match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_owned(),
         _ => PathBuf::from("."),
-    };
-    let name = path.file_name().ok_or_else(|| Error::Image {
-        path: path.to_owned(),
-        message: "output path has no file name".to_owned(),
+    }
+}
+
+/// A new temporary file beside `path`, named `.NAME.XXXXXX.tmp` with six random characters:
+/// created exclusively (`O_CREAT | O_EXCL`, so nothing already there, a symbolic link that
+/// another user planted included, is opened or followed), with the permissions a new file
+/// gets from the umask, and removed again if it is dropped before it is persisted.
+fn temporary_beside(path: &Path) -> std::io::Result<tempfile::NamedTempFile> {
+    let name = path.file_name().ok_or_else(|| {
+        std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "the output path has no file name",
+        )
     })?;
-    let mut tmp_name = std::ffi::OsString::from(".");
-    tmp_name.push(name);
-    tmp_name.push(format!(".tmp-{}", std::process::id()));
-    Ok(dir.join(tmp_name))
+    let mut prefix = std::ffi::OsString::from(".");
+    prefix.push(name);
+    prefix.push(".");
+    tempfile::Builder::new()
+        .prefix(&prefix)
+        .suffix(".tmp")
+        .permissions(std::fs::Permissions::from_mode(0o666))
+        .tempfile_in(directory_of(path))
 }
 
 /// True when `path` exists and is neither a file nor a directory: a device such as
@@ -45,9 +59,10 @@ pub fn check_writable(path: &Path) -> Result<()> {
         // Written in place; opening a pipe now would wait for its reader.
         return Ok(());
     }
-    let tmp = temporary_beside(path)?;
-    std::fs::File::create(&tmp).map_err(io)?;
-    std::fs::remove_file(&tmp).map_err(io)
+    // Created and removed again: the directory takes a new file.
+    temporary_beside(path)
+        .and_then(|tmp| tmp.close())
+        .map_err(io)
 }
 
 /// Writes `bytes` to a temporary file beside `path`, syncs it and renames it over `path`, so
@@ -59,7 +74,8 @@ pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
 }
 
 /// `write_atomically` of what `write` writes, streamed through a buffer rather than made
-/// whole in memory first.
+/// whole in memory first. The rename replaces `path` itself: where `path` is a symbolic
+/// link, the link is replaced, and what it pointed to is left as it was.
 pub fn write_atomically_with(
     path: &Path,
     write: &mut dyn FnMut(&mut dyn Write) -> std::io::Result<()>,
@@ -68,30 +84,24 @@ pub fn write_atomically_with(
         path: path.to_owned(),
         cause,
     };
-    let buffered =
-        |file: std::fs::File, write: &mut dyn FnMut(&mut dyn Write) -> std::io::Result<()>| {
-            let mut out = std::io::BufWriter::with_capacity(1 << 16, file);
-            write(&mut out)?;
-            out.into_inner()
-                .map_err(std::io::IntoInnerError::into_error)
-        };
     if is_special(path) {
-        let f = std::fs::OpenOptions::new()
+        let file = std::fs::OpenOptions::new()
             .write(true)
             .open(path)
             .map_err(io)?;
-        return buffered(f, write).map(drop).map_err(io);
+        let mut out = std::io::BufWriter::with_capacity(1 << 16, file);
+        return write(&mut out).and_then(|()| out.flush()).map_err(io);
     }
-    let tmp = temporary_beside(path)?;
-    let result = (|| {
-        let f = buffered(std::fs::File::create(&tmp)?, write)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result.map_err(io)
+    let tmp = temporary_beside(path).map_err(io)?;
+    let mut out = std::io::BufWriter::with_capacity(1 << 16, tmp);
+    write(&mut out).map_err(io)?;
+    // On any error from here on, dropping the temporary file removes it.
+    let tmp = out
+        .into_inner()
+        .map_err(|e| io(std::io::IntoInnerError::into_error(e)))?;
+    tmp.as_file().sync_all().map_err(io)?;
+    tmp.persist(path).map_err(|e| io(e.error))?;
+    Ok(())
 }
 
 #[cfg(test)]
@@ -121,6 +131,22 @@ mod tests {
         assert_eq!(std::fs::read(&p).unwrap(), b"second");
         let leftovers = std::fs::read_dir(&dir).unwrap().count();
         assert_eq!(leftovers, 1);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_failed_write_leaves_the_old_file_and_no_temporary() {
+        let dir = std::env::temp_dir().join(format!("tessera-failed-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("out.png");
+        write_atomically(&p, b"old").unwrap();
+        let failed = write_atomically_with(&p, &mut |out| {
+            out.write_all(b"half")?;
+            Err(std::io::Error::other("the disk is full"))
+        });
+        assert!(failed.is_err_and(|e| e.to_string().contains("the disk is full")));
+        assert_eq!(std::fs::read(&p).unwrap(), b"old");
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

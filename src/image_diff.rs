@@ -23,11 +23,27 @@ pub struct RgbImage {
 }
 
 impl RgbImage {
+    /// Decodes the image at `path` (any format the `image` crate reads, by its extension or
+    /// else its content), within the `image` crate's default limits on size and memory.
     pub fn load(path: &Path) -> Result<Self> {
-        let img = image::open(path).map_err(|e| Error::Image {
+        let fail = |message: String| Error::Image {
             path: path.to_owned(),
-            message: e.to_string(),
+            message,
+        };
+        let file = crate::input_file::open_regular(path).map_err(|cause| Error::Io {
+            path: path.to_owned(),
+            cause,
         })?;
+        let mut reader = image::ImageReader::new(std::io::BufReader::new(file));
+        match image::ImageFormat::from_path(path) {
+            Ok(format) => reader.set_format(format),
+            Err(_) => {
+                reader = reader
+                    .with_guessed_format()
+                    .map_err(|e| fail(e.to_string()))?
+            }
+        }
+        let img = reader.decode().map_err(|e| fail(e.to_string()))?;
         let rgb = img.to_rgb32f();
         Ok(Self {
             width: rgb.width(),

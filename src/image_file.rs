@@ -5,7 +5,9 @@
 
 use crate::atomic_file::write_atomically_with;
 use crate::error::{Error, Result};
+use crate::exr_header::{self, SampleType};
 use crate::film::Film;
+use crate::input_file::open_regular;
 use crate::recipe::{self, Recipe};
 use crate::tonemap::{encode_8bit, mean, mean_scale};
 use std::io::{Read, Seek, SeekFrom, Write};
@@ -171,6 +173,11 @@ pub struct ImageHeader {
     pub height: u32,
     /// The recipe's text, at most `recipe::MAX_BYTES` of it, not yet checked.
     pub recipe: Option<String>,
+    /// What the file holds that tessera does not write and that changes how a viewer shows
+    /// the picture (an animation, a colour profile, another frame), each said in words.
+    pub display_changes: Vec<String>,
+    /// An EXR file's sample type (PNG: `None`).
+    pub samples: Option<SampleType>,
 }
 
 fn image_error(path: &Path, message: impl Into<String>) -> Error {
@@ -184,6 +191,21 @@ fn image_error(path: &Path, message: impl Into<String>) -> Error {
 /// else: no pixel is decoded, every length is checked before anything of that length is
 /// read, and a compressed recipe is inflated no further than `recipe::MAX_BYTES`.
 pub fn read_header(path: &Path) -> Result<ImageHeader> {
+    let header = read_any_header(path)?;
+    if u64::from(header.width) * u64::from(header.height) > crate::scene::MAX_PIXELS {
+        return Err(image_error(
+            path,
+            format!(
+                "is {}x{}, more pixels than tessera makes",
+                header.width, header.height
+            ),
+        ));
+    }
+    Ok(header)
+}
+
+/// `read_header` of any size.
+fn read_any_header(path: &Path) -> Result<ImageHeader> {
     let format = Format::from_path(path)?;
     let io = |cause| Error::Io {
         path: path.to_owned(),
@@ -195,55 +217,22 @@ pub fn read_header(path: &Path) -> Result<ImageHeader> {
             "is a PPM file, which has no metadata to carry a recipe",
         )),
         Format::Png => {
-            let file = std::fs::File::open(path).map_err(io)?;
+            let file = open_regular(path).map_err(io)?;
             let len = file.metadata().map_err(io)?.len();
-            png_header(std::io::BufReader::new(file), len)
-                .map_err(|message| image_error(path, message))
+            png_header(file, len).map_err(|message| image_error(path, message))
         }
         Format::Exr => {
-            let file = std::fs::File::open(path).map_err(io)?;
-            let meta =
-                exr::meta::MetaData::read_from_buffered(std::io::BufReader::new(file), false)
-                    .map_err(|e| image_error(path, format!("is not a readable EXR file: {e}")))?;
-            let header = meta
-                .headers
-                .first()
-                .ok_or_else(|| image_error(path, "is an EXR file with no image"))?;
-            let size = header.layer_size;
-            let key = exr::prelude::Text::from(recipe::KEY);
-            let recipe =
-                match header
-                    .shared_attributes
-                    .other
-                    .get(&key)
-                    .or_else(|| header.own_attributes.other.get(&key))
-                {
-                    None => None,
-                    Some(exr::meta::attribute::AttributeValue::Text(t)) => {
-                        let bytes = t.bytes();
-                        if bytes.len() > recipe::MAX_BYTES {
-                            return Err(image_error(
-                                path,
-                                format!(
-                                    "has a recipe of {} bytes, more than {}",
-                                    bytes.len(),
-                                    recipe::MAX_BYTES
-                                ),
-                            ));
-                        }
-                        Some(String::from_utf8(bytes.to_vec()).map_err(|_| {
-                            image_error(path, "has a recipe that is not UTF-8 text")
-                        })?)
-                    }
-                    Some(_) => {
-                        return Err(image_error(path, "has a recipe attribute that is not text"));
-                    }
-                };
+            let file = open_regular(path).map_err(io)?;
+            let len = file.metadata().map_err(io)?.len();
+            let h = exr_header::read(std::io::BufReader::new(file), len)
+                .map_err(|message| image_error(path, message))?;
             Ok(ImageHeader {
                 format,
-                width: u32::try_from(size.width()).unwrap_or(u32::MAX),
-                height: u32::try_from(size.height()).unwrap_or(u32::MAX),
-                recipe,
+                width: h.width,
+                height: h.height,
+                recipe: h.recipe,
+                display_changes: h.display_changes,
+                samples: h.samples,
             })
         }
     }
@@ -256,15 +245,49 @@ pub fn png_header_of(bytes: &[u8]) -> std::result::Result<ImageHeader, String> {
     png_header(std::io::Cursor::new(bytes), bytes.len() as u64)
 }
 
-/// Walks a PNG's chunks (`len` bytes in all) for its size and the recipe's iTXt chunk,
-/// skipping the others unread.
-fn png_header<R: Read + Seek>(mut r: R, len: u64) -> std::result::Result<ImageHeader, String> {
+/// The most chunks a PNG may have: tessera writes a handful (its pixels in a few IDAT
+/// chunks), and each chunk costs a read.
+pub const MAX_PNG_CHUNKS: u64 = 1 << 16;
+
+/// PNG chunks tessera does not write that change how a viewer shows the picture, and how.
+const DISPLAY_CHUNKS: [(&[u8; 4], &str); 13] = [
+    (b"acTL", "an animation"),
+    (b"fcTL", "an animation frame"),
+    (b"fdAT", "an animation frame's pixels"),
+    (b"tRNS", "transparency"),
+    (b"gAMA", "another gamma"),
+    (b"cHRM", "other primaries and white point"),
+    (b"sRGB", "a rendering intent"),
+    (b"iCCP", "an ICC colour profile"),
+    (b"cICP", "coding-independent colour information"),
+    (b"mDCV", "mastering display colour volume"),
+    (b"cLLI", "content light levels"),
+    (b"eXIf", "EXIF data, which can turn or flip the picture"),
+    (
+        b"pHYs",
+        "a pixel aspect ratio, which can stretch the picture",
+    ),
+];
+
+/// Walks a PNG's chunks (`len` bytes in all) for its size, the recipe's iTXt chunk and the
+/// chunks that change how it is shown, skipping the others unread.
+fn png_header<R: Read + Seek>(r: R, len: u64) -> std::result::Result<ImageHeader, String> {
+    let mut r = std::io::BufReader::new(r);
     let mut signature = [0u8; 8];
     if r.read_exact(&mut signature).is_err() || signature != PNG_SIGNATURE {
         return Err("is not a PNG file".to_owned());
     }
     let (mut at, mut size, mut found) = (8u64, None, None);
-    loop {
+    let mut display_changes = Vec::new();
+    // Skips `n` bytes, within the buffer where it can.
+    let skip =
+        |r: &mut std::io::BufReader<R>, n: i64| r.seek_relative(n).map_err(|e| e.to_string());
+    for chunks in 0.. {
+        if chunks == MAX_PNG_CHUNKS {
+            return Err(format!(
+                "has more than {MAX_PNG_CHUNKS} chunks; tessera writes a handful"
+            ));
+        }
         let mut head = [0u8; 8];
         if r.read_exact(&mut head).is_err() {
             return Err(format!("is truncated at byte {at} (no IEND chunk)"));
@@ -278,11 +301,20 @@ fn png_header<R: Read + Seek>(mut r: R, len: u64) -> std::result::Result<ImageHe
                 String::from_utf8_lossy(&kind).escape_debug()
             ));
         }
+        if let Some((_, how)) = DISPLAY_CHUNKS.iter().find(|(k, _)| **k == kind) {
+            let said = format!(
+                "a {} chunk, which tessera does not write: {how}",
+                String::from_utf8_lossy(&kind)
+            );
+            if !display_changes.contains(&said) {
+                display_changes.push(said);
+            }
+        }
         match &kind {
             b"IHDR" if length == 13 => {
                 let mut data = [0u8; 13];
                 r.read_exact(&mut data).map_err(|e| e.to_string())?;
-                r.seek(SeekFrom::Current(4)).map_err(|e| e.to_string())?;
+                skip(&mut r, 4)?;
                 let w = u32::from_be_bytes(data[..4].try_into().expect("4 bytes"));
                 let h = u32::from_be_bytes(data[4..8].try_into().expect("4 bytes"));
                 size = Some((w, h));
@@ -315,14 +347,10 @@ fn png_header<R: Read + Seek>(mut r: R, len: u64) -> std::result::Result<ImageHe
                         "has a recipe chunk of {length} bytes, more than a recipe may have"
                     ));
                 }
-                r.seek(SeekFrom::Current(length as i64 - n as i64 + 4))
-                    .map_err(|e| e.to_string())?;
+                skip(&mut r, length as i64 - n as i64 + 4)?;
             }
             b"IEND" => break,
-            _ => {
-                r.seek(SeekFrom::Current(length as i64 + 4))
-                    .map_err(|e| e.to_string())?;
-            }
+            _ => skip(&mut r, length as i64 + 4)?,
         }
         at += 12 + length;
     }
@@ -332,6 +360,8 @@ fn png_header<R: Read + Seek>(mut r: R, len: u64) -> std::result::Result<ImageHe
         width,
         height,
         recipe: found,
+        display_changes,
+        samples: None,
     })
 }
 
@@ -398,7 +428,7 @@ pub fn read_pixels(path: &Path, header: &ImageHeader) -> Result<Pixels> {
     match header.format {
         Format::Ppm => Err(image_error(path, "is a PPM file")),
         Format::Png => {
-            let file = std::fs::File::open(path).map_err(io)?;
+            let file = open_regular(path).map_err(io)?;
             let budget = count as usize * 8 + (1 << 24);
             let mut decoder = png::Decoder::new_with_limits(
                 std::io::BufReader::new(file),
@@ -427,6 +457,24 @@ pub fn read_pixels(path: &Path, header: &ImageHeader) -> Result<Pixels> {
         }
         Format::Exr => {
             use exr::prelude::*;
+            if header.samples != Some(crate::exr_header::SampleType::Float) {
+                let samples = header
+                    .samples
+                    .map_or("mixed".to_owned(), |s| format!("{s:?}"));
+                return Ok(Pixels::Other(format!("{} samples", samples.to_lowercase())));
+            }
+            let mut file = open_regular(path).map_err(io)?;
+            // The header again, from the handle that is decoded: the file checked is the
+            // file read.
+            let len = file.metadata().map_err(io)?.len();
+            let again = exr_header::read(std::io::BufReader::new(&mut file), len)
+                .map_err(|message| image_error(path, message))?;
+            if (again.width, again.height, again.samples)
+                != (header.width, header.height, header.samples)
+            {
+                return Err(image_error(path, "changed while it was read"));
+            }
+            file.seek(SeekFrom::Start(0)).map_err(io)?;
             let width = header.width as usize;
             let image = read()
                 .no_deep_data()
@@ -442,7 +490,7 @@ pub fn read_pixels(path: &Path, header: &ImageHeader) -> Result<Pixels> {
                 )
                 .first_valid_layer()
                 .all_attributes()
-                .from_file(path);
+                .from_buffered(std::io::BufReader::new(file));
             match image {
                 Ok(image) => Ok(Pixels::Linear(image.layer_data.channel_data.pixels)),
                 Err(exr::error::Error::NotSupported(what)) => Ok(Pixels::Other(what.into_owned())),

@@ -17,6 +17,9 @@
 //!   part file (shards, checkpoints) and merges parts; [`atomic_file`] writes every file
 //!   whole or not at all. [`recipe`] is what an image carries to be made again: the scene's
 //!   text, the settings and the hash of its sums, written into the image's metadata.
+//! - Reading what a stranger made: [`input_file`] opens only regular files, [`exr_header`]
+//!   reads an EXR header within limits before any EXR library sees it, and [`image_file`]
+//!   reads a PNG's chunks the same way.
 //!
 //! - [`preview`] watches a running job from the folding thread (a picture kept tile by
 //!   tile, published about once a second) and serves it to a browser.
@@ -35,10 +38,12 @@ pub mod atomic_file;
 pub mod bvh;
 pub mod camera;
 pub mod error;
+pub mod exr_header;
 pub mod film;
 pub mod geometry;
 pub mod image_diff;
 pub mod image_file;
+pub mod input_file;
 pub mod integrator;
 pub mod job;
 pub mod material;

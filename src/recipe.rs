@@ -172,19 +172,7 @@ impl Recipe {
     /// The recipe as JSON, every character beyond ASCII escaped (`\uXXXX`), so that formats
     /// whose text is Latin-1 or bytes (EXR attributes) carry it unchanged.
     pub fn to_json(&self) -> String {
-        let json = serde_json::to_string(self).expect("a recipe serialises");
-        let mut out = String::with_capacity(json.len());
-        for c in json.chars() {
-            if c.is_ascii() {
-                out.push(c);
-            } else {
-                let mut units = [0u16; 2];
-                for unit in c.encode_utf16(&mut units) {
-                    out.push_str(&format!("\\u{unit:04x}"));
-                }
-            }
-        }
-        out
+        crate::text::ascii_json(&serde_json::to_string(self).expect("a recipe serialises"))
     }
 
     /// Reads a recipe from the text found in `image`, refusing what this tessera cannot

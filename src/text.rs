@@ -2,11 +2,55 @@
 //! to print to a terminal, where an escape sequence could rewrite the screen, or to put in a
 //! web page, where markup or a bidirectional override could change what it shows.
 
-/// Whether `c` must not reach a terminal as it is: a control character, or one that
-/// reorders or hides what follows (bidirectional overrides, zero-width marks).
-fn is_unsafe(c: char) -> bool {
+/// Whether `c` must not reach a terminal or a page as it is: a control character (Unicode's
+/// Cc), a line or paragraph separator (Zl, Zp), or a format character (Cf), which reorders,
+/// joins or hides what is around it: bidirectional marks and overrides, zero-width
+/// characters, the byte order mark, invisible operators, tags.
+pub fn is_unsafe(c: char) -> bool {
     c.is_control()
-        || matches!(c, '\u{200b}'..='\u{200f}' | '\u{202a}'..='\u{202e}' | '\u{2066}'..='\u{2069}')
+        || matches!(
+            c,
+            '\u{ad}'
+                | '\u{600}'..='\u{605}'
+                | '\u{61c}'
+                | '\u{6dd}'
+                | '\u{70f}'
+                | '\u{890}'..='\u{891}'
+                | '\u{8e2}'
+                | '\u{180e}'
+                | '\u{200b}'..='\u{200f}'
+                | '\u{2028}'..='\u{202e}'
+                | '\u{2060}'..='\u{2064}'
+                | '\u{2066}'..='\u{206f}'
+                | '\u{feff}'
+                | '\u{fff9}'..='\u{fffb}'
+                | '\u{110bd}'
+                | '\u{110cd}'
+                | '\u{13430}'..='\u{1343f}'
+                | '\u{1bca0}'..='\u{1bca3}'
+                | '\u{1d173}'..='\u{1d17a}'
+                | '\u{e0001}'
+                | '\u{e0020}'..='\u{e007f}'
+        )
+}
+
+/// JSON text with every character beyond ASCII written as a `\uXXXX` escape (UTF-16, as
+/// JSON has it): the same JSON value, safe for a terminal, and carried unchanged by formats
+/// whose text is Latin-1 or bytes (EXR attributes). Characters escaped by the JSON already
+/// (controls) stay so.
+pub fn ascii_json(json: &str) -> String {
+    let mut out = String::with_capacity(json.len());
+    for c in json.chars() {
+        if c.is_ascii() {
+            out.push(c);
+        } else {
+            let mut units = [0u16; 2];
+            for unit in c.encode_utf16(&mut units) {
+                out.push_str(&format!("\\u{unit:04x}"));
+            }
+        }
+    }
+    out
 }
 
 /// `text` as one line safe to print: unsafe characters (newlines too) shown as `\u{…}`
@@ -71,6 +115,16 @@ mod tests {
         assert_eq!(
             terminal_safe_lines("a\n\u{1b}[2J\tb\u{2066}"),
             "a\n\\u{1b}[2J\tb\\u{2066}"
+        );
+        for invisible in ['\u{61c}', '\u{2028}', '\u{2029}', '\u{feff}', '\u{e0041}'] {
+            assert_eq!(
+                terminal_safe(&format!("a{invisible}b"), 20),
+                format!("a{}b", invisible.escape_unicode())
+            );
+        }
+        assert_eq!(
+            ascii_json("\"\u{202e}é𝄞\""),
+            "\"\\u202e\\u00e9\\ud834\\udd1e\""
         );
         assert_eq!(
             html_safe("<b a=\"x\">&'\u{202e}</b>"),

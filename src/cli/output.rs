@@ -8,6 +8,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::{IsTerminal, Write};
 use std::process::ExitCode;
 use tessera::render::RenderStats;
+use tessera::text::terminal_safe_lines;
 
 /// The exit status of a verdict that is not an error: `reproduce` found a difference,
 /// `bench` an invalid image.
@@ -56,7 +57,11 @@ pub fn is_broken_pipe(e: &anyhow::Error) -> bool {
 
 /// Writes `text` to standard output. Unlike `print!`, which panics, a failure (a full disk, a
 /// closed pipe) is an error for the caller to return.
+/// Every character that could rewrite a terminal or hide text (`text::is_unsafe`) is
+/// shown as a `\u{…}` escape: what a stranger wrote (a recipe's scene, an imported CPU
+/// model) reaches the terminal only so. Machine-read output (JSON) is ASCII already.
 pub fn out(text: &str) -> Result<()> {
+    let text = terminal_safe_lines(text);
     let mut stdout = std::io::stdout().lock();
     stdout
         .write_all(text.as_bytes())
@@ -66,9 +71,14 @@ pub fn out(text: &str) -> Result<()> {
 
 /// Writes a line to standard error. Unlike `eprintln!`, which panics, a failure is ignored:
 /// when standard error cannot be written there is nobody left to tell.
+/// Unsafe characters are escaped as `out` escapes them: every error message passes here,
+/// whatever stranger-made text it quotes, however deep.
 pub fn note(line: std::fmt::Arguments) {
+    let text = terminal_safe_lines(&line.to_string());
     let mut err = std::io::stderr().lock();
-    let _ = err.write_fmt(line).and_then(|()| err.write_all(b"\n"));
+    let _ = err
+        .write_all(text.as_bytes())
+        .and_then(|()| err.write_all(b"\n"));
 }
 
 /// A progress bar with ETA on standard error when it is a terminal, else a hidden one.

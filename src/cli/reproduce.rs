@@ -44,7 +44,16 @@ pub struct Args {
     /// No progress bar.
     #[arg(long, short)]
     quiet: bool,
+    /// Render however much work the recipe asks for; without it, a recipe asking for more
+    /// than four book covers' worth is refused before anything is rendered.
+    #[arg(long)]
+    any_cost: bool,
 }
+
+/// The book cover's work: 1200x800 pixels at 500 samples per pixel, up to 50 bounces.
+const COVER_RAYS: f64 = 1200.0 * 800.0 * 500.0 * 50.0;
+/// The most work `reproduce` does unasked, in book covers (a few minutes on two cores).
+const UNASKED_COVERS: f64 = 4.0;
 
 /// The recipe of the image at `path`, read and checked, with the image's header.
 fn recipe_of(path: &Path) -> Result<(ImageHeader, Recipe)> {
@@ -152,6 +161,28 @@ pub fn run(args: Args) -> Result<ExitCode> {
         tile: render::DEFAULT_TILE,
         simd: args.simd.path()?,
     };
+    // The most rays the recipe can ask for, every path its longest, judged from what it
+    // claims before its scene is even parsed.
+    let claimed = &recipe.image;
+    let samples = u64::from(claimed.window[2])
+        * u64::from(claimed.window[3])
+        * u64::from(claimed.samples_per_pixel);
+    let covers = samples as f64 * f64::from(claimed.max_depth) / COVER_RAYS;
+    let work = format!(
+        "{}x{} pixels at {} per pixel, paths of up to {}: at most {} book covers' work",
+        claimed.window[2],
+        claimed.window[3],
+        count(claimed.samples_per_pixel, "sample"),
+        count(claimed.max_depth, "bounce"),
+        significant(covers, 2)
+    );
+    if covers > UNASKED_COVERS && !args.any_cost {
+        bail!(
+            "{}: its recipe asks for {work}, more than the {UNASKED_COVERS} that reproduce \
+             renders unasked; pass --any-cost to render it anyway",
+            image.display()
+        );
+    }
     let scene = recipe.scene(image)?;
     let window = recipe.window();
     let differs = ExitCode::from(output::NEGATIVE);
@@ -166,8 +197,22 @@ pub fn run(args: Args) -> Result<ExitCode> {
         ))?;
         return Ok(differs);
     }
+    if !header.display_changes.is_empty() {
+        let mut t = format!(
+            "differs: {} holds what tessera does not write and what changes how it is shown:\n",
+            image.display()
+        );
+        for change in &header.display_changes {
+            t.push_str(&format!("  {change}\n"));
+        }
+        out(&t)?;
+        return Ok(differs);
+    }
     let s = &scene.settings;
     let total = u64::from(window.width) * u64::from(window.height) * u64::from(s.samples_per_pixel);
+    if !args.quiet {
+        note(format_args!("reproduce: rendering {work}"));
+    }
     let bar = progress_bar(total, args.quiet);
     let start = Instant::now();
     let (film, stats) = render::render(&scene, &options, &|n| bar.inc(n))?;

@@ -39,7 +39,7 @@ impl PartReader<BufReader<std::fs::File>> {
             path: path.to_owned(),
             cause,
         };
-        let file = std::fs::File::open(path).map_err(io)?;
+        let file = crate::input_file::open_regular(path).map_err(io)?;
         let len = file.metadata().map_err(io)?.len();
         PartReader::new(BufReader::new(file), len, path)
     }

@@ -8,6 +8,10 @@ mod settings;
 
 pub use build::{MAX_PIXELS, Overrides};
 pub use check::{MAX_LENGTH, MIN_RADIUS};
+
+/// The longest scene file tessera reads: the cover's is 3 KiB, 20,000 spheres written out
+/// about 2 MiB.
+pub const MAX_SCENE_BYTES: u64 = 64 << 20;
 pub use settings::{Background, RenderSettings, Shading, SurfaceOffset};
 
 use crate::bvh::{Bvh, Candidates, RayHints, TraversalStack};
@@ -58,12 +62,27 @@ impl Scene {
         Self::parse(&Self::read_text(path)?, path, overrides)
     }
 
-    /// The text of the scene file at `path`, which must be UTF-8.
+    /// The text of the scene file at `path`, which must be UTF-8 and at most
+    /// `MAX_SCENE_BYTES` long. (A pipe is read too: `tessera render <(generate)`.)
     pub fn read_text(path: &Path) -> Result<String> {
-        let bytes = std::fs::read(path).map_err(|cause| Error::Io {
+        use std::io::Read;
+        let io = |cause| Error::Io {
             path: path.to_owned(),
             cause,
-        })?;
+        };
+        let mut bytes = Vec::new();
+        std::fs::File::open(path)
+            .and_then(|f| f.take(MAX_SCENE_BYTES + 1).read_to_end(&mut bytes))
+            .map_err(io)?;
+        if bytes.len() as u64 > MAX_SCENE_BYTES {
+            return Err(io(std::io::Error::new(
+                std::io::ErrorKind::InvalidData,
+                format!(
+                    "is larger than {} MiB, more than a scene file may be",
+                    MAX_SCENE_BYTES >> 20
+                ),
+            )));
+        }
         let text = String::from_utf8(bytes).map_err(|e| {
             let valid = &e.as_bytes()[..e.utf8_error().valid_up_to()];
             // The valid prefix is text: its end is where the bad byte sits.

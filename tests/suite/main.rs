@@ -22,6 +22,7 @@ mod distributed;
 mod docs;
 mod figures;
 mod fuzz;
+mod hostile;
 mod layers;
 #[cfg(feature = "preview")]
 mod preview;

@@ -155,7 +155,7 @@ pub fn run(m: Measure) -> Result<ExitCode> {
         validation,
         busy: Some(busy),
     };
-    let json = serde_json::to_string_pretty(&report)? + "\n";
+    let json = tessera::text::ascii_json(&serde_json::to_string_pretty(&report)?) + "\n";
     if let Some(out) = &m.out {
         write_atomically(out, json.as_bytes())?;
     }

@@ -9,6 +9,7 @@ use std::collections::BTreeSet;
 use tessera::simd;
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
 pub struct Build {
     pub version: String,
     pub commit: String,
@@ -26,6 +27,7 @@ pub struct Build {
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
 pub struct Host {
     pub cpu_model: Option<String>,
     /// The machine's online CPUs.

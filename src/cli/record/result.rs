@@ -127,7 +127,8 @@ impl BenchResult {
     /// build reads.
     pub fn read(path: &Path) -> Result<Self> {
         let what = path.display().to_string();
-        let file = std::fs::File::open(path).with_context(|| format!("could not open {what}"))?;
+        let file = tessera::input_file::open_regular(path)
+            .with_context(|| format!("could not open {what}"))?;
         let mut bytes = Vec::new();
         file.take(MAX_FILE + 1)
             .read_to_end(&mut bytes)

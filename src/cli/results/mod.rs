@@ -501,7 +501,7 @@ fn export(path: &Path) -> Result<()> {
     let db = ResultsDb::open_to_read(path)?;
     let mut text = String::new();
     for json in db.results_json()? {
-        text.push_str(&json);
+        text.push_str(&tessera::text::ascii_json(&json));
         text.push('\n');
     }
     out(&text)

@@ -1,0 +1,302 @@
+//! The header of an OpenEXR file a stranger may have made, read by a small parser of its own
+//! before any EXR library sees the file: one part only, no deep data, red, green and blue
+//! channels only, a bounded number of attributes of bounded size, every size checked against
+//! the file's length before it is read. It gives the image's size, the recipe's text and the
+//! attributes that change how a viewer shows the picture.
+
+use crate::recipe;
+use std::io::Read;
+
+/// The most attributes a header may have: tessera writes about ten.
+pub const MAX_ATTRIBUTES: usize = 256;
+/// The most bytes of one attribute's value: the recipe, at most `recipe::MAX_BYTES`, is
+/// the largest tessera writes.
+const MAX_VALUE: u64 = recipe::MAX_BYTES as u64 + 4096;
+/// The most bytes of the whole header.
+const MAX_HEADER: u64 = 4 * MAX_VALUE;
+/// The longest attribute or channel name (EXR's long names).
+const MAX_NAME: usize = 255;
+/// The most channels of a channel list.
+const MAX_CHANNELS: usize = 64;
+
+const MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
+const TILED: u32 = 0x200;
+const LONG_NAMES: u32 = 0x400;
+const DEEP: u32 = 0x800;
+const MULTIPART: u32 = 0x1000;
+
+/// A channel's sample type, as EXR numbers them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SampleType {
+    Uint,
+    Half,
+    Float,
+}
+
+/// What the header of an EXR file says, checked.
+#[derive(Clone, Debug)]
+pub struct ExrHeader {
+    pub width: u32,
+    pub height: u32,
+    /// The sample type of the red, green and blue channels (all the same), or `None` when
+    /// they differ.
+    pub samples: Option<SampleType>,
+    /// The recipe attribute's text, not yet checked.
+    pub recipe: Option<String>,
+    /// What the header holds that tessera does not write and that changes how a viewer
+    /// shows the picture, each said in words.
+    pub display_changes: Vec<String>,
+}
+
+/// Attributes that change what a viewer shows, and how.
+const DISPLAY_ATTRIBUTES: [(&str, &str); 7] = [
+    ("chromaticities", "other primaries and white point"),
+    ("whiteLuminance", "another white luminance"),
+    ("adoptedNeutral", "another neutral colour"),
+    ("renderingTransform", "a rendering transform"),
+    ("lookModTransform", "a look transform"),
+    ("envmap", "shown as an environment map"),
+    ("multiView", "shown as several views"),
+];
+
+/// Reads a bounded amount, saying what was being read when the file ends early.
+struct Bounded<R> {
+    inner: R,
+    /// Bytes left in the file.
+    left: u64,
+    /// Bytes of header read so far.
+    read: u64,
+}
+
+impl<R: Read> Bounded<R> {
+    fn bytes(&mut self, n: u64, what: &str) -> Result<Vec<u8>, String> {
+        if n > self.left {
+            return Err(format!(
+                "is truncated: its {what} needs {n} bytes, {} are left",
+                self.left
+            ));
+        }
+        self.read += n;
+        if self.read > MAX_HEADER {
+            return Err(format!(
+                "has a header of more than {MAX_HEADER} bytes, more than tessera writes"
+            ));
+        }
+        let mut buf = vec![0u8; n as usize];
+        self.inner
+            .read_exact(&mut buf)
+            .map_err(|e| format!("could not be read: {e}"))?;
+        self.left -= n;
+        Ok(buf)
+    }
+
+    fn u32(&mut self, what: &str) -> Result<u32, String> {
+        let b = self.bytes(4, what)?;
+        Ok(u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+    }
+
+    /// A zero-ended name of at most `MAX_NAME` bytes (empty: the end of a list).
+    fn name(&mut self, what: &str) -> Result<String, String> {
+        let mut name = Vec::new();
+        loop {
+            let b = self.bytes(1, what)?[0];
+            if b == 0 {
+                break;
+            }
+            if name.len() == MAX_NAME {
+                return Err(format!("has a {what} longer than {MAX_NAME} bytes"));
+            }
+            name.push(b);
+        }
+        String::from_utf8(name).map_err(|_| format!("has a {what} that is not UTF-8"))
+    }
+}
+
+fn i32_at(b: &[u8], at: usize) -> i32 {
+    i32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]])
+}
+
+/// A `box2i` value: min x, min y, max x, max y.
+fn box2i(value: &[u8], name: &str) -> Result<[i32; 4], String> {
+    if value.len() != 16 {
+        return Err(format!("has a {name} of {} bytes, not 16", value.len()));
+    }
+    Ok([0, 4, 8, 12].map(|at| i32_at(value, at)))
+}
+
+/// The channels of a `chlist` value: each name and sample type.
+fn channels(value: &[u8]) -> Result<Vec<(String, SampleType)>, String> {
+    let mut list = Vec::new();
+    let mut rest = value;
+    loop {
+        let end = rest
+            .iter()
+            .position(|&b| b == 0)
+            .ok_or("has a channel list without its end")?;
+        if end == 0 {
+            return Ok(list);
+        }
+        if end > MAX_NAME || list.len() == MAX_CHANNELS {
+            return Err("has a channel list tessera does not write".to_owned());
+        }
+        let name = String::from_utf8_lossy(&rest[..end]).into_owned();
+        let fields = rest
+            .get(end + 1..end + 17)
+            .ok_or("has a channel list cut short")?;
+        let kind = match i32_at(fields, 0) {
+            0 => SampleType::Uint,
+            1 => SampleType::Half,
+            2 => SampleType::Float,
+            k => return Err(format!("has a channel of unknown sample type {k}")),
+        };
+        let sampling = (i32_at(fields, 8), i32_at(fields, 12));
+        if sampling != (1, 1) {
+            return Err(format!(
+                "has a subsampled channel ({}x{}), which tessera does not write",
+                sampling.0, sampling.1
+            ));
+        }
+        list.push((name, kind));
+        rest = &rest[end + 17..];
+    }
+}
+
+/// Reads the header of the `len`-byte EXR file `r` is at the start of.
+pub fn read<R: Read>(r: R, len: u64) -> Result<ExrHeader, String> {
+    let mut r = Bounded {
+        inner: r,
+        left: len,
+        read: 0,
+    };
+    if r.bytes(4, "signature").ok().as_deref() != Some(&MAGIC[..]) {
+        return Err("is not an OpenEXR file".to_owned());
+    }
+    let version = r.u32("version")?;
+    if version & 0xff != 2 {
+        return Err(format!(
+            "is an OpenEXR file of version {}, not 2",
+            version & 0xff
+        ));
+    }
+    if version & MULTIPART != 0 {
+        return Err(
+            "is a multi-part OpenEXR file: tessera writes and reads a single part".to_owned(),
+        );
+    }
+    if version & DEEP != 0 {
+        return Err("holds deep data, which tessera does not write".to_owned());
+    }
+    if version & !(0xff | TILED | LONG_NAMES) != 0 {
+        return Err(format!(
+            "has OpenEXR flags tessera does not know (0x{version:x})"
+        ));
+    }
+    let (mut data, mut display, mut list, mut recipe) = (None, None, None, None);
+    let mut display_changes = Vec::new();
+    let mut seen = std::collections::HashSet::new();
+    loop {
+        let name = r.name("attribute name")?;
+        if name.is_empty() {
+            break;
+        }
+        if seen.len() == MAX_ATTRIBUTES {
+            return Err(format!(
+                "has more than {MAX_ATTRIBUTES} header attributes; tessera writes about ten"
+            ));
+        }
+        if !seen.insert(name.clone()) {
+            return Err(format!("has the attribute `{}` twice", name.escape_debug()));
+        }
+        let kind = r.name("attribute type")?;
+        let size = r.u32("attribute size")?;
+        if u64::from(size) > MAX_VALUE {
+            return Err(format!(
+                "has an attribute `{}` of {size} bytes, more than tessera reads",
+                name.escape_debug()
+            ));
+        }
+        let value = r.bytes(u64::from(size), "attribute")?;
+        match (name.as_str(), kind.as_str()) {
+            ("dataWindow", "box2i") => data = Some(box2i(&value, "dataWindow")?),
+            ("displayWindow", "box2i") => display = Some(box2i(&value, "displayWindow")?),
+            ("channels", "chlist") => list = Some(channels(&value)?),
+            ("pixelAspectRatio", "float") => {
+                let ratio = f32::from_le_bytes(
+                    value
+                        .get(..4)
+                        .and_then(|v| v.try_into().ok())
+                        .ok_or("has a pixelAspectRatio that is not a number")?,
+                );
+                if ratio != 1.0 {
+                    display_changes.push(format!(
+                        "the attribute pixelAspectRatio is {ratio}, not 1: viewers stretch it"
+                    ));
+                }
+            }
+            ("tiles", "tiledesc") => {
+                let mode = value.get(8).ok_or("has a tile description cut short")?;
+                if mode & 0xf != 0 {
+                    return Err(
+                        "holds mipmap or ripmap levels, which tessera does not write".to_owned(),
+                    );
+                }
+            }
+            (key, "string") if key == recipe::KEY => {
+                recipe = Some(
+                    String::from_utf8(value)
+                        .map_err(|_| "has a recipe that is not UTF-8 text".to_owned())?,
+                );
+            }
+            (key, _) if key == recipe::KEY => {
+                return Err("has a recipe attribute that is not text".to_owned());
+            }
+            ("dataWindow" | "displayWindow" | "channels" | "pixelAspectRatio" | "tiles", kind) => {
+                return Err(format!(
+                    "has the attribute `{name}` of type `{}`, not the type OpenEXR gives it",
+                    kind.escape_debug()
+                ));
+            }
+            (key, _) => {
+                if let Some((_, how)) = DISPLAY_ATTRIBUTES.iter().find(|(n, _)| *n == key) {
+                    display_changes.push(format!(
+                        "the attribute {key}, which tessera does not write: {how}"
+                    ));
+                }
+            }
+        }
+    }
+    let data = data.ok_or("has no dataWindow attribute")?;
+    let list = list.ok_or("has no channels attribute")?;
+    let names: Vec<&str> = list.iter().map(|(n, _)| n.as_str()).collect();
+    if names != ["B", "G", "R"] {
+        return Err(format!(
+            "has the channels {}; tessera writes R, G and B only",
+            names
+                .iter()
+                .map(|n| format!("`{}`", n.escape_debug()))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+    }
+    let samples = (list.iter().all(|(_, k)| *k == list[0].1)).then_some(list[0].1);
+    if display.is_some_and(|d| d != data) {
+        display_changes.push(
+            "a displayWindow other than its dataWindow: viewers show another frame".to_owned(),
+        );
+    }
+    let extent = |min: i32, max: i32| {
+        u32::try_from(i64::from(max) - i64::from(min) + 1)
+            .ok()
+            .filter(|&n| n > 0)
+    };
+    let (Some(width), Some(height)) = (extent(data[0], data[2]), extent(data[1], data[3])) else {
+        return Err(format!("has an empty or inverted dataWindow {data:?}"));
+    };
+    Ok(ExrHeader {
+        width,
+        height,
+        samples,
+        recipe,
+        display_changes,
+    })
+}

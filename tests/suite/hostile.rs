@@ -1,0 +1,615 @@
+//! What a stranger makes, handed to tessera as an attacker would: EXR files of several parts,
+//! other channels or half a million attributes; PNGs of a million chunks, or with chunks that
+//! change what a viewer shows; recipes whose text carries terminal escapes or asks for days
+//! of work; pipes and devices named as files; a symbolic link planted where tessera writes
+//! its temporary file. Each is refused (exit 2) or judged (exit 1) with the reason, within
+//! bounded memory, and leaves every file that is not tessera's own output as it was.
+
+use crate::common::*;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+
+/// A small figure rendered to `name` (PNG or EXR, by its extension) in `dir`.
+fn rendered(dir: &Path, name: &str) -> PathBuf {
+    ok(
+        &[
+            "render",
+            scene_path("img-1.12-metal-fuzz.toml").to_str().unwrap(),
+            "--width",
+            "32",
+            "--spp",
+            "2",
+            "-q",
+            "-o",
+            name,
+        ],
+        dir,
+    );
+    dir.join(name)
+}
+
+/// `tessera ARGS` in `dir` with its address space capped at `mib` MiB (`ulimit -v`): an
+/// allocation of what a file merely claims fails there instead of succeeding on a large
+/// machine.
+fn run_capped(args: &[&str], dir: &Path, mib: u64) -> Output {
+    let quoted: Vec<String> = args.iter().map(|a| format!("'{a}'")).collect();
+    Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -v {}; exec '{}' {}",
+            mib << 10,
+            env!("CARGO_BIN_EXE_tessera"),
+            quoted.join(" ")
+        ))
+        .current_dir(dir)
+        .env("TESSERA_DB", test_results_db())
+        .output()
+        .unwrap()
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// Asserts that `o` is a refusal (exit 2) whose message says `why`.
+fn refused(o: &Output, why: &str, what: &str) {
+    let err = stderr(o);
+    assert_eq!(o.status.code(), Some(2), "{what}: {err}{}", stdout(o));
+    assert!(err.contains(why), "{what}: expected {why:?} in: {err}");
+}
+
+// --- EXR ------------------------------------------------------------------------------------
+
+/// The byte offset and length of the value of the EXR header attribute `name`.
+fn exr_attribute(bytes: &[u8], name: &str) -> (usize, usize) {
+    let mut at = 8;
+    while bytes[at] != 0 {
+        let end = at + bytes[at..].iter().position(|&b| b == 0).unwrap();
+        let kind_end = end + 1 + bytes[end + 1..].iter().position(|&b| b == 0).unwrap();
+        let size = u32::from_le_bytes(bytes[kind_end + 1..kind_end + 5].try_into().unwrap());
+        let value = kind_end + 5;
+        if &bytes[at..end] == name.as_bytes() {
+            return (value, size as usize);
+        }
+        at = value + size as usize;
+    }
+    panic!("no attribute {name}");
+}
+
+/// The end of the EXR header (after its closing zero byte).
+fn exr_header_end(bytes: &[u8]) -> usize {
+    let mut at = 8;
+    while bytes[at] != 0 {
+        let end = at + bytes[at..].iter().position(|&b| b == 0).unwrap();
+        let kind_end = end + 1 + bytes[end + 1..].iter().position(|&b| b == 0).unwrap();
+        let size = u32::from_le_bytes(bytes[kind_end + 1..kind_end + 5].try_into().unwrap());
+        at = kind_end + 5 + size as usize;
+    }
+    at + 1
+}
+
+/// One EXR header attribute's bytes.
+fn exr_attr(name: &str, kind: &str, value: &[u8]) -> Vec<u8> {
+    let mut a = Vec::new();
+    a.extend_from_slice(name.as_bytes());
+    a.push(0);
+    a.extend_from_slice(kind.as_bytes());
+    a.push(0);
+    a.extend_from_slice(&(value.len() as u32).to_le_bytes());
+    a.extend_from_slice(value);
+    a
+}
+
+/// `exr` with `extra` inserted at the end of its header, and its chunk offsets moved on by
+/// as much, so that the file stays a valid EXR.
+fn exr_with_attributes(exr: &[u8], extra: &[u8]) -> Vec<u8> {
+    let end = exr_header_end(exr) - 1;
+    let (count_at, _) = exr_attribute(exr, "chunkCount");
+    let chunks = u32::from_le_bytes(exr[count_at..count_at + 4].try_into().unwrap()) as usize;
+    let mut out = exr[..end].to_vec();
+    out.extend_from_slice(extra);
+    out.push(0);
+    for i in 0..chunks {
+        let at = end + 1 + 8 * i;
+        let offset = u64::from_le_bytes(exr[at..at + 8].try_into().unwrap());
+        out.extend_from_slice(&(offset + extra.len() as u64).to_le_bytes());
+    }
+    out.extend_from_slice(&exr[end + 1 + 8 * chunks..]);
+    out
+}
+
+#[test]
+fn exr_layouts_tessera_does_not_write_are_refused_before_anything_is_allocated() {
+    let dir = temp_dir("hostile-exr");
+    let exr = std::fs::read(rendered(&dir, "a.exr")).unwrap();
+    let mut cases: Vec<(&str, Vec<u8>, &str)> = Vec::new();
+    // The multi-part flag: a part may claim any size, and another be decoded.
+    let mut multi = exr.clone();
+    multi[5] |= 0x10;
+    cases.push(("multi-part", multi, "multi-part OpenEXR file"));
+    let mut deep = exr.clone();
+    deep[5] |= 0x08;
+    cases.push(("deep", deep, "deep data"));
+    // An alpha channel in place of blue.
+    let mut alpha = exr.clone();
+    let (channels, _) = exr_attribute(&alpha, "channels");
+    alpha[channels] = b'A';
+    cases.push(("channels", alpha, "tessera writes R, G and B only"));
+    // A data window of 2^31 x 2^31 pixels in a file of a few KiB.
+    let mut huge = exr.clone();
+    let (window, _) = exr_attribute(&huge, "dataWindow");
+    huge[window + 8..window + 16].copy_from_slice(&[0xff, 0xff, 0xff, 0x7f].repeat(2));
+    cases.push(("huge", huge, "more pixels than tessera makes"));
+    // Half a million attributes, 10 MB of header.
+    let many: Vec<u8> = (0..500_000)
+        .flat_map(|i| exr_attr(&format!("a{i}"), "int", &[0; 4]))
+        .collect();
+    cases.push((
+        "attributes",
+        exr_with_attributes(&exr, &many),
+        "more than 256 header attributes",
+    ));
+    // An attribute claiming 2 GiB.
+    let mut claim = exr_attr("x", "string", b"");
+    claim.truncate(claim.len() - 4);
+    claim.extend_from_slice(&0x7fff_ffffu32.to_le_bytes());
+    cases.push((
+        "claim",
+        exr_with_attributes(&exr, &claim),
+        "more than tessera reads",
+    ));
+    for (name, bytes, why) in cases {
+        let file = format!("{name}.exr");
+        std::fs::write(dir.join(&file), &bytes).unwrap();
+        for command in ["info", "reproduce"] {
+            let o = run_capped(&[command, &file], &dir, 256);
+            refused(&o, why, &format!("{command} {name}"));
+        }
+        assert_eq!(std::fs::read(dir.join(&file)).unwrap(), bytes, "{name}");
+    }
+}
+
+#[test]
+fn an_exr_whose_attributes_change_its_display_differs() {
+    let dir = temp_dir("hostile-exr-display");
+    let exr = std::fs::read(rendered(&dir, "a.exr")).unwrap();
+    let o = run(&["reproduce", "a.exr", "-q"], &dir);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let mut stretched = exr.clone();
+    let (ratio, _) = exr_attribute(&stretched, "pixelAspectRatio");
+    stretched[ratio..ratio + 4].copy_from_slice(&2f32.to_le_bytes());
+    let chromaticities = exr_attr("chromaticities", "chromaticities", &[0; 32]);
+    let cases = [
+        ("stretched", stretched, "pixelAspectRatio is 2"),
+        (
+            "primaries",
+            exr_with_attributes(&exr, &chromaticities),
+            "the attribute chromaticities",
+        ),
+    ];
+    for (name, bytes, why) in cases {
+        let file = format!("{name}.exr");
+        std::fs::write(dir.join(&file), &bytes).unwrap();
+        let o = run(&["reproduce", &file, "-q"], &dir);
+        assert_eq!(o.status.code(), Some(1), "{name}: {}", stderr(&o));
+        let said = stdout(&o);
+        assert!(
+            said.starts_with("differs:") && said.contains(why),
+            "{name}: {said}"
+        );
+    }
+}
+
+// --- PNG ------------------------------------------------------------------------------------
+
+/// A PNG chunk's bytes.
+fn png_chunk(kind: &[u8; 4], data: &[u8]) -> Vec<u8> {
+    let mut c = (data.len() as u32).to_be_bytes().to_vec();
+    c.extend_from_slice(kind);
+    c.extend_from_slice(data);
+    let mut crc = crc32fast::Hasher::new();
+    crc.update(kind);
+    crc.update(data);
+    c.extend_from_slice(&crc.finalize().to_be_bytes());
+    c
+}
+
+/// `png` with `chunks` inserted right after its IHDR chunk.
+fn png_with_chunks(png: &[u8], chunks: &[u8]) -> Vec<u8> {
+    let after_ihdr = 8 + 12 + 13;
+    [&png[..after_ihdr], chunks, &png[after_ihdr..]].concat()
+}
+
+#[test]
+fn a_png_whose_chunks_change_its_display_differs_naming_the_chunk() {
+    let dir = temp_dir("hostile-png-display");
+    let png = std::fs::read(rendered(&dir, "a.png")).unwrap();
+    let o = run(&["reproduce", "a.png", "-q"], &dir);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let animation = [
+        png_chunk(b"acTL", &[0, 0, 0, 1, 0, 0, 0, 0]),
+        png_chunk(b"fcTL", &[0; 26]),
+    ]
+    .concat();
+    let cases: [(&str, Vec<u8>, &str); 5] = [
+        ("apng", animation, "acTL chunk"),
+        (
+            "trns",
+            png_chunk(b"tRNS", &[0, 0, 0, 0, 0, 0]),
+            "tRNS chunk",
+        ),
+        (
+            "gama",
+            png_chunk(b"gAMA", &100_000u32.to_be_bytes()),
+            "gAMA chunk",
+        ),
+        ("iccp", png_chunk(b"iCCP", b"p\0\0x"), "iCCP chunk"),
+        (
+            "exif",
+            png_chunk(b"eXIf", b"MM\0*\0\0\0\x08\0\0"),
+            "eXIf chunk",
+        ),
+    ];
+    for (name, chunks, why) in cases {
+        let file = format!("{name}.png");
+        std::fs::write(dir.join(&file), png_with_chunks(&png, &chunks)).unwrap();
+        let o = run(&["reproduce", &file, "-q"], &dir);
+        assert_eq!(o.status.code(), Some(1), "{name}: {}", stderr(&o));
+        let said = stdout(&o);
+        assert!(
+            said.starts_with("differs:") && said.contains(why),
+            "{name}: {said}"
+        );
+    }
+    // Text that changes nothing a viewer shows leaves it identical.
+    let text = png_chunk(b"tEXt", b"Comment\0made by a friend");
+    std::fs::write(dir.join("text.png"), png_with_chunks(&png, &text)).unwrap();
+    let o = run(&["reproduce", "text.png", "-q"], &dir);
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+}
+
+#[test]
+fn a_png_of_a_million_chunks_is_refused_within_bounds() {
+    let dir = temp_dir("hostile-png-chunks");
+    let png = std::fs::read(rendered(&dir, "a.png")).unwrap();
+    let empty = png_chunk(b"zzZz", &[]);
+    let many = empty.repeat(1_000_000);
+    std::fs::write(dir.join("many.png"), png_with_chunks(&png, &many)).unwrap();
+    for command in ["info", "reproduce"] {
+        let o = run_capped(&[command, "many.png"], &dir, 256);
+        refused(&o, "more than 65536 chunks", command);
+    }
+}
+
+// --- recipes ----------------------------------------------------------------------------------
+
+/// The recipe JSON of the image at `path`.
+fn recipe_json(dir: &Path, path: &str) -> serde_json::Value {
+    let o = run(&["info", "--json", path], dir);
+    assert!(o.status.success(), "{}", stderr(&o));
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
+/// A PNG of `png`'s pixels carrying `recipe` (uncompressed iTXt) in place of its own.
+fn png_with_recipe(png: &[u8], recipe: &serde_json::Value) -> Vec<u8> {
+    // Only IHDR, IDAT and IEND of the original, then the new recipe after IHDR.
+    let mut kept = png[..8].to_vec();
+    let mut at = 8;
+    while at < png.len() {
+        let len = u32::from_be_bytes(png[at..at + 4].try_into().unwrap()) as usize;
+        if &png[at + 4..at + 8] != b"iTXt" {
+            kept.extend_from_slice(&png[at..at + 12 + len]);
+        }
+        at += 12 + len;
+    }
+    let mut data = b"tessera-recipe\0\0\0\0\0".to_vec();
+    data.extend_from_slice(serde_json::to_string(recipe).unwrap().as_bytes());
+    png_with_chunks(&kept, &png_chunk(b"iTXt", &data))
+}
+
+/// Characters that rewrite a terminal or hide text.
+const INVISIBLE: [char; 7] = [
+    '\u{1b}', '\u{7}', '\u{9b}', '\u{61c}', '\u{2028}', '\u{2029}', '\u{feff}',
+];
+
+#[test]
+fn escapes_in_a_recipe_never_reach_the_terminal() {
+    let dir = temp_dir("hostile-escapes");
+    let png = std::fs::read(rendered(&dir, "a.png")).unwrap();
+    let mut recipe = recipe_json(&dir, "a.png");
+    let evil = "\u{1b}]0;owned\u{7}\u{1b}[2J\u{9b}31m\u{61c}\u{2028}\u{2029}\u{feff}";
+    // The same as TOML escapes, which the scene's parser decodes into the characters.
+    let escaped: String = evil
+        .chars()
+        .map(|c| format!("\\u{:04x}", c as u32))
+        .collect();
+    // Errors that quote the scene's own text: an unknown key, a bad material name, a TOML
+    // syntax error; and the scene's name.
+    let scenes = [
+        format!("\"{escaped}\" = 1\n"),
+        format!(
+            "{}\n[[sphere]]\ncenter = [0, 0, -1]\nradius = 0.5\nmaterial = \"{escaped}\"\n",
+            recipe["scene"]["text"].as_str().unwrap()
+        ),
+        format!("[camera\n{evil}"),
+    ];
+    for (i, text) in scenes.iter().enumerate() {
+        recipe["scene"]["text"] = text.as_str().into();
+        recipe["scene"]["name"] = format!("{evil}.toml").into();
+        let file = format!("evil{i}.png");
+        std::fs::write(dir.join(&file), png_with_recipe(&png, &recipe)).unwrap();
+        for args in [
+            &["reproduce", &file][..],
+            &["info", &file],
+            &["reproduce", &file, "--extract-scene", "x.toml"],
+        ] {
+            let o = run(args, &dir);
+            let all = format!("{}{}", stdout(&o), stderr(&o));
+            for c in INVISIBLE {
+                assert!(
+                    !all.contains(c),
+                    "{args:?}: {c:?} reached the terminal: {all:?}"
+                );
+            }
+        }
+        let o = run(&["reproduce", &file], &dir);
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(stderr(&o).contains("\\u{1b}"), "{}", stderr(&o));
+    }
+}
+
+#[test]
+fn a_recipe_asking_for_days_of_work_is_refused_unless_asked() {
+    let dir = temp_dir("hostile-cost");
+    let png = std::fs::read(rendered(&dir, "a.png")).unwrap();
+    let mut recipe = recipe_json(&dir, "a.png");
+    recipe["image"]["width"] = 8192.into();
+    recipe["image"]["height"] = 8192.into();
+    recipe["image"]["window"] = serde_json::json!([0, 0, 8192, 8192]);
+    recipe["image"]["samples_per_pixel"] = 1_000_000.into();
+    std::fs::write(dir.join("costly.png"), png_with_recipe(&png, &recipe)).unwrap();
+    let o = run(&["reproduce", "costly.png"], &dir);
+    refused(&o, "pass --any-cost to render it anyway", "reproduce");
+    let err = stderr(&o);
+    assert!(
+        err.contains("8192x8192 pixels at 1000000 samples per pixel"),
+        "{err}"
+    );
+    // Asked for, the work is allowed; here the recipe's scene then does not give what it
+    // claims, which stops it before anything is rendered.
+    let o = run(&["reproduce", "costly.png", "--any-cost"], &dir);
+    refused(
+        &o,
+        "are not what its scene and overrides give",
+        "--any-cost",
+    );
+}
+
+// --- files that are not files -------------------------------------------------------------
+
+#[test]
+fn pipes_and_devices_named_as_inputs_are_refused_not_waited_on() {
+    let dir = temp_dir("hostile-fifo");
+    rendered(&dir, "a.png");
+    let made = Command::new("mkfifo").arg(dir.join("fifo.png")).status();
+    if !made.is_ok_and(|s| s.success()) {
+        return skip("pipes_and_devices_named_as_inputs", "mkfifo is missing");
+    }
+    std::os::unix::fs::symlink("/dev/zero", dir.join("zero.png")).unwrap();
+    for (name, why) in [
+        ("fifo.png", "is a pipe (FIFO)"),
+        ("zero.png", "is a device"),
+    ] {
+        for args in [
+            &["info", name][..],
+            &["reproduce", name],
+            &["merge", name, "-o", "m.png"],
+            &["compare", "a.png", name],
+        ] {
+            // A FIFO with no writer: opened for reading the usual way, it waits forever.
+            let mut child = tessera()
+                .args(args)
+                .current_dir(&dir)
+                .stdout(Stdio::piped())
+                .stderr(Stdio::piped())
+                .spawn()
+                .unwrap();
+            let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+            while child.try_wait().unwrap().is_none() {
+                if std::time::Instant::now() > deadline {
+                    let _ = child.kill();
+                    panic!("{args:?} waited on the pipe");
+                }
+                std::thread::sleep(std::time::Duration::from_millis(20));
+            }
+            refused(
+                &child.wait_with_output().unwrap(),
+                why,
+                &format!("{args:?}"),
+            );
+        }
+    }
+}
+
+#[cfg(feature = "results")]
+#[test]
+fn a_pipe_named_as_a_result_to_import_is_refused() {
+    let dir = temp_dir("hostile-fifo-import");
+    let made = Command::new("mkfifo").arg(dir.join("r.json")).status();
+    if !made.is_ok_and(|s| s.success()) {
+        return skip("a_pipe_named_as_a_result_to_import", "mkfifo is missing");
+    }
+    let o = run(&["results", "import", "r.json", "--db", "r.db"], &dir);
+    refused(&o, "is a pipe (FIFO)", "results import");
+}
+
+// --- output --------------------------------------------------------------------------------
+
+#[test]
+fn a_link_planted_where_the_temporary_file_goes_is_never_followed() {
+    let dir = temp_dir("hostile-planted");
+    let victim = dir.join("victim.txt");
+    std::fs::write(&victim, "precious").unwrap();
+    // The names of the temporary files the old scheme used (`.NAME.tmp-PID`) for the next
+    // few hundred process ids, each a link to the victim; and the output's own name too.
+    let mut next = Command::new("true").spawn().unwrap();
+    let pid = next.id();
+    next.wait().unwrap();
+    let out_dir = dir.join("shared");
+    std::fs::create_dir(&out_dir).unwrap();
+    for p in pid..pid + 400 {
+        for name in ["out.png", "out.exr"] {
+            let _ = std::os::unix::fs::symlink(&victim, out_dir.join(format!(".{name}.tmp-{p}")));
+        }
+    }
+    std::os::unix::fs::symlink(&victim, out_dir.join("out.png")).unwrap();
+    for name in ["out.png", "out.exr"] {
+        ok(
+            &[
+                "render",
+                scene_path("img-1.12-metal-fuzz.toml").to_str().unwrap(),
+                "--width",
+                "16",
+                "--spp",
+                "1",
+                "-q",
+                "-o",
+                &format!("shared/{name}"),
+            ],
+            &dir,
+        );
+    }
+    assert_eq!(std::fs::read_to_string(&victim).unwrap(), "precious");
+    // The output replaced the link with a file of its own.
+    let out = out_dir.join("out.png");
+    assert!(std::fs::symlink_metadata(&out).unwrap().is_file());
+    assert!(std::fs::read(&out).unwrap().starts_with(b"\x89PNG"));
+    // No temporary file is left behind.
+    let leftover: Vec<_> = std::fs::read_dir(&out_dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".tmp"))
+        .collect();
+    assert!(leftover.is_empty(), "{leftover:?}");
+}
+
+#[test]
+fn info_and_reproduce_end_quietly_on_a_closed_pipe_and_fail_on_a_full_disk() {
+    let dir = temp_dir("hostile-pipe");
+    rendered(&dir, "a.png");
+    for args in [
+        &["info", "a.png"][..],
+        &["info", "--json", "a.png"],
+        &["reproduce", "a.png", "-q"],
+    ] {
+        let (reader, writer) = std::io::pipe().unwrap();
+        drop(reader);
+        let o = tessera()
+            .args(args)
+            .current_dir(&dir)
+            .stdout(Stdio::from(writer))
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(0), "{args:?}: {}", stderr(&o));
+        assert!(o.stderr.is_empty(), "{args:?}: {}", stderr(&o));
+        let full = std::fs::File::create("/dev/full").unwrap();
+        let o = tessera()
+            .args(args)
+            .current_dir(&dir)
+            .stdout(Stdio::from(full))
+            .output()
+            .unwrap();
+        refused(
+            &o,
+            "could not write to standard output",
+            &format!("{args:?}"),
+        );
+    }
+}
+
+// --- imported results -----------------------------------------------------------------------
+
+/// A quick benchmark result of the cover, written to `dir/r.json` and read back.
+#[cfg(feature = "results")]
+fn bench_result(dir: &Path) -> serde_json::Value {
+    ok(
+        &[
+            "bench",
+            &cover(),
+            "--width",
+            "48",
+            "--spp",
+            "1",
+            "--repeat",
+            "1",
+            "--warmup",
+            "0",
+            "--no-scaling",
+            "--no-save",
+            "--out",
+            "r.json",
+        ],
+        dir,
+    );
+    serde_json::from_slice(&std::fs::read(dir.join("r.json")).unwrap()).unwrap()
+}
+
+#[cfg(feature = "results")]
+#[test]
+fn unknown_fields_inside_host_and_build_are_refused() {
+    let dir = temp_dir("hostile-result-fields");
+    let good = bench_result(&dir);
+    for part in ["host", "build"] {
+        let mut v = good.clone();
+        v[part]["surprise"] = 1.into();
+        let file = format!("{part}.json");
+        std::fs::write(dir.join(&file), serde_json::to_vec(&v).unwrap()).unwrap();
+        let o = run(&["results", "import", &file, "--db", "r.db"], &dir);
+        refused(&o, "unknown field `surprise`", part);
+    }
+    assert!(
+        !dir.join("r.db").exists() || {
+            let o = run(&["results", "list", "--db", "r.db"], &dir);
+            stdout(&o).trim() == "no results"
+        }
+    );
+}
+
+#[cfg(feature = "results")]
+#[test]
+fn the_report_shows_bidirectional_and_invisible_characters_escaped() {
+    let dir = temp_dir("hostile-result-bidi");
+    let mut v = bench_result(&dir);
+    // Read right to left, "Intel\u{202e}9 noziR DMA" shows as another CPU's name.
+    v["host"]["cpu_model"] = "Intel\u{202e}9 noziR DMA\u{2066}\u{200b}\u{feff}\u{61c}".into();
+    std::fs::write(dir.join("evil.json"), serde_json::to_vec(&v).unwrap()).unwrap();
+    let o = run(&["results", "import", "evil.json", "--db", "r.db"], &dir);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for args in [
+        &[
+            "results",
+            "report",
+            "--all",
+            "--db",
+            "r.db",
+            "-o",
+            "report.html",
+        ][..],
+        &["results", "list", "--db", "r.db"],
+        &["results", "rank", "--all", "--db", "r.db"],
+    ] {
+        let o = run(args, &dir);
+        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+        let shown = format!("{}{}", stdout(&o), stderr(&o));
+        let page = std::fs::read_to_string(dir.join("report.html")).unwrap_or_default();
+        for c in ['\u{202e}', '\u{2066}', '\u{200b}', '\u{feff}', '\u{61c}'] {
+            assert!(!shown.contains(c), "{args:?} shows {c:?} raw: {shown}");
+            assert!(!page.contains(c), "the report shows {c:?} raw");
+        }
+    }
+    let page = std::fs::read_to_string(dir.join("report.html")).unwrap();
+    assert!(
+        page.contains("Intel\\u{202e}9 noziR DMA"),
+        "the CPU is not named"
+    );
+}
