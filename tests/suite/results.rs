@@ -304,38 +304,48 @@ fn bytes(path: &Path) -> Vec<u8> {
     std::fs::read(path).unwrap()
 }
 
+/// Runs `results list`, `results import a` and `bench` on `db` (from `dir`): each must be
+/// refused (exit 2) for `reason`, and `db` left as it was.
+fn assert_refused(dir: &Path, db: &Path, a: &str, reason: &str) {
+    let name = db.file_name().unwrap().to_string_lossy();
+    let before = bytes(db);
+    for args in [&["list"][..], &["import", a]] {
+        let o = results(dir, db, args);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{name} {args:?}: {err}");
+        assert!(err.contains(reason), "{name}: expected `{reason}` in {err}");
+        assert!(!err.contains("panicked"), "{name}: {err}");
+    }
+    let o = tessera()
+        .args([
+            "bench",
+            &cover(),
+            "--width",
+            "16",
+            "--spp",
+            "1",
+            "--repeat",
+            "1",
+        ])
+        .env("TESSERA_DB", db)
+        .current_dir(dir)
+        .output()
+        .unwrap();
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "bench on {name}: {err}");
+    assert!(
+        err.contains(reason),
+        "bench on {name}: expected `{reason}` in {err}"
+    );
+    assert!(bytes(db) == before, "{name} was changed");
+}
+
 #[test]
 fn databases_it_cannot_use_are_refused_and_left_as_they_were() {
     let dir = temp_dir("results-refused");
     let (a, _) = two_results(&dir);
     let a = a.to_str().unwrap();
-    let refuse = |name: &str, reason: &str| {
-        let db = dir.join(name);
-        let before = bytes(&db);
-        for args in [&["list"][..], &["import", a]] {
-            let o = results(&dir, &db, args);
-            let err = stderr(&o);
-            assert_eq!(o.status.code(), Some(2), "{name} {args:?}: {err}");
-            assert!(err.contains(reason), "{name}: expected `{reason}` in {err}");
-        }
-        let o = tessera()
-            .args([
-                "bench",
-                &cover(),
-                "--width",
-                "16",
-                "--spp",
-                "1",
-                "--repeat",
-                "1",
-            ])
-            .env("TESSERA_DB", &db)
-            .current_dir(&dir)
-            .output()
-            .unwrap();
-        assert_eq!(o.status.code(), Some(2), "bench on {name}: {}", stderr(&o));
-        assert!(bytes(&db) == before, "{name} was changed");
-    };
+    let refuse = |name: &str, reason: &str| assert_refused(&dir, &dir.join(name), a, reason);
     std::fs::write(dir.join("text.db"), "my notes, not a database\n").unwrap();
     refuse("text.db", "not an SQLite database");
     let other = rusqlite::Connection::open(dir.join("other.db")).unwrap();
@@ -343,10 +353,14 @@ fn databases_it_cannot_use_are_refused_and_left_as_they_were() {
         .execute_batch("CREATE TABLE photos (id INTEGER)")
         .unwrap();
     drop(other);
-    refuse("other.db", "something else");
+    refuse("other.db", "an SQLite database of another program");
+    // A newer tessera's database carries tessera's application_id ("TSRA").
     let newer = rusqlite::Connection::open(dir.join("newer.db")).unwrap();
     newer
-        .execute_batch("CREATE TABLE runs (id INTEGER); PRAGMA user_version = 99;")
+        .execute_batch(
+            "CREATE TABLE runs (id INTEGER); PRAGMA application_id = 1414746689;
+             PRAGMA user_version = 99;",
+        )
         .unwrap();
     drop(newer);
     refuse("newer.db", "newer tessera");
@@ -397,6 +411,151 @@ fn a_database_of_the_first_schema_still_opens_with_its_runs() {
     let o = results(&dir, &db, &["import", a.to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(listed(&dir, &db, &[]).len(), 2);
+    // Brought up to the latest schema, which carries tessera's application_id.
+    let head = bytes(&db);
+    assert_eq!(&head[68..72], b"TSRA", "no application_id");
+    assert_eq!(head[60..64], [0, 0, 0, 3], "not schema 3");
+}
+
+/// The names, bytes and modification times of the files in `dir`, sorted.
+fn listing(dir: &Path) -> Vec<(String, Vec<u8>, std::time::SystemTime)> {
+    let mut files: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| {
+            let e = e.unwrap();
+            let meta = e.metadata().unwrap();
+            let bytes = if meta.is_file() {
+                bytes(&e.path())
+            } else {
+                Vec::new()
+            };
+            (
+                e.file_name().to_string_lossy().into_owned(),
+                bytes,
+                meta.modified().unwrap(),
+            )
+        })
+        .collect();
+    files.sort();
+    files
+}
+
+/// Another program's SQLite databases, however like tessera's they look, are recognised by
+/// their header (tessera's application_id, "TSRA") or, for tessera's first two schemas,
+/// which had none, by their tables read as an immutable file; they are refused before
+/// SQLite writes anything, and the file and its directory are left byte for byte as they
+/// were: no switch to WAL, no -wal or -shm file.
+#[test]
+fn another_programs_databases_are_refused_before_anything_is_written() {
+    let dir = temp_dir("results-foreign");
+    let (a, _) = two_results(&dir);
+    let a = a.to_str().unwrap();
+    let dbs = dir.join("dbs");
+    std::fs::create_dir(&dbs).unwrap();
+    let make = |name: &str, sql: &str| {
+        let conn = rusqlite::Connection::open(dbs.join(name)).unwrap();
+        conn.execute_batch(sql).unwrap();
+        conn.close().unwrap();
+    };
+    let cases = [
+        (
+            "notes-v1.db",
+            "CREATE TABLE notes (id INTEGER, text TEXT); PRAGMA user_version = 1;".to_owned(),
+            "user_version 1 but not tessera's tables",
+        ),
+        (
+            "notes-v2-wal.db",
+            "PRAGMA journal_mode = WAL; CREATE TABLE notes (id INTEGER);
+             PRAGMA user_version = 2;"
+                .to_owned(),
+            "user_version 2 but not tessera's tables",
+        ),
+        (
+            "lookalike-v2.db",
+            format!("{FIRST_SCHEMA} CREATE TABLE photos (id INTEGER); PRAGMA user_version = 2;"),
+            "user_version 2 but not tessera's tables",
+        ),
+        (
+            "other-app.db",
+            format!("{FIRST_SCHEMA} PRAGMA application_id = 305419896;"),
+            "an SQLite database of another program (application_id 0x12345678",
+        ),
+        (
+            "other-app-wal.db",
+            "PRAGMA journal_mode = WAL; PRAGMA application_id = -559038737;
+             CREATE TABLE t (x); PRAGMA user_version = 1;"
+                .to_owned(),
+            "an SQLite database of another program (application_id 0xdeadbeef",
+        ),
+        (
+            "photos-v0.db",
+            "CREATE TABLE photos (id INTEGER);".to_owned(),
+            "an SQLite database of another program (application_id 0, user_version 0",
+        ),
+        (
+            "runs-v99.db",
+            "CREATE TABLE runs (id INTEGER); PRAGMA user_version = 99;".to_owned(),
+            "an SQLite database of another program (application_id 0, user_version 99",
+        ),
+        ("empty.db", String::new(), "an empty file"),
+    ];
+    for (name, sql, _) in &cases {
+        if sql.is_empty() {
+            std::fs::write(dbs.join(name), "").unwrap();
+        } else {
+            make(name, sql);
+        }
+    }
+    let before = listing(&dbs);
+    assert_eq!(before.len(), cases.len(), "a -wal or -shm file was left");
+    for (name, _, reason) in &cases {
+        assert_refused(&dir, &dbs.join(name), a, reason);
+        assert!(
+            listing(&dbs) == before,
+            "{name}: the directory of refused databases changed"
+        );
+    }
+}
+
+/// Eight processes import at once into a database that does not exist yet, many times over,
+/// each time at a new path: every import lands, and no temporary name, -wal or -shm file is
+/// left. A new database is made whole under a temporary name and published with a hard
+/// link, so nobody sees one half-made.
+#[test]
+fn eight_imports_at_once_into_a_new_database_all_land() {
+    let dir = temp_dir("results-first-use");
+    let (a, _) = two_results(&dir);
+    let files = variants(&dir, &json(&a), 1_730_000_000, 8, "f");
+    let started = std::time::Instant::now();
+    let mut rounds = 0;
+    // 40 rounds, or fewer (but at least 10) where the machine is slow.
+    while rounds < 40 && (rounds < 10 || started.elapsed().as_secs() < 12) {
+        let round = dir.join(format!("round-{rounds}"));
+        let db = round.join("r.db");
+        let children: Vec<_> = (files.iter())
+            .map(|f| {
+                tessera()
+                    .args(["results", "import", f])
+                    .env("TESSERA_DB", &db)
+                    .current_dir(&dir)
+                    .stdout(Stdio::piped())
+                    .stderr(Stdio::piped())
+                    .spawn()
+                    .unwrap()
+            })
+            .collect();
+        for c in children {
+            let o = c.wait_with_output().unwrap();
+            assert!(o.status.success(), "round {rounds}: {}", stderr(&o));
+            assert_eq!(stdout(&o), "imported 1 new result, 0 already present\n");
+        }
+        let names: Vec<String> = listing(&round).into_iter().map(|f| f.0).collect();
+        assert_eq!(names, ["r.db"], "round {rounds}");
+        assert_eq!(listed(&dir, &db, &[]).len(), files.len(), "round {rounds}");
+        rounds += 1;
+    }
+    let o = results(&dir, &dir.join("round-0/r.db"), &["export", "--jsonl"]);
+    assert_eq!(stdout(&o).lines().count(), files.len());
 }
 
 /// `n` distinct results made from `base` (each started a second apart, from `first`), as
@@ -793,4 +952,76 @@ fn a_full_or_read_only_disk_is_an_error_that_keeps_what_was_there() {
     assert!(err.contains("read-only"), "{err}");
     assert_eq!(lines.get(3).map(|l| l.trim()), Some("1"), "{out}");
     assert!(!err.contains("panicked"), "{err}");
+}
+
+/// A database on a read-only file system reads (`list`, `export`), though SQLite cannot make
+/// the -shm file a WAL database needs: it is read as an immutable file, which it is there.
+/// A database of the first schema, which cannot be brought up to date there, reads as it
+/// is. Nothing is written: the file system keeps the same files, byte for byte.
+#[test]
+fn a_database_on_a_read_only_file_system_reads() {
+    let test = "a_database_on_a_read_only_file_system_reads";
+    let dir = temp_dir("results-read-only");
+    let (a, b) = two_results(&dir);
+    // A first-schema database as tessera 0.1.0 left it: in WAL mode, closed.
+    let legacy = dir.join("legacy.db");
+    let conn = rusqlite::Connection::open(&legacy).unwrap();
+    conn.execute_batch(&format!("PRAGMA journal_mode = WAL; {FIRST_SCHEMA}"))
+        .unwrap();
+    conn.execute(
+        "INSERT INTO runs VALUES (1, 'd', 1, 'import', 1700000000, 'm-0', 'Old CPU', 4,
+         '0.1.0', 'abc', 'avx2', 'cover', 'id', 4, 1e6, 9e5, 1.1e6, 'valid', '{}')",
+        [],
+    )
+    .unwrap();
+    conn.close().unwrap();
+    assert_eq!(bytes(&legacy)[18..20], [2, 2], "not in WAL mode");
+    let tessera = env!("CARGO_BIN_EXE_tessera");
+    let (a, b) = (a.to_str().unwrap(), b.to_str().unwrap());
+    let script = format!(
+        "export TESSERA_DB=small/r.db; {tessera} results import {a} >/dev/null || exit 10; \
+         cp legacy.db small/legacy.db || exit 11; \
+         ls -lA --time-style=full-iso small > before.ls; cp small/r.db before.db; \
+         mount -o remount,ro small || exit 12; \
+         {tessera} results list > list.out; echo \"list=$?\"; \
+         {tessera} results export --jsonl > export.out; echo \"export=$?\"; \
+         {tessera} results --db small/legacy.db list > legacy.out; echo \"legacy=$?\"; \
+         {tessera} results import {b}; echo \"import=$?\"; \
+         ls -lA --time-style=full-iso small > after.ls; \
+         cmp -s small/r.db before.db; echo \"same=$?\"; cmp -s small/legacy.db legacy.db; \
+         echo \"legacy-same=$?\""
+    );
+    let Some(o) = in_a_small_filesystem(&dir, 1024, &script) else {
+        return skip(
+            test,
+            "this machine cannot make a private filesystem (unshare -rm)",
+        );
+    };
+    let (out, err) = (stdout(&o), stderr(&o));
+    assert!(o.status.success(), "{out}{err}");
+    let read = |name: &str| std::fs::read_to_string(dir.join(name)).unwrap();
+    for want in [
+        "list=0",
+        "export=0",
+        "legacy=0",
+        "import=2",
+        "same=0",
+        "legacy-same=0",
+    ] {
+        assert!(out.lines().any(|l| l == want), "no {want}: {out}{err}");
+    }
+    assert_eq!(read("list.out").lines().count(), 2, "{}", read("list.out"));
+    assert_eq!(read("export.out").lines().count(), 1);
+    assert!(
+        read("legacy.out").contains("Old CPU"),
+        "{}",
+        read("legacy.out")
+    );
+    assert!(err.contains("read-only"), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    assert_eq!(
+        read("before.ls"),
+        read("after.ls"),
+        "the file system changed"
+    );
 }

@@ -1,17 +1,31 @@
 //! The results database: an SQLite file (rusqlite, with SQLite compiled in) holding every
 //! benchmark result recorded or imported, each as its full JSON and the columns queries
-//! need. It is opened carefully: a file that is not SQLite, a corrupt one, or one made by a
-//! newer tessera is refused before anything is written to it; a new one is created readable
-//! by its owner alone. Writers wait for each other (WAL, a busy timeout), and each run or
-//! import is one transaction, so a crash never loses rows already there.
+//! need. It is opened carefully: before SQLite touches a file, its header says whose it is
+//! (tessera's `application_id`, or a schema 1 or 2 database with exactly tessera's tables),
+//! and anything else (not SQLite, another program's, a newer tessera's, damaged) is refused
+//! with the file and its directory left as they were. A new database is made whole under a
+//! temporary name and published with a hard link, so no process ever sees one half-made; it
+//! is readable by its owner alone. Writers wait for each other (WAL, a busy timeout), and
+//! each run or import is one transaction, so a crash never loses rows already there.
 
 use super::result::BenchResult;
 use anyhow::{Context, Result, anyhow, bail};
-use rusqlite::{Connection, OptionalExtension, TransactionBehavior, params};
+use rusqlite::{Connection, OpenFlags, OptionalExtension, TransactionBehavior, params};
+use std::fmt::Write as _;
 use std::io::Read;
-use std::os::unix::fs::{DirBuilderExt, OpenOptionsExt};
+use std::os::unix::ffi::OsStrExt;
+use std::os::unix::fs::{DirBuilderExt, PermissionsExt};
 use std::path::{Path, PathBuf};
-use std::time::Duration;
+use std::time::{Duration, Instant};
+
+/// tessera's SQLite `application_id` (the file header's bytes 68..72, big-endian): the ASCII
+/// bytes "TSRA". Migration 3 sets it; a database with another one is another program's.
+pub const APPLICATION_ID: u32 = 0x5453_5241;
+
+/// The first schema version that carries `APPLICATION_ID`. The versions before it (1 and 2,
+/// application_id 0) are recognised by their tables, and brought up to date when opened to
+/// write.
+const APPLICATION_ID_SINCE: i64 = 3;
 
 /// The schema's migrations: `MIGRATIONS[i]` takes a database from `user_version` i to i + 1.
 /// A migration is never edited once released; a change is a new one.
@@ -49,6 +63,18 @@ const MIGRATIONS: &[&str] = &[
     CREATE INDEX runs_by_machine ON runs (machine_id, workload_id, started_unix_s);",
     // 2: whether the machine was busy while the run ran (results before it: not known, 0).
     "ALTER TABLE runs ADD COLUMN busy INTEGER NOT NULL DEFAULT 0;",
+    // 3: tessera's application_id (APPLICATION_ID, "TSRA"), which says whose the file is.
+    "PRAGMA application_id = 1414746689;",
+];
+
+/// The schema objects (type, name, table) of schema versions 1 and 2, sorted: how a
+/// database made before `APPLICATION_ID` is recognised as tessera's.
+const LEGACY_OBJECTS: &[(&str, &str, &str)] = &[
+    ("index", "runs_by_machine", "runs"),
+    ("index", "sqlite_autoindex_runs_1", "runs"),
+    ("index", "sqlite_autoindex_scaling_1", "scaling"),
+    ("table", "runs", "runs"),
+    ("table", "scaling", "scaling"),
 ];
 
 /// The schema version this build makes and reads.
@@ -133,6 +159,49 @@ pub struct ResultsDb {
 /// SQLite's file header.
 const SQLITE_MAGIC: &[u8; 16] = b"SQLite format 3\0";
 
+/// The length of SQLite's file header.
+const HEADER_LEN: usize = 100;
+
+/// What a file's first 100 bytes (SQLite's header) say it is.
+#[derive(Debug, PartialEq)]
+enum Header {
+    /// No bytes at all.
+    Empty,
+    /// Not SQLite's magic string.
+    NotSqlite,
+    /// SQLite's magic string, but less than a whole header.
+    CutShort,
+    Sqlite {
+        /// Bytes 68..72.
+        application_id: u32,
+        /// Bytes 60..64, signed as SQLite reads them.
+        user_version: i64,
+    },
+}
+
+impl Header {
+    fn parse(head: &[u8]) -> Self {
+        if head.is_empty() {
+            return Self::Empty;
+        }
+        if !head.starts_with(SQLITE_MAGIC) {
+            return Self::NotSqlite;
+        }
+        let Some(header) = head.get(..HEADER_LEN) else {
+            return Self::CutShort;
+        };
+        let word = |at: usize| {
+            let mut bytes = [0; 4];
+            bytes.copy_from_slice(&header[at..at + 4]);
+            u32::from_be_bytes(bytes)
+        };
+        Self::Sqlite {
+            application_id: word(68),
+            user_version: i64::from(word(60) as i32),
+        }
+    }
+}
+
 impl ResultsDb {
     /// Opens the database at `path`, creating it (and its directory) if it does not exist.
     pub fn open(path: &Path) -> Result<Self> {
@@ -140,7 +209,8 @@ impl ResultsDb {
     }
 
     /// Opens the database at `path` to read it: it is not created, and nothing is written,
-    /// so it reads on a read-only disk too. One that needs a migration is opened to write.
+    /// so it reads on a read-only disk too. One that needs a migration is opened to write
+    /// where it can be, and read as it is where it cannot.
     pub fn open_to_read(path: &Path) -> Result<Self> {
         if !path.exists() {
             bail!(
@@ -152,130 +222,125 @@ impl ResultsDb {
     }
 
     fn open_as(path: &Path, access: Access) -> Result<Self> {
-        let shown = path.display();
-        match std::fs::metadata(path) {
-            Ok(meta) if !meta.is_file() => {
-                bail!("{shown}: not a file: the results database must be one")
-            }
-            Ok(_) => {
-                let mut head = Vec::with_capacity(16);
-                std::fs::File::open(path)
-                    .and_then(|f| f.take(16).read_to_end(&mut head))
-                    .with_context(|| format!("{shown}: could not read the results database"))?;
-                if !head.is_empty() && head != SQLITE_MAGIC {
-                    bail!(
-                        "{shown}: not an SQLite database, so not a tessera results database; left as it is"
-                    );
-                }
-            }
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => create(path)?,
-            Err(e) => {
-                return Err(e)
-                    .with_context(|| format!("{shown}: could not open the results database"));
-            }
+        let missing = matches!(std::fs::metadata(path),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound);
+        if missing && access == Access::Write {
+            create(path)?;
         }
-        let flags = match access {
-            Access::Read => rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY,
-            Access::Write => rusqlite::OpenFlags::SQLITE_OPEN_READ_WRITE,
-        } | rusqlite::OpenFlags::SQLITE_OPEN_NO_MUTEX;
-        let conn = Connection::open_with_flags(path, flags)
-            .with_context(|| format!("{shown}: could not open the results database"))?;
-        let mut db = Self {
+        // Whose the file is, from what it holds, before SQLite opens it to use it: a file
+        // this build must refuse is left as it was, and no -wal or -shm file is made for it.
+        recognise(path)?;
+        let mut db = match access {
+            Access::Read => Self::connect_to_read(path)?,
+            Access::Write => Self::connect(path, OpenFlags::SQLITE_OPEN_READ_WRITE)?,
+        };
+        // The same checks through SQLite, which also reads what the WAL holds.
+        db.schema = db.check()?;
+        if access == Access::Read {
+            if db.schema < SCHEMA_VERSION {
+                // Brought up to date where it can be written; read as it is where it cannot
+                // (a read-only disk). This connection is closed first: the upgrade reads the
+                // file's header itself, and closing a file drops every POSIX lock the
+                // process holds on it, SQLite's too.
+                drop(db);
+                return Self::open_as(path, Access::Write).or_else(|_| {
+                    let mut db = Self::connect_to_read(path)?;
+                    db.schema = db.check()?;
+                    Ok(db)
+                });
+            }
+            return Ok(db);
+        }
+        db.conn.pragma_update(None, "foreign_keys", true)?;
+        db.migrate(db.schema)?;
+        db.schema = SCHEMA_VERSION;
+        Ok(db)
+    }
+
+    /// A connection to `path` with `flags`, waiting for other writers.
+    fn connect(path: &Path, flags: OpenFlags) -> Result<Self> {
+        let conn = Connection::open_with_flags(path, flags | OpenFlags::SQLITE_OPEN_NO_MUTEX)
+            .with_context(|| format!("{}: could not open the results database", path.display()))?;
+        conn.busy_timeout(BUSY_TIMEOUT)?;
+        Ok(Self {
             conn,
             path: path.to_owned(),
             schema: 0,
-        };
-        db.conn.busy_timeout(BUSY_TIMEOUT)?;
-        // Read-only checks first: a database this build must refuse is left untouched.
-        let check: String = db
+        })
+    }
+
+    /// A read-only connection to `path`. A WAL database needs its -shm file to be read,
+    /// and a read-only file system cannot hold a new one: there it is read as immutable,
+    /// which is true of it, since nobody can write it.
+    fn connect_to_read(path: &Path) -> Result<Self> {
+        let db = Self::connect(path, OpenFlags::SQLITE_OPEN_READ_ONLY)?;
+        // The first read is where SQLite opens the -wal and -shm files. Any other error
+        // shows at the checks that follow.
+        let first = db
             .conn
+            .query_row("SELECT count(*) FROM sqlite_schema", [], |r| {
+                r.get::<_, i64>(0)
+            });
+        match first {
+            Err(e) if cannot_open_wal_files(&e) => {
+                // Closed before the file is probed: closing a file drops every POSIX lock the
+                // process holds on it, SQLite's too.
+                drop(db);
+                if !immutable_there(path) {
+                    return Self::connect(path, OpenFlags::SQLITE_OPEN_READ_ONLY);
+                }
+                let conn = open_immutable(path).with_context(|| {
+                    format!("{}: could not open the results database", path.display())
+                })?;
+                Ok(Self {
+                    conn,
+                    path: path.to_owned(),
+                    schema: 0,
+                })
+            }
+            _ => Ok(db),
+        }
+    }
+
+    /// Checks that the database is whole and tessera's, of a schema this build knows, and
+    /// returns that schema version. It only reads.
+    fn check(&self) -> Result<i64> {
+        let shown = self.path.display();
+        let started = Instant::now();
+        let check: String = (self.conn)
             .query_row("PRAGMA quick_check", [], |r| r.get(0))
-            .map_err(|e| db.error(e, "could not read it"))?;
+            .map_err(|e| self.error(e, "could not read it", started))?;
         if check != "ok" {
             bail!(
                 "{shown}: the results database is damaged ({}); left as it is",
                 check.escape_debug()
             );
         }
-        let version: i64 = db.conn.query_row("PRAGMA user_version", [], |r| r.get(0))?;
-        if version > SCHEMA_VERSION {
-            bail!(
-                "{shown}: the results database has schema {version}, made by a newer tessera (this one knows up to {SCHEMA_VERSION}); left as it is"
-            );
-        }
-        if version < 0 {
-            bail!("{shown}: not a tessera results database (schema {version}); left as it is");
-        }
-        db.schema = version;
-        if access == Access::Read && version < SCHEMA_VERSION {
-            // Brought up to date where it can be written; a tessera schema is read as it is
-            // where it cannot (a read-only disk).
-            drop(db);
-            let updated = Self::open_as(path, Access::Write);
-            if version == 0 {
-                return updated;
-            }
-            return updated.or_else(|_| {
-                let flags = rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY
-                    | rusqlite::OpenFlags::SQLITE_OPEN_NO_MUTEX;
-                let conn = Connection::open_with_flags(path, flags)
-                    .with_context(|| format!("{shown}: could not open the results database"))?;
-                conn.busy_timeout(BUSY_TIMEOUT)?;
-                Ok(Self {
-                    conn,
-                    path: path.to_owned(),
-                    schema: version,
-                })
-            });
-        }
-        if access == Access::Read {
-            return Ok(db);
-        }
-        if version == 0 {
-            let tables: i64 = db
-                .conn
-                .query_row("SELECT count(*) FROM sqlite_schema", [], |r| r.get(0))?;
-            if tables > 0 {
-                bail!(
-                    "{shown}: an SQLite database of something else, not tessera's results; left as it is"
-                );
-            }
-        }
-        db.conn
-            .pragma_update(None, "journal_mode", "wal")
-            .map_err(|e| db.error(e, "could not switch it to WAL"))?;
-        db.conn.pragma_update(None, "foreign_keys", true)?;
-        db.migrate(version)?;
-        db.schema = SCHEMA_VERSION;
-        Ok(db)
+        let pragma = |name: &str| {
+            (self.conn)
+                .query_row(&format!("PRAGMA {name}"), [], |r| r.get::<_, i64>(0))
+                .map_err(|e| self.error(e, "could not read it", started))
+        };
+        // SQLite returns the header's 32 bits as a signed number.
+        let application_id = pragma("application_id")? as u32;
+        let user_version = pragma("user_version")?;
+        whose(&self.path, application_id, user_version, || {
+            legacy_tables(&self.conn).map_err(|e| self.error(e, "could not read it", started))
+        })
     }
 
-    /// An SQLite error as the user should read it.
-    fn error(&self, e: rusqlite::Error, doing: &str) -> anyhow::Error {
-        let shown = self.path.display();
-        match e.sqlite_error_code() {
-            Some(rusqlite::ErrorCode::NotADatabase) => {
-                anyhow!("{shown}: damaged or not a database ({e}); left as it is")
-            }
-            Some(rusqlite::ErrorCode::DatabaseCorrupt) => {
-                anyhow!("{shown}: the results database is damaged ({e}); left as it is")
-            }
-            Some(rusqlite::ErrorCode::ReadOnly) | Some(rusqlite::ErrorCode::CannotOpen) => {
-                anyhow!("{shown}: {doing}: the database or its directory is read-only ({e})")
-            }
-            Some(rusqlite::ErrorCode::DiskFull) => anyhow!("{shown}: {doing}: the disk is full"),
-            Some(rusqlite::ErrorCode::DatabaseBusy) | Some(rusqlite::ErrorCode::DatabaseLocked) => {
-                anyhow!("{shown}: {doing}: another process held the database for {BUSY_TIMEOUT:?}")
-            }
-            _ => anyhow!("{shown}: {doing}: {e}"),
-        }
+    /// An SQLite error as the user should read it; `started` is when the operation began
+    /// (how long it waited on a busy database).
+    fn error(&self, e: rusqlite::Error, doing: &str, started: Instant) -> anyhow::Error {
+        explain(&self.path, e, doing, started)
     }
 
     fn migrate(&self, from: i64) -> Result<()> {
         for (i, sql) in MIGRATIONS.iter().enumerate().skip(from as usize) {
+            let started = Instant::now();
             let tx =
                 rusqlite::Transaction::new_unchecked(&self.conn, TransactionBehavior::Immediate)
-                    .map_err(|e| self.error(e, "could not update its schema"))?;
+                    .map_err(|e| self.error(e, "could not update its schema", started))?;
             // Another process may have migrated it meanwhile.
             let now: i64 = tx.query_row("PRAGMA user_version", [], |r| r.get(0))?;
             if now > i as i64 {
@@ -284,7 +349,7 @@ impl ResultsDb {
             tx.execute_batch(sql)
                 .and_then(|()| tx.pragma_update(None, "user_version", i as i64 + 1))
                 .and_then(|()| tx.commit())
-                .map_err(|e| self.error(e, "could not update its schema"))?;
+                .map_err(|e| self.error(e, "could not update its schema", started))?;
         }
         Ok(())
     }
@@ -297,6 +362,7 @@ impl ResultsDb {
         let jsons = (reports.iter())
             .map(serde_json::to_string)
             .collect::<Result<Vec<_>, _>>()?;
+        let started = Instant::now();
         let written = (|| {
             let tx = self
                 .conn
@@ -308,7 +374,7 @@ impl ResultsDb {
             tx.commit()?;
             Ok(outcomes)
         })();
-        written.map_err(|e| self.error(e, "could not write the results"))
+        written.map_err(|e| self.error(e, "could not write the results", started))
     }
 
     /// The runs `filter` selects, newest first.
@@ -453,28 +519,248 @@ fn insert(
     Ok(Added::New(id))
 }
 
-/// Creates an empty database file readable by its owner alone, and its directory.
+/// An SQLite error as the user should read it; `started` is when the operation began.
+fn explain(path: &Path, e: rusqlite::Error, doing: &str, started: Instant) -> anyhow::Error {
+    let shown = path.display();
+    match e.sqlite_error_code() {
+        Some(rusqlite::ErrorCode::NotADatabase) => {
+            anyhow!("{shown}: damaged or not a database ({e}); left as it is")
+        }
+        Some(rusqlite::ErrorCode::DatabaseCorrupt) => {
+            anyhow!("{shown}: the results database is damaged ({e}); left as it is")
+        }
+        Some(rusqlite::ErrorCode::ReadOnly) | Some(rusqlite::ErrorCode::CannotOpen) => {
+            anyhow!("{shown}: {doing}: the database or its directory is read-only ({e})")
+        }
+        Some(rusqlite::ErrorCode::DiskFull) => anyhow!("{shown}: {doing}: the disk is full"),
+        Some(rusqlite::ErrorCode::DatabaseBusy) | Some(rusqlite::ErrorCode::DatabaseLocked) => {
+            // SQLite waits up to BUSY_TIMEOUT for most locks but returns some at once: say
+            // how long it waited.
+            let waited = started.elapsed();
+            let waited = if waited >= Duration::from_secs(1) {
+                format!("{:.1} s", waited.as_secs_f64())
+            } else {
+                format!("{} ms", waited.as_millis())
+            };
+            anyhow!(
+                "{shown}: {doing}: another process held the database; gave up after {waited} ({e})"
+            )
+        }
+        _ => anyhow!("{shown}: {doing}: {e}"),
+    }
+}
+
+/// Whose a database of `application_id` and `user_version` is: its schema version where it
+/// is a tessera results database this build can use, else why not. `legacy_tables` says
+/// whether it holds exactly tessera's tables (asked only of schemas 1 and 2, which carry no
+/// application_id).
+fn whose(
+    path: &Path,
+    application_id: u32,
+    user_version: i64,
+    legacy_tables: impl FnOnce() -> Result<bool>,
+) -> Result<i64> {
+    let shown = path.display();
+    match application_id {
+        APPLICATION_ID if user_version > SCHEMA_VERSION => bail!(
+            "{shown}: the results database has schema {user_version}, made by a newer tessera (this one knows up to {SCHEMA_VERSION}); left as it is"
+        ),
+        APPLICATION_ID if user_version < APPLICATION_ID_SINCE => bail!(
+            "{shown}: not a tessera results database (tessera's application_id, but schema {user_version}); left as it is"
+        ),
+        APPLICATION_ID => Ok(user_version),
+        0 if (1..APPLICATION_ID_SINCE).contains(&user_version) => {
+            if legacy_tables()? {
+                Ok(user_version)
+            } else {
+                bail!(
+                    "{shown}: an SQLite database of another program (user_version {user_version} but not tessera's tables), not tessera's results; left as it is"
+                )
+            }
+        }
+        0 => bail!(
+            "{shown}: an SQLite database of another program (application_id 0, user_version {user_version}; tessera's is {APPLICATION_ID:#010x}), not tessera's results; left as it is"
+        ),
+        other => bail!(
+            "{shown}: an SQLite database of another program (application_id {other:#010x}; tessera's is {APPLICATION_ID:#010x}), not tessera's results; left as it is"
+        ),
+    }
+}
+
+/// Says whether the file at `path` is a tessera results database this build can use, from
+/// its header (and, for schemas 1 and 2, its tables read as immutable), before SQLite opens
+/// it to use it: nothing is written, nor any -wal or -shm file made. It opens the file
+/// itself, so it runs while no connection of this process is open on it: closing a file
+/// drops every POSIX lock the process holds on it, SQLite's too.
+fn recognise(path: &Path) -> Result<()> {
+    let shown = path.display();
+    let meta = std::fs::metadata(path)
+        .with_context(|| format!("{shown}: could not open the results database"))?;
+    if !meta.is_file() {
+        bail!("{shown}: not a file: the results database must be one");
+    }
+    let mut head = Vec::with_capacity(HEADER_LEN);
+    std::fs::File::open(path)
+        .and_then(|f| f.take(HEADER_LEN as u64).read_to_end(&mut head))
+        .with_context(|| format!("{shown}: could not read the results database"))?;
+    let (application_id, user_version) = match Header::parse(&head) {
+        Header::Empty => bail!(
+            "{shown}: an empty file, not a results database; left as it is (remove it, and tessera makes a new database there)"
+        ),
+        Header::NotSqlite => bail!(
+            "{shown}: not an SQLite database, so not a tessera results database; left as it is"
+        ),
+        Header::CutShort => bail!(
+            "{shown}: the results database is damaged (its header is cut short); left as it is"
+        ),
+        Header::Sqlite {
+            application_id,
+            user_version,
+        } => (application_id, user_version),
+    };
+    whose(path, application_id, user_version, || {
+        let started = Instant::now();
+        open_immutable(path)
+            .and_then(|conn| legacy_tables(&conn))
+            .map_err(|e| explain(path, e, "could not read it", started))
+    })
+    .map(drop)
+}
+
+/// Whether the schema of `conn` is exactly that of tessera's schemas 1 and 2.
+fn legacy_tables(conn: &Connection) -> rusqlite::Result<bool> {
+    let mut stmt =
+        conn.prepare("SELECT type, name, tbl_name FROM sqlite_schema ORDER BY type, name")?;
+    let objects = stmt
+        .query_map([], |r| {
+            Ok((
+                r.get::<_, String>(0)?,
+                r.get::<_, String>(1)?,
+                r.get::<_, String>(2)?,
+            ))
+        })?
+        .collect::<rusqlite::Result<Vec<_>>>()?;
+    Ok(objects.len() == LEGACY_OBJECTS.len()
+        && (objects.iter().zip(LEGACY_OBJECTS))
+            .all(|((t, n, tb), (et, en, etb))| t == et && n == en && tb == etb))
+}
+
+/// A read-only connection to `path` as an immutable file: SQLite takes no locks, ignores any
+/// -wal file and makes no file of its own.
+fn open_immutable(path: &Path) -> rusqlite::Result<Connection> {
+    let flags = OpenFlags::SQLITE_OPEN_READ_ONLY
+        | OpenFlags::SQLITE_OPEN_URI
+        | OpenFlags::SQLITE_OPEN_NO_MUTEX;
+    Connection::open_with_flags(immutable_uri(path), flags)
+}
+
+/// The SQLite URI of `path` opened as immutable: each byte but the unreserved ones and `/`
+/// percent-encoded, so that no `?`, `#` or `%` in a name is read as part of the URI.
+fn immutable_uri(path: &Path) -> String {
+    // An absolute path after an empty authority, so that one that starts with `//` is not
+    // read as an authority.
+    let mut uri = String::from(if path.has_root() { "file://" } else { "file:" });
+    for &b in path.as_os_str().as_bytes() {
+        if b.is_ascii_alphanumeric() || b"/-._~".contains(&b) {
+            uri.push(char::from(b));
+        } else {
+            let _ = write!(uri, "%{b:02X}");
+        }
+    }
+    uri.push_str("?immutable=1");
+    uri
+}
+
+/// Whether `e` is SQLite failing to open (or make) a database's -wal or -shm file.
+fn cannot_open_wal_files(e: &rusqlite::Error) -> bool {
+    matches!(
+        e.sqlite_error_code(),
+        Some(rusqlite::ErrorCode::CannotOpen) | Some(rusqlite::ErrorCode::ReadOnly)
+    )
+}
+
+/// Whether reading `path` as immutable reads what it holds: it lies on a read-only file
+/// system (so nobody writes it while it is read), and no -wal file holds changes that an
+/// immutable read would not see.
+fn immutable_there(path: &Path) -> bool {
+    // Opening the file to write changes nothing, and on a read-only file system fails so.
+    let read_only = matches!(std::fs::OpenOptions::new().write(true).open(path),
+        Err(e) if e.kind() == std::io::ErrorKind::ReadOnlyFilesystem);
+    let mut wal = path.as_os_str().to_owned();
+    wal.push("-wal");
+    let wal_is_empty = match std::fs::metadata(&wal) {
+        Ok(meta) => meta.len() == 0,
+        Err(e) => e.kind() == std::io::ErrorKind::NotFound,
+    };
+    read_only && wal_is_empty
+}
+
+/// Makes a new database at `path`, and its directory, unless another process does first.
+/// It is made whole (tessera's application_id, WAL, every migration) under a temporary,
+/// unpredictable name in the same directory, readable by its owner alone, closed (so that
+/// its -wal and -shm files are gone), and then published with a hard link, which fails
+/// where a database is there already: then that one is used and this one removed. No
+/// process ever sees a half-made database.
 fn create(path: &Path) -> Result<()> {
     let shown = path.display();
-    if let Some(dir) = (path.parent()).filter(|d| !d.as_os_str().is_empty() && !d.exists()) {
+    let dir = match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => dir,
+        _ => Path::new("."),
+    };
+    if !dir.exists() {
         std::fs::DirBuilder::new()
             .recursive(true)
             .mode(0o700)
             .create(dir)
             .with_context(|| format!("{shown}: could not create the directory"))?;
     }
-    std::fs::OpenOptions::new()
-        .write(true)
-        .create_new(true)
-        .mode(0o600)
-        .open(path)
-        .map(drop)
-        .or_else(|e| match e.kind() {
-            // Another process created it first: use theirs.
-            std::io::ErrorKind::AlreadyExists => Ok(()),
-            _ => Err(e),
-        })
-        .with_context(|| format!("{shown}: could not create the results database"))
+    let made = tempfile::Builder::new()
+        .prefix(".results.db.")
+        .permissions(std::fs::Permissions::from_mode(0o600))
+        .tempfile_in(dir)
+        .with_context(|| format!("{shown}: could not create the results database"))?;
+    // Removed when dropped, unless published by a rename.
+    let made = made.into_temp_path();
+    let mut db = ResultsDb::connect(&made, OpenFlags::SQLITE_OPEN_READ_WRITE)?;
+    // Messages name the database being made, not its temporary name.
+    db.path = path.to_owned();
+    let started = Instant::now();
+    db.conn
+        .pragma_update(None, "journal_mode", "wal")
+        .map_err(|e| db.error(e, "could not create it", started))?;
+    db.migrate(0)?;
+    db.conn
+        .close()
+        .map_err(|(_, e)| explain(path, e, "could not create it", started))?;
+    match std::fs::hard_link(&made, path) {
+        // Ours, or another process's made first: either is whole.
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Ok(()),
+        // A file system without hard links: renamed instead, where nothing is there yet.
+        Err(e) if links_refused(&e) => match made.persist_noclobber(path) {
+            Ok(()) => Ok(()),
+            Err(e) if e.error.kind() == std::io::ErrorKind::AlreadyExists => Ok(()),
+            Err(e)
+                if std::fs::symlink_metadata(path)
+                    .is_err_and(|m| m.kind() == std::io::ErrorKind::NotFound) =>
+            {
+                e.path.persist(path).map_err(|e| e.error)
+            }
+            Err(e) => Err(e.error),
+        },
+        Err(e) => Err(e),
+    }
+    .with_context(|| format!("{shown}: could not create the results database"))
+}
+
+/// Whether `e` is a file system refusing hard links.
+fn links_refused(e: &std::io::Error) -> bool {
+    matches!(
+        e.kind(),
+        std::io::ErrorKind::PermissionDenied
+            | std::io::ErrorKind::Unsupported
+            | std::io::ErrorKind::TooManyLinks
+    ) || e.raw_os_error() == Some(95) // EOPNOTSUPP
 }
 
 #[cfg(test)]
@@ -501,6 +787,139 @@ mod tests {
                 .query_row("PRAGMA user_version", [], |r| r.get(0))
                 .unwrap();
             assert_eq!(v, SCHEMA_VERSION);
+            let id: i64 = db
+                .conn
+                .query_row("PRAGMA application_id", [], |r| r.get(0))
+                .unwrap();
+            assert_eq!(
+                id,
+                i64::from(APPLICATION_ID),
+                "the migration's number is not TSRA"
+            );
         }
+        assert_eq!(&APPLICATION_ID.to_be_bytes(), b"TSRA");
+    }
+
+    /// A header of `len` bytes with `application_id` and `user_version` in it.
+    fn header(len: usize, application_id: u32, user_version: u32) -> Vec<u8> {
+        let mut head = vec![0; len.max(HEADER_LEN)];
+        head[..16].copy_from_slice(SQLITE_MAGIC);
+        head[60..64].copy_from_slice(&user_version.to_be_bytes());
+        head[68..72].copy_from_slice(&application_id.to_be_bytes());
+        head.truncate(len);
+        head
+    }
+
+    #[test]
+    fn the_header_says_whose_database_it_is() {
+        assert_eq!(Header::parse(b""), Header::Empty);
+        assert_eq!(Header::parse(b"my notes"), Header::NotSqlite);
+        assert_eq!(Header::parse(b"SQLite"), Header::NotSqlite);
+        assert_eq!(Header::parse(&header(99, 0, 0)), Header::CutShort);
+        assert_eq!(
+            Header::parse(&header(100, APPLICATION_ID, 3)),
+            Header::Sqlite {
+                application_id: APPLICATION_ID,
+                user_version: 3
+            }
+        );
+        assert_eq!(
+            Header::parse(&header(4096, 0x8000_0001, u32::MAX)),
+            Header::Sqlite {
+                application_id: 0x8000_0001,
+                user_version: -1
+            }
+        );
+        let path = Path::new("r.db");
+        let never =
+            || -> Result<bool> { panic!("tables read for a database recognised by its header") };
+        assert_eq!(
+            whose(path, APPLICATION_ID, SCHEMA_VERSION, never).unwrap(),
+            SCHEMA_VERSION
+        );
+        for (id, version, reason) in [
+            (APPLICATION_ID, SCHEMA_VERSION + 1, "newer tessera"),
+            (APPLICATION_ID, 1, "but schema 1"),
+            (0, 0, "another program (application_id 0, user_version 0"),
+            (0, 3, "another program (application_id 0, user_version 3"),
+            (0, -2, "another program (application_id 0, user_version -2"),
+            (0x1234_5678, 2, "another program (application_id 0x12345678"),
+        ] {
+            let err = whose(path, id, version, never).unwrap_err().to_string();
+            assert!(err.contains(reason), "{id:#x} {version}: {err}");
+        }
+        assert_eq!(whose(path, 0, 2, || Ok(true)).unwrap(), 2);
+        let err = whose(path, 0, 1, || Ok(false)).unwrap_err().to_string();
+        assert!(
+            err.contains("user_version 1 but not tessera's tables"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn a_busy_database_says_how_long_it_was_waited_for() {
+        let busy = || {
+            rusqlite::Error::SqliteFailure(
+                rusqlite::ffi::Error::new(rusqlite::ffi::SQLITE_BUSY),
+                None,
+            )
+        };
+        let path = Path::new("r.db");
+        let at_once = explain(path, busy(), "could not write", Instant::now()).to_string();
+        assert!(at_once.contains("gave up after 0 ms"), "{at_once}");
+        assert!(!at_once.contains("30"), "{at_once}");
+        if let Some(long_ago) = Instant::now().checked_sub(Duration::from_secs(31)) {
+            let waited = explain(path, busy(), "could not write", long_ago).to_string();
+            assert!(waited.contains("gave up after 31.0 s"), "{waited}");
+        }
+    }
+
+    #[test]
+    fn immutable_uris_keep_every_byte_of_the_path() {
+        assert_eq!(immutable_uri(Path::new("r.db")), "file:r.db?immutable=1");
+        assert_eq!(
+            immutable_uri(Path::new("/a b/r?#%.db")),
+            "file:///a%20b/r%3F%23%25.db?immutable=1"
+        );
+        assert_eq!(
+            immutable_uri(Path::new("//host/r.db")),
+            "file:////host/r.db?immutable=1"
+        );
+    }
+
+    #[test]
+    fn a_new_database_is_made_whole_and_published_once() {
+        let dir = std::env::temp_dir().join(format!("tessera-db-unit-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let path = dir.join("new/r.db");
+        create(&path).unwrap();
+        let first = std::fs::read(&path).unwrap();
+        // A second maker finds it there and leaves it.
+        create(&path).unwrap();
+        assert_eq!(std::fs::read(&path).unwrap(), first);
+        let names: Vec<_> = std::fs::read_dir(dir.join("new"))
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(
+            names,
+            ["r.db"],
+            "a temporary name or a -wal or -shm file is left"
+        );
+        let mode = std::fs::metadata(&path).unwrap().permissions().mode();
+        assert_eq!(mode & 0o777, 0o600);
+        assert_eq!(
+            Header::parse(&first),
+            Header::Sqlite {
+                application_id: APPLICATION_ID,
+                user_version: SCHEMA_VERSION
+            }
+        );
+        // Born in WAL: the header's read and write versions are 2.
+        assert_eq!(first[18..20], [2, 2]);
+        let db = ResultsDb::open(&path).unwrap();
+        assert_eq!(db.count().unwrap(), 0);
+        drop(db);
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }
