@@ -260,7 +260,14 @@ impl Recipe {
             image.display(),
             terminal_safe(&self.scene.name, 80)
         ));
-        let scene = self.source().parse(&origin)?;
+        // An override out of range is the recipe's fault, named as such.
+        let scene = self.source().parse(&origin).map_err(|e| match e {
+            Error::Setting { field, message } => Error::Image {
+                path: image.to_owned(),
+                message: format!("its recipe's override `{field}` is refused: {message}"),
+            },
+            e => e,
+        })?;
         let effective = Effective::of(&scene);
         if effective != self.image {
             return Err(Error::Image {

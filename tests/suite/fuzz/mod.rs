@@ -7,6 +7,7 @@
 //! `cli:…`, `request:…`) replays that one case alone. `TESSERA_FUZZ_SCALE=10` runs ten times as many.
 
 mod command_lines;
+mod corpus;
 mod harness;
 mod images;
 mod parts;
