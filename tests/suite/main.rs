@@ -4,7 +4,7 @@
 //! viewer, and hostile input in bulk.
 //!
 //! The heavy tests (a real Slurm cluster, the container image under Podman, headless
-//! Chromium, emulated CPUs under qemu, the fuzzer at full scale) run only with
+//! Chromium, emulated CPUs under qemu) run only with
 //! `TESSERA_HEAVY_TESTS=1`, which `.ci/run` sets after installing what they need; without
 //! it they are skipped, saying so.
 

@@ -4,7 +4,8 @@
 //!
 //! Every case is generated from its own fixed seed, so a run is reproducible; a failing case
 //! is printed with its name and input, and `TESSERA_FUZZ_CASE=scene:123` (or `part:…`, `image:…`,
-//! `cli:…`, `request:…`) replays that one case alone. `TESSERA_FUZZ_SCALE=10` runs ten times as many.
+//! `cli:…`, `request:…`) replays that one case alone. A run takes a fifth of each family's
+//! base count; `TESSERA_FUZZ_SCALE=5` runs all of it, `=50` ten times as many.
 
 mod command_lines;
 mod corpus;
