@@ -60,32 +60,33 @@ fn refused(o: &Output, why: &str, what: &str) {
 
 // --- EXR ------------------------------------------------------------------------------------
 
-/// The byte offset and length of the value of the EXR header attribute `name`.
-fn exr_attribute(bytes: &[u8], name: &str) -> (usize, usize) {
+/// The EXR header's attributes, each as its name, its value's offset and its size, and
+/// the end of the header (after its closing zero byte).
+fn exr_walk(bytes: &[u8]) -> (Vec<(&[u8], usize, usize)>, usize) {
+    let mut attributes = Vec::new();
     let mut at = 8;
     while bytes[at] != 0 {
         let end = at + bytes[at..].iter().position(|&b| b == 0).unwrap();
         let kind_end = end + 1 + bytes[end + 1..].iter().position(|&b| b == 0).unwrap();
         let size = u32::from_le_bytes(bytes[kind_end + 1..kind_end + 5].try_into().unwrap());
         let value = kind_end + 5;
-        if &bytes[at..end] == name.as_bytes() {
-            return (value, size as usize);
-        }
+        attributes.push((&bytes[at..end], value, size as usize));
         at = value + size as usize;
     }
-    panic!("no attribute {name}");
+    (attributes, at + 1)
+}
+
+/// The byte offset and length of the value of the EXR header attribute `name`.
+fn exr_attribute(bytes: &[u8], name: &str) -> (usize, usize) {
+    let (attributes, _) = exr_walk(bytes);
+    let found = attributes.iter().find(|(n, _, _)| *n == name.as_bytes());
+    let &(_, value, size) = found.unwrap_or_else(|| panic!("no attribute {name}"));
+    (value, size)
 }
 
 /// The end of the EXR header (after its closing zero byte).
 fn exr_header_end(bytes: &[u8]) -> usize {
-    let mut at = 8;
-    while bytes[at] != 0 {
-        let end = at + bytes[at..].iter().position(|&b| b == 0).unwrap();
-        let kind_end = end + 1 + bytes[end + 1..].iter().position(|&b| b == 0).unwrap();
-        let size = u32::from_le_bytes(bytes[kind_end + 1..kind_end + 5].try_into().unwrap());
-        at = kind_end + 5 + size as usize;
-    }
-    at + 1
+    exr_walk(bytes).1
 }
 
 /// One EXR header attribute's bytes.
