@@ -60,9 +60,11 @@ fn refused(o: &Output, why: &str, what: &str) {
 
 // --- EXR ------------------------------------------------------------------------------------
 
-/// The EXR header's attributes, each as its name, its value's offset and its size, and
-/// the end of the header (after its closing zero byte).
-fn exr_walk(bytes: &[u8]) -> (Vec<(&[u8], usize, usize)>, usize) {
+/// An EXR header attribute: its name, its value's offset and its size.
+type ExrAttribute<'a> = (&'a [u8], usize, usize);
+
+/// The EXR header's attributes, and the end of the header (after its closing zero byte).
+fn exr_walk(bytes: &[u8]) -> (Vec<ExrAttribute<'_>>, usize) {
     let mut attributes = Vec::new();
     let mut at = 8;
     while bytes[at] != 0 {
