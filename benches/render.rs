@@ -7,7 +7,7 @@
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;
 use std::path::Path;
-use tessera::bvh::{Bvh, TraversalStack};
+use tessera::bvh::{SphereBvh, TraversalStack};
 use tessera::integrator::tile_candidates;
 use tessera::job::SampleRange;
 use tessera::math::{Interval, PixelRect};
@@ -50,9 +50,9 @@ fn tile(c: &mut Criterion) {
 fn bvh(c: &mut Criterion) {
     let scene = cover(1);
     let mut g = c.benchmark_group("bvh");
-    g.throughput(Throughput::Elements(scene.spheres.len() as u64));
+    g.throughput(Throughput::Elements(scene.spheres().len() as u64));
     g.bench_function("build_cover", |b| {
-        b.iter(|| Bvh::build(black_box(&scene.spheres)))
+        b.iter(|| SphereBvh::build(black_box(scene.spheres())))
     });
     g.finish();
 

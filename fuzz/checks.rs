@@ -99,21 +99,46 @@ fn located(e: &tessera::Error, file: &str) -> Result<(), String> {
 /// bug but would stall the fuzzer (or trip its timeout). 128 builds in well under a second.
 pub const MAX_GRID: i64 = 128;
 
-/// Whether the TOML `text` asks, anywhere, for a generated grid above `MAX_GRID`.
+/// The most spheres a `[[random_sphere_clouds]]`, and boxes a `[[random_boxes]]`, is built
+/// with here, for the same reason (tessera allows 2²⁰ and 100,000).
+pub const MAX_GENERATED: i64 = 20_000;
+
+/// Whether the TOML `text` asks, anywhere, for a generated grid above `MAX_GRID` or a
+/// generator `count` above `MAX_GENERATED`.
 pub fn too_slow(text: &str) -> bool {
+    fn count(v: &toml::Value) -> i64 {
+        match v {
+            toml::Value::Integer(n) => *n,
+            toml::Value::Array(a) => a
+                .iter()
+                .map(|v| v.as_integer().unwrap_or(0).max(0))
+                .fold(1i64, |p, n| p.saturating_mul(n)),
+            _ => 0,
+        }
+    }
     fn big(v: &toml::Value) -> bool {
         match v {
             toml::Value::Table(t) => t.iter().any(|(k, v)| {
-                (k == "grid" && v.as_integer().is_some_and(|g| g > MAX_GRID)) || big(v)
+                (k == "grid" && v.as_integer().is_some_and(|g| g > MAX_GRID))
+                    || (k == "count" && count(v) > MAX_GENERATED)
+                    || big(v)
             }),
             toml::Value::Array(a) => a.iter().any(big),
             _ => false,
         }
     }
-    // Parsing costs as much again: only where a key could say `grid` (escapes too).
-    let could = text.contains("grid") || text.contains("\\u") || text.contains("\\U");
+    // Parsing costs as much again: only where a key could say `grid` or `count` (escapes
+    // too).
+    let could = text.contains("grid")
+        || text.contains("count")
+        || text.contains("\\u")
+        || text.contains("\\U");
     could && toml::from_str::<toml::Table>(text).is_ok_and(|t| big(&toml::Value::Table(t)))
 }
+
+/// The image textures a fuzzed scene may name: the book's earth, compiled in, so no input
+/// reads a file from disk.
+const TEXTURES: &[(&str, &[u8])] = &[("earthmap.jpg", include_bytes!("../scenes/earthmap.jpg"))];
 
 /// 1. A scene file: parsed and built (BVH and all) with no overrides. The bytes are read as
 ///    UTF-8, invalid sequences replaced, so that every input reaches the parser (refusing
@@ -123,7 +148,13 @@ pub fn scene(bytes: &[u8]) -> Result<(), String> {
     if too_slow(&text) {
         return Ok(());
     }
-    match Scene::parse(&text, Path::new("fuzz.toml"), &Overrides::default()) {
+    let textures = tessera::scene::TextureSource::Embedded(TEXTURES);
+    match Scene::parse_with(
+        &text,
+        Path::new("fuzz.toml"),
+        &Overrides::default(),
+        &textures,
+    ) {
         Ok(scene) => {
             let _ = scene.fingerprint();
             Ok(())
@@ -146,7 +177,7 @@ fn recipe(text: &str, image: &str) -> Result<(), String> {
     if too_slow(&recipe.scene.text) {
         return Ok(());
     }
-    match recipe.scene(path) {
+    match recipe.scene(path, &[]) {
         Ok(_) => Ok(()),
         Err(e) => names(&e, image),
     }
@@ -274,7 +305,7 @@ fn part_as_is(bytes: &[u8]) -> Result<(), String> {
     // A merge writes this recipe into its image when it describes the parts, and leaves it
     // out with a warning when it does not: any refusal will do.
     if let Some(source) = &part.render.recipe {
-        let _ = source.parse(path);
+        let _ = source.parse(path, &[]);
     }
     let named = vec![(path.to_owned(), part.clone())];
     if let Ok((film, _)) = tessera::partial::merge(&named)

@@ -17,6 +17,10 @@ pub struct CameraSettings {
     pub aperture: f32,
     /// Distance from `lookfrom` to the plane in perfect focus.
     pub focus_dist: f32,
+    /// When the shutter opens and closes (*The Next Week*'s `time0`, `time1`): each camera
+    /// ray is taken at a uniform time between them, which blurs what moves. Equal times
+    /// (the default, both 0) take every ray at that time and draw nothing.
+    pub shutter: (f32, f32),
 }
 
 /// The derived camera (the book's `camera` class).
@@ -35,6 +39,7 @@ pub struct Camera {
     forward: Vec3,
     focus_dist: f32,
     lens_radius: f32,
+    shutter: (f32, f32),
 }
 
 /// A conservative bound of every ray the camera shoots through a rectangle of the film,
@@ -110,6 +115,24 @@ impl Camera {
             u,
             v,
             lens_radius: s.aperture / 2.0,
+            shutter: s.shutter,
+        }
+    }
+
+    /// True when the shutter stays open for a while: rays then have times of their own.
+    pub fn has_shutter(&self) -> bool {
+        self.shutter.0 != self.shutter.1
+    }
+
+    /// The time of a camera ray: uniform over the shutter's opening, drawn from `rng` (after
+    /// the lens, as the book's `get_ray` draws it) only when it is open for a while.
+    #[inline]
+    pub fn time(&self, rng: &mut Sampler) -> f32 {
+        let (open, close) = self.shutter;
+        if open == close {
+            open
+        } else {
+            rng.range(open, close)
         }
     }
 
@@ -211,6 +234,7 @@ mod tests {
             aspect_ratio: 2.0,
             aperture: 0.0,
             focus_dist: 1.0,
+            shutter: (0.0, 0.0),
         }
     }
 
@@ -307,6 +331,7 @@ mod tests {
             aspect_ratio: 1.5,
             aperture: 0.0,
             focus_dist: 10.0,
+            shutter: (0.0, 0.0),
         };
         let cam = Camera::new(&s);
         let mut rng = Sampler::from_seed(1);

@@ -58,6 +58,7 @@ pub mod scene;
 pub mod shard;
 pub mod simd;
 pub mod text;
+pub mod texture;
 pub mod tonemap;
 
 pub use error::{Error, Result};

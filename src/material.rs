@@ -1,5 +1,9 @@
-//! Materials of the book and how each scatters a ray: Lambertian (in the book's three diffuse
-//! variants), metal with fuzz, and dielectric glass.
+//! Materials of the books and how each scatters a ray: Lambertian (in the first book's three
+//! diffuse variants), metal with fuzz, dielectric glass, and from *The Next Week* a diffuse
+//! light, which emits and scatters nothing, and the isotropic phase function of media.
+//!
+//! A material's colour (albedo or emission) is a constant here; a textured material keeps
+//! white and the integrator multiplies in its texture's value where the ray hits.
 
 use crate::geometry::Hit;
 use crate::math::{Color, Vec3, near_zero, reflect, reflectance, refract};
@@ -39,9 +43,26 @@ pub enum Refraction {
 /// A surface material. A closed set, dispatched with `match`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Material {
-    Lambertian { albedo: Color },
-    Metal { albedo: Color, fuzz: f32 },
-    Dielectric { ir: f32, refraction: Refraction },
+    Lambertian {
+        albedo: Color,
+    },
+    Metal {
+        albedo: Color,
+        fuzz: f32,
+    },
+    Dielectric {
+        ir: f32,
+        refraction: Refraction,
+    },
+    /// An area light (the book's `diffuse_light`): emits `emit` from both faces.
+    DiffuseLight {
+        emit: Color,
+    },
+    /// A medium's phase function (the book's `isotropic`): scatters into any direction with
+    /// equal probability.
+    Isotropic {
+        albedo: Color,
+    },
 }
 
 /// The outcome of a scatter: the attenuation and the new (not necessarily unit) direction.
@@ -115,7 +136,29 @@ impl Material {
                     dir,
                 })
             }
+            Material::DiffuseLight { .. } => None,
+            // The book's `random_in_unit_sphere()`: its direction is uniform, which is all
+            // the new ray keeps.
+            Material::Isotropic { albedo } => Some(Scatter {
+                attenuation: albedo,
+                dir: rng.unit_vector(),
+            }),
         }
+    }
+
+    /// The light the material emits (the book's `emitted`): black but for a diffuse light.
+    #[inline(always)]
+    pub fn emitted(&self) -> Color {
+        match *self {
+            Material::DiffuseLight { emit } => emit,
+            _ => Color::ZERO,
+        }
+    }
+
+    /// The colour a texture replaces (albedo, or a light's emission); `None` for glass,
+    /// which has none.
+    pub fn has_color(&self) -> bool {
+        !matches!(self, Material::Dielectric { .. })
     }
 }
 

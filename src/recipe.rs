@@ -6,7 +6,7 @@
 use crate::error::{Error, Result};
 use crate::film::Film;
 use crate::math::PixelRect;
-use crate::scene::{Overrides, Scene};
+use crate::scene::{Overrides, Scene, TextureSource};
 use crate::text::terminal_safe;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -21,6 +21,8 @@ pub const KEY: &str = "tessera-recipe";
 pub const MAX_BYTES: usize = 1 << 20;
 /// The longest scene file name a recipe may give.
 const MAX_NAME: usize = 255;
+/// The most texture files a recipe may list.
+const MAX_TEXTURES: usize = 256;
 
 /// The part of a recipe a partial render carries, so that a merge of parts can write it:
 /// the scene file and the command line's settings.
@@ -47,10 +49,29 @@ impl Source {
         }
     }
 
-    /// The scene it describes, parsed as a scene file is; `origin` names it in errors.
-    pub fn parse(&self, origin: &Path) -> Result<Scene> {
-        Scene::parse(&self.scene.text, origin, &self.overrides.into())
+    /// The scene it describes, parsed as a scene file is; `origin` names it in errors, and
+    /// image textures are looked for in `dirs`.
+    pub fn parse(&self, origin: &Path, dirs: &[PathBuf]) -> Result<Scene> {
+        let source = TextureSource::Dirs(dirs.to_vec());
+        Scene::parse_with(&self.scene.text, origin, &self.overrides.into(), &source)
     }
+}
+
+/// Where the image textures of a scene made again are looked for: `first` (an explicit
+/// directory, if any), next to the file that carried the recipe (`carrier`), then in
+/// `scenes/` of the working directory, where the repository keeps its scenes' textures.
+pub fn texture_dirs(first: Option<&Path>, carrier: &Path) -> Vec<PathBuf> {
+    let mut dirs: Vec<PathBuf> = first.map(Path::to_path_buf).into_iter().collect();
+    let beside = carrier
+        .parent()
+        .map_or_else(PathBuf::new, Path::to_path_buf);
+    dirs.push(if beside.as_os_str().is_empty() {
+        PathBuf::from(".")
+    } else {
+        beside
+    });
+    dirs.push(PathBuf::from("scenes"));
+    dirs
 }
 
 /// What made an image, and how to make it again.
@@ -66,6 +87,20 @@ pub struct Recipe {
     pub image: Effective,
     /// XXH3-128 of the exact sums (`Film::content_hash`), as `xxh3-128:` and 32 hex digits.
     pub sums: String,
+    /// The image files the scene's textures were read from, each with the hash of its bytes
+    /// (none for most scenes, and then left out of the JSON).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub textures: Vec<RecipeTexture>,
+}
+
+/// A texture file as a recipe records it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RecipeTexture {
+    /// Its name as the scene file gives it.
+    pub name: String,
+    /// XXH3-128 of its bytes, as `xxh3-128:` and 32 hex digits.
+    pub hash: String,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -166,6 +201,7 @@ impl Recipe {
             overrides: source.overrides,
             image: Effective::of(scene),
             sums: sums_hash(film),
+            textures: textures_of(scene),
         }
     }
 
@@ -242,32 +278,96 @@ impl Recipe {
                 self.scene.name.len()
             ));
         }
-        let hex = self.sums.strip_prefix("xxh3-128:").unwrap_or("");
-        if hex.len() != 32 || !hex.bytes().all(|b| b.is_ascii_hexdigit()) {
+        let well_formed = |hash: &str| {
+            let hex = hash.strip_prefix("xxh3-128:").unwrap_or("");
+            hex.len() == 32 && hex.bytes().all(|b| b.is_ascii_hexdigit())
+        };
+        if !well_formed(&self.sums) {
             return Err(format!(
                 "has a malformed sums hash `{}`",
                 terminal_safe(&self.sums, 60)
             ));
         }
+        if self.textures.len() > MAX_TEXTURES {
+            return Err(format!(
+                "lists {} texture files, more than the {MAX_TEXTURES} a recipe may",
+                self.textures.len()
+            ));
+        }
+        for t in &self.textures {
+            if t.name.len() > MAX_NAME || !well_formed(&t.hash) {
+                return Err(format!(
+                    "has a malformed texture entry `{}`",
+                    terminal_safe(&t.name, 80)
+                ));
+            }
+        }
         Ok(())
     }
 
     /// The scene the recipe describes, parsed and checked as a scene file is (errors name
-    /// `image` and the recipe's scene), with its settings checked against the recipe's.
-    pub fn scene(&self, image: &Path) -> Result<Scene> {
+    /// `image` and the recipe's scene), with its settings checked against the recipe's, and
+    /// its image textures looked for in `dirs` and checked against the recipe's hashes.
+    pub fn scene(&self, image: &Path, dirs: &[PathBuf]) -> Result<Scene> {
         let origin = PathBuf::from(format!(
             "{} (recipe scene {})",
             image.display(),
             terminal_safe(&self.scene.name, 80)
         ));
+        let looked: Vec<String> = dirs.iter().map(|d| d.display().to_string()).collect();
+        // The textures the recipe names must be found, each the very file it was made with.
+        for t in &self.textures {
+            let name = terminal_safe(&t.name, 80);
+            let found = dirs.iter().map(|d| d.join(&t.name)).find(|p| p.exists());
+            let Some(found) = found else {
+                return Err(Error::Image {
+                    path: image.to_owned(),
+                    message: format!(
+                        "its scene's texture file `{name}` is not found (looked in {}); put it \
+                         next to the image or pass --textures DIR",
+                        looked.join(", ")
+                    ),
+                });
+            };
+            let file = crate::input_file::open_regular(&found).map_err(|cause| Error::Io {
+                path: found.clone(),
+                cause,
+            })?;
+            let mut bytes = Vec::new();
+            use std::io::Read;
+            file.take(crate::scene::MAX_TEXTURE_BYTES + 1)
+                .read_to_end(&mut bytes)
+                .map_err(|cause| Error::Io {
+                    path: found.clone(),
+                    cause,
+                })?;
+            let hash = format!("xxh3-128:{:032x}", xxhash_rust::xxh3::xxh3_128(&bytes));
+            if hash != t.hash {
+                return Err(Error::Image {
+                    path: image.to_owned(),
+                    message: format!(
+                        "its scene's texture `{name}` found at {} is not the file the image \
+                         was made with (its hash is {hash}, the recipe's {})",
+                        found.display(),
+                        terminal_safe(&t.hash, 60)
+                    ),
+                });
+            }
+        }
         // An override out of range is the recipe's fault, named as such.
-        let scene = self.source().parse(&origin).map_err(|e| match e {
+        let scene = self.source().parse(&origin, dirs).map_err(|e| match e {
             Error::Setting { field, message } => Error::Image {
                 path: image.to_owned(),
                 message: format!("its recipe's override `{field}` is refused: {message}"),
             },
             e => e,
         })?;
+        if textures_of(&scene) != self.textures {
+            return Err(Error::Image {
+                path: image.to_owned(),
+                message: "its recipe's texture files are not those its scene reads".to_owned(),
+            });
+        }
         let effective = Effective::of(&scene);
         if effective != self.image {
             return Err(Error::Image {
@@ -300,6 +400,18 @@ impl Recipe {
             height,
         }
     }
+}
+
+/// The texture files of `scene`, as a recipe records them.
+fn textures_of(scene: &Scene) -> Vec<RecipeTexture> {
+    scene
+        .texture_files
+        .iter()
+        .map(|t| RecipeTexture {
+            name: t.name.clone(),
+            hash: format!("xxh3-128:{:032x}", t.hash),
+        })
+        .collect()
 }
 
 /// The settings in a few words.
@@ -366,9 +478,10 @@ mod tests {
     #[test]
     fn the_scene_must_give_the_recipes_settings() {
         let mut r = recipe();
-        assert!(r.scene(Path::new("x.png")).is_ok());
+        let dirs = texture_dirs(None, Path::new("x.png"));
+        assert!(r.scene(Path::new("x.png"), &dirs).is_ok());
         r.image.seed = 9;
-        let e = r.scene(Path::new("x.png")).unwrap_err().to_string();
+        let e = r.scene(Path::new("x.png"), &dirs).unwrap_err().to_string();
         assert!(e.contains("not what its scene"), "{e}");
     }
 }

@@ -475,27 +475,34 @@ pub fn render_tile(
     range: SampleRange,
     simd: simd::Path,
 ) -> TileResult {
-    simd::dispatch(simd, TileKernel { scene, tile, range })
+    // Two kernels, each compiled on its own for every path: the first book's scenes run
+    // the code they always ran, untouched by The Next Week's.
+    if scene.needs_full_paths() {
+        simd::dispatch(simd, TileKernel::<true> { scene, tile, range })
+    } else {
+        simd::dispatch(simd, TileKernel::<false> { scene, tile, range })
+    }
 }
 
-/// `render_tile`'s work, for `simd::dispatch` to compile for each path.
-struct TileKernel<'a> {
+/// `render_tile`'s work, for `simd::dispatch` to compile for each path; `FULL`: a scene
+/// that needs *The Next Week*'s paths (`Scene::needs_full_paths`).
+struct TileKernel<'a, const FULL: bool> {
     scene: &'a Scene,
     tile: &'a PixelRect,
     range: SampleRange,
 }
 
-impl Kernel for TileKernel<'_> {
+impl<const FULL: bool> Kernel for TileKernel<'_, FULL> {
     type Output = TileResult;
 
     #[inline(always)]
     fn run<I: Isa>(self, isa: I) -> TileResult {
-        render_tile_on(isa, self.scene, self.tile, self.range)
+        render_tile_on::<I, FULL>(isa, self.scene, self.tile, self.range)
     }
 }
 
 #[inline(always)]
-fn render_tile_on<I: Isa>(
+fn render_tile_on<I: Isa, const FULL: bool>(
     isa: I,
     scene: &Scene,
     tile: &PixelRect,
@@ -507,7 +514,7 @@ fn render_tile_on<I: Isa>(
     for y in tile.y0..tile.y0 + tile.height {
         for x in tile.x0..tile.x0 + tile.width {
             let mut acc = [0u64; 3];
-            pixels.evaluate(x, y, range, |c: Color, r: u32| {
+            pixels.evaluate_as::<FULL>(x, y, range, |c: Color, r: u32| {
                 acc[0] += to_fixed(c.x);
                 acc[1] += to_fixed(c.y);
                 acc[2] += to_fixed(c.z);

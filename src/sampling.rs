@@ -91,6 +91,19 @@ impl Sampler {
         (((hi << 32) | lo) >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
     }
 
+    /// A uniform integer in `[0, n)` for `n > 0` (the top bits of a product: off from
+    /// uniform by at most `n / 2³²`).
+    #[inline]
+    pub fn below(&mut self, n: u32) -> u32 {
+        ((u64::from(self.pcg.next_u32()) * u64::from(n)) >> 32) as u32
+    }
+
+    /// A uniform 32-bit word.
+    #[inline]
+    pub fn word(&mut self) -> u32 {
+        self.pcg.next_u32()
+    }
+
     /// A uniform `f32` in `[min, max)`.
     #[inline]
     pub fn range(&mut self, min: f32, max: f32) -> f32 {

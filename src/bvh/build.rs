@@ -1,13 +1,12 @@
-//! Building the hierarchy: a binary tree by the surface area heuristic (binned for large
-//! nodes; for small ones, a sweep that keeps packs full), collapsed into wide nodes of up to
-//! `WIDTH` children, with leaves of one sphere pack each.
+//! Building the hierarchy over the primitives' bounds: a binary tree by the surface area
+//! heuristic (binned for large nodes; for small ones, a sweep that keeps packs full),
+//! collapsed into wide nodes of up to `WIDTH` children, with leaves of one pack each.
 
-use super::pack::SpherePack;
 use super::{
-    BINS, Bvh, EMPTY, FLAT_GROUP, FLAT_MAX_PACKS, LEAF, MAX_LEAF, PackBoxes, TRAVERSAL_COST, WIDTH,
-    WideNode,
+    BINS, Bvh, EMPTY, FLAT_GROUP, FLAT_MAX_PACKS, LEAF, Leaf, MAX_LEAF, PackBoxes, TRAVERSAL_COST,
+    WIDTH, WideNode, index_of,
 };
-use crate::geometry::{Aabb, Sphere};
+use crate::geometry::Aabb;
 use crate::math::Vec3;
 use crate::simd::{F32x8, F32x16};
 
@@ -33,23 +32,24 @@ struct BuildItem {
     id: u32,
 }
 
-/// Builds the hierarchy over `spheres`: a binned-SAH binary tree, collapsed into wide nodes.
-pub(super) fn build(spheres: &[Sphere]) -> Bvh {
-    let all = spheres.iter().fold(Aabb::EMPTY, |b, s| b.union(s.bounds()));
-    let mut areas: Vec<f32> = spheres.iter().map(|s| s.bounds().area()).collect();
+/// Builds the hierarchy over `prims`: a binned-SAH binary tree, collapsed into wide nodes.
+pub(super) fn build<P: Leaf>(prims: &[P::Item], layer_grid: bool) -> Bvh<P> {
+    let all = prims.iter().fold(Aabb::EMPTY, |b, s| b.union(P::bounds(s)));
+    let mut areas: Vec<f32> = prims.iter().map(|s| P::bounds(s).area()).collect();
     areas.sort_by(f32::total_cmp);
     let median = areas.get(areas.len() / 2).copied().unwrap_or(0.0);
     // A giant's box is a large share of the whole scene's and far above a typical one.
-    let giant = |s: &Sphere| {
-        let area = s.bounds().area();
-        spheres.len() > 8 && area > 0.25 * all.area() && area > 100.0 * median
+    let giant = |s: &P::Item| {
+        let area = P::bounds(s).area();
+        prims.len() > 8 && area > 0.25 * all.area() && area > 100.0 * median
     };
-    let mut items: Vec<BuildItem> = spheres
+    // Build items carry the primitive's index within its kind (its id less `P::ID_BASE`).
+    let mut items: Vec<BuildItem> = prims
         .iter()
         .enumerate()
         .filter(|(_, s)| !giant(s))
         .map(|(i, s)| {
-            let bounds = s.bounds();
+            let bounds = P::bounds(s);
             BuildItem {
                 bounds,
                 centroid: bounds.centroid(),
@@ -58,9 +58,9 @@ pub(super) fn build(spheres: &[Sphere]) -> Bvh {
         })
         .collect();
     let mut bvh = Bvh {
-        giants: (spheres.iter().enumerate())
+        giants: (prims.iter().enumerate())
             .filter(|(_, s)| giant(s))
-            .map(|(i, s)| (*s, i as u32))
+            .map(|(i, s)| (s.clone(), P::ID_BASE + i as u32))
             .collect(),
         ..Bvh::default()
     };
@@ -77,22 +77,26 @@ pub(super) fn build(spheres: &[Sphere]) -> Bvh {
     build_node(&mut binary, 0, &mut items, 0, len);
     let order: Vec<u32> = items.iter().map(|it| it.id).collect();
     let root_kids = if binary[0].count > 0 { vec![0] } else { vec![] };
-    bvh.collapse(&binary, &order, spheres, 0, root_kids, 0);
-    bvh.layer = super::LayerGrid::build(spheres, &order);
+    bvh.collapse(&binary, &order, prims, 0, root_kids, 0);
+    if layer_grid {
+        bvh.layer = super::LayerGrid::build(prims, &order);
+    }
     if bvh.packs.len() <= FLAT_MAX_PACKS {
-        bvh.flat = pack_boxes(&bvh.packs, spheres);
+        bvh.flat = pack_boxes(&bvh.packs, prims);
     }
     bvh
 }
 
-/// The boxes of `packs` (the same as the tree's leaf boxes: unions of the spheres' boxes),
-/// `FLAT_GROUP` to a group.
-fn pack_boxes(packs: &[SpherePack], spheres: &[Sphere]) -> Vec<PackBoxes> {
+/// The boxes of `packs` (the same as the tree's leaf boxes: unions of the primitives'
+/// boxes), `FLAT_GROUP` to a group.
+fn pack_boxes<P: Leaf>(packs: &[P], prims: &[P::Item]) -> Vec<PackBoxes> {
     packs
         .chunks(FLAT_GROUP)
         .map(|group| {
             let bounds = group.iter().map(|pack| {
-                (pack.ids()).fold(Aabb::EMPTY, |b, id| b.union(spheres[id as usize].bounds()))
+                (pack.ids()).fold(Aabb::EMPTY, |b, id| {
+                    b.union(P::bounds(&prims[index_of::<P>(id)]))
+                })
             });
             let halves = |p: [f32; FLAT_GROUP]| {
                 let (lo, hi) = p.split_at(WIDTH);
@@ -106,14 +110,14 @@ fn pack_boxes(packs: &[SpherePack], spheres: &[Sphere]) -> Vec<PackBoxes> {
         .collect()
 }
 
-impl Bvh {
+impl<P: Leaf> Bvh<P> {
     /// Appends the wide node for binary node `at` (or, for a leaf root, for `kids`), and
     /// returns its index.
     fn collapse(
         &mut self,
         binary: &[Node],
         order: &[u32],
-        spheres: &[Sphere],
+        prims: &[P::Item],
         at: usize,
         mut kids: Vec<usize>,
         level: usize,
@@ -155,10 +159,10 @@ impl Bvh {
             let child = if node.count > 0 {
                 let first = node.first as usize;
                 let ids = &order[first..first + node.count as usize];
-                self.packs.push(SpherePack::new(spheres, ids));
+                self.packs.push(P::pack(prims, ids));
                 LEAF | (self.packs.len() - 1) as u32
             } else {
-                self.collapse(binary, order, spheres, k, Vec::new(), level + 1)
+                self.collapse(binary, order, prims, k, Vec::new(), level + 1)
             };
             node_out.child[lane] = child;
             if child & LEAF != 0 {

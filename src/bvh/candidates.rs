@@ -20,7 +20,7 @@ impl Candidates {
     pub const MAX: usize = 2 * WIDTH;
 }
 
-impl Bvh {
+impl Bvh<SpherePack> {
     /// The spheres `keep` accepts, giants and the tree's, or `None` when there are more
     /// than `Candidates::MAX`. Subtrees whose box `keep_box` (given min and max corners) rejects
     /// are skipped whole, so `keep_box` must accept every box holding a sphere `keep` would.

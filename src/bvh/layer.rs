@@ -20,9 +20,7 @@
 //! scene's scale, so a sphere left out cannot be hit even by rounding: the hits are the
 //! tree's, bit for bit (`bvh::tests` check them against brute force and against the tree).
 
-use super::WIDTH;
-use super::pack::SpherePack;
-use crate::geometry::Sphere;
+use super::{Leaf, WIDTH};
 use crate::math::Vec3;
 use crate::simd::index_below;
 
@@ -44,15 +42,16 @@ const CELL_PACKS: usize = 2;
 
 /// A cell: its packs, and the squared horizontal distance from the cell within which no
 /// layer sphere outside them lies.
-#[derive(Clone, Copy, Debug)]
-struct Cell {
+#[derive(Clone, Debug)]
+struct Cell<P: Leaf> {
     reach2: f32,
-    packs: [SpherePack; CELL_PACKS],
+    packs: [P; CELL_PACKS],
 }
 
-/// The grid (see the module's notes).
+/// The grid (see the module's notes), over primitives that are still spheres
+/// (`Leaf::as_sphere`).
 #[derive(Clone, Debug)]
-pub(super) struct LayerGrid {
+pub(super) struct LayerGrid<P: Leaf> {
     /// The heights a ray must start between (the layer's bottom and top, widened by the
     /// margin).
     bottom: f32,
@@ -69,17 +68,38 @@ pub(super) struct LayerGrid {
     nx: usize,
     nx_f: f32,
     nz_f: f32,
-    cells: Vec<Cell>,
+    cells: Vec<Cell<P>>,
     /// The tall spheres alone, for rays that never enter the layer.
-    tall: SpherePack,
+    tall: P,
 }
 
-impl LayerGrid {
-    /// The grid over the tree's spheres `ids` of `spheres`, when they make a layer worth one.
-    pub(super) fn build(spheres: &[Sphere], ids: &[u32]) -> Option<LayerGrid> {
+/// A still sphere as the grid takes it.
+struct Ball {
+    center: Vec3,
+    radius: f32,
+}
+
+impl Ball {
+    fn bounds(&self) -> (Vec3, Vec3) {
+        let r = Vec3::splat(self.radius.abs());
+        (self.center - r, self.center + r)
+    }
+}
+
+impl<P: Leaf> LayerGrid<P> {
+    /// The grid over the tree's primitives `ids` (indices into `prims`), when they are all
+    /// still spheres and make a layer worth one.
+    pub(super) fn build(prims: &[P::Item], ids: &[u32]) -> Option<LayerGrid<P>> {
         if ids.len() < MIN_LAYER {
             return None;
         }
+        // Indexed by the primitive's index, as `ids` are.
+        let mut balls = Vec::with_capacity(prims.len());
+        for item in prims {
+            let (center, radius) = P::as_sphere(item)?;
+            balls.push(Ball { center, radius });
+        }
+        let spheres = &balls;
         let top_of = |id: u32| {
             let s = &spheres[id as usize];
             s.center.y + s.radius.abs()
@@ -103,14 +123,15 @@ impl LayerGrid {
         let (lo, hi) = layer.iter().fold(
             (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
             |(lo, hi), &id| {
-                let b = spheres[id as usize].bounds();
-                (lo.min(b.min), hi.max(b.max))
+                let (min, max) = spheres[id as usize].bounds();
+                (lo.min(min), hi.max(max))
             },
         );
         let (width, depth) = (hi.x - lo.x, hi.z - lo.z);
         if !(width > 0.0 && depth > 0.0 && layer_top.is_finite()) {
             return None;
         }
+
         let cell = (width * depth / (CELLS_PER_SPHERE * layer.len() as f32)).sqrt();
         let nx = ((width / cell).ceil() as usize).max(1);
         let nz = ((depth / cell).ceil() as usize).max(1);
@@ -145,8 +166,7 @@ impl LayerGrid {
                 let mut pack_ids = tall.clone();
                 pack_ids.extend(nearest[..kept].iter().map(|&(_, id)| id));
                 let mut chunks = pack_ids.chunks(WIDTH);
-                let packs =
-                    std::array::from_fn(|_| SpherePack::new(spheres, chunks.next().unwrap_or(&[])));
+                let packs = std::array::from_fn(|_| P::pack(prims, chunks.next().unwrap_or(&[])));
                 cells.push(Cell {
                     reach2: if reach > 0.0 { reach * reach } else { 0.0 },
                     packs,
@@ -168,7 +188,7 @@ impl LayerGrid {
             nx_f: nx as f32,
             nz_f: nz as f32,
             cells,
-            tall: SpherePack::new(spheres, &tall),
+            tall: P::pack(prims, &tall),
         })
     }
 
@@ -178,7 +198,7 @@ impl LayerGrid {
     /// exactly the ray's direction: only its signs and ratios count, and a few units of
     /// rounding in them move the reach far less than the margin.
     #[inline(always)]
-    pub(super) fn packs_for(&self, o: Vec3, d: Vec3) -> Option<&[SpherePack]> {
+    pub(super) fn packs_for(&self, o: Vec3, d: Vec3) -> Option<&[P]> {
         // Written so that NaN fails every test.
         let within = o.abs().max_element() < self.far;
         if !within {

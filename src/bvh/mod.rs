@@ -1,31 +1,129 @@
-//! A bounding volume hierarchy over spheres: built as a binary tree with the surface area
-//! heuristic, then collapsed into a flat array of eight-wide nodes whose child boxes, and
-//! whose leaf spheres, are stored as structure-of-arrays and tested eight at a time with SIMD.
-//! A tree of at most 64 packs also keeps their boxes sixteen to a group, for a flat walk on
-//! the AVX-512 path.
+//! A bounding volume hierarchy over the primitives of one kind: built over their bounds as a
+//! binary tree with the surface area heuristic, then collapsed into a flat array of
+//! eight-wide nodes whose child boxes, and whose leaf primitives, are stored as
+//! structure-of-arrays and tested eight at a time with SIMD (a `Leaf` pack per kind). A tree
+//! of at most 64 packs also keeps their boxes sixteen to a group, for a flat walk on the
+//! AVX-512 path.
 //!
-//! The public surface is this file: build, intersect (with optional hints), and per-tile
-//! candidate lists. `build` makes the tree, `traverse` walks it, `pack` tests eight spheres
-//! at once, `candidates` picks the spheres a bundle of rays can reach, `layer` finds the few
-//! packs a ray in or over a thin layer of spheres can meet without walking the tree.
+//! The public surface is this file: the `Leaf` a kind of primitive implements, build,
+//! intersect (with optional hints), and per-tile candidate lists. `build` makes the tree,
+//! `traverse` walks it, `pack` tests eight spheres at once (`quads`, `moving` and `media` the
+//! other kinds), `candidates` picks the spheres a bundle of rays can reach, `layer` finds the
+//! few packs a ray in or over a thin layer of spheres can meet without walking the tree.
 
 mod build;
 mod candidates;
 mod layer;
+mod media;
+mod moving;
 mod pack;
+mod quads;
 #[cfg(test)]
 mod tests;
 mod traverse;
 
 pub use candidates::Candidates;
+pub use media::MediumPack;
+pub use moving::MovingSpherePack;
+pub use pack::SpherePack;
+pub use quads::QuadPack;
 
-use crate::geometry::{PrimitiveId, Sphere};
+use crate::geometry::{Aabb, PrimitiveId};
 use crate::math::{Interval, Vec3};
 use crate::ray::Ray;
-use crate::simd::{F32x8, F32x16, Isa, Portable};
+use crate::simd::{F32x8, F32x16, Ids, Isa, Lanes, Portable};
 use layer::LayerGrid;
-use pack::SpherePack;
+use std::fmt;
 use traverse::Traversal;
+
+/// The hierarchy of the book's spheres.
+pub type SphereBvh = Bvh<SpherePack>;
+
+/// What a ray carries besides its line that a primitive may need: the time it is taken at
+/// (motion blur: where a moving sphere is) and the random number a medium turns into the
+/// distance the ray travels through it before it scatters, drawn from the sample's own
+/// generator for this segment so that no hit test draws one, whatever order a walk tests
+/// primitives in.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Moment {
+    pub time: f32,
+    pub medium_key: u32,
+}
+
+/// The ray a walk traces and its moment, for the kinds tested a lane at a time (the walk
+/// keeps the ray in lanes for the rest).
+#[derive(Clone, Copy)]
+pub(crate) struct Query<'a> {
+    ray: &'a Ray,
+    moment: Moment,
+}
+
+/// A ray as the packs take it: origin, direction and `t_min` in lanes, the id to skip
+/// (`RayHints::leaving`), and, for kinds tested a lane at a time, the ray itself with its
+/// `t_min` and `Moment`.
+#[derive(Clone, Copy)]
+pub struct PackRay<'a, I: Isa> {
+    pub o: &'a [Lanes<I>; 3],
+    pub d: &'a [Lanes<I>; 3],
+    pub t_min: Lanes<I>,
+    pub skip: Ids<I>,
+    pub ray: &'a Ray,
+    pub t_min_scalar: f32,
+    pub moment: Moment,
+}
+
+/// A kind of primitive as the hierarchy holds it: its bounds, and a pack of up to `WIDTH` of
+/// them in structure-of-arrays form that a ray is tested against at once. The hierarchy
+/// knows nothing else of a primitive.
+pub trait Leaf: Clone + fmt::Debug + Send + Sync + Sized + 'static {
+    /// The primitive, as the scene keeps it.
+    type Item: Clone + fmt::Debug + Send + Sync;
+    /// The id of this kind's first primitive: ids are `ID_BASE + index`, so every kind's
+    /// ids differ and a hit's id says its kind (`PrimitiveId::kind`).
+    const ID_BASE: u32;
+
+    /// A box holding the primitive wherever it is (a moving one over its whole path), no
+    /// tighter than its own test: a ray the test finds meets the box.
+    fn bounds(item: &Self::Item) -> Aabb;
+
+    /// A pack of `items[i]` for the indices `indices` (at most `WIDTH`).
+    fn pack(items: &[Self::Item], indices: &[u32]) -> Self;
+
+    /// The ids of the primitives the pack holds.
+    fn ids(&self) -> impl Iterator<Item = u32> + '_;
+
+    /// Takes a hit among the pack's primitives that beats `(closest, found)`, the best so far:
+    /// the nearest within `(t_min, closest]`, ties going to the lower id (see `beats`).
+    fn intersect<I: Isa>(&self, ray: &PackRay<'_, I>, closest: &mut f32, found: &mut u32);
+
+    /// The nearest hit of one primitive within `interval`, the same as its pack's test (for
+    /// the giants, tested on their own).
+    fn intersect_one(
+        item: &Self::Item,
+        id: u32,
+        ray: &Ray,
+        moment: Moment,
+        interval: Interval,
+    ) -> Option<f32>;
+
+    /// True when the packs of one node (or of a flat tree) are best tested each against the
+    /// closest hit from before them, not against the one a pack before found: their tests
+    /// then overlap, where a cheap pack test (a sphere's, which leaves early on a miss) is
+    /// better waited on for the bound it gives. The answer is the same either way.
+    const OVERLAP: bool = false;
+
+    /// The primitive as a still sphere (centre, radius), for what is shaped for spheres
+    /// (the layer grid, the camera's ray bundles); `None` for other kinds.
+    fn as_sphere(_item: &Self::Item) -> Option<(Vec3, f32)> {
+        None
+    }
+}
+
+/// The index within its kind of the primitive `id` of kind `P`.
+#[inline(always)]
+fn index_of<P: Leaf>(id: u32) -> usize {
+    (id - P::ID_BASE) as usize
+}
 
 /// Children per node and spheres per pack: one SIMD lane each (AVX where the build has it,
 /// two SSE halves otherwise).
@@ -78,22 +176,35 @@ struct PackBoxes {
     mask: u32,
 }
 
-/// The hierarchy, ready to trace.
-#[derive(Clone, Debug, Default)]
-pub struct Bvh {
+/// The hierarchy of one kind of primitive, ready to trace.
+#[derive(Clone, Debug)]
+pub struct Bvh<P: Leaf> {
     nodes: Vec<WideNode>,
-    packs: Vec<SpherePack>,
+    packs: Vec<P>,
     /// For a tree of at most `FLAT_MAX_PACKS` packs, their boxes (see `FLAT_MAX_PACKS`);
     /// else empty.
     flat: Vec<PackBoxes>,
-    /// Spheres so large (the book's ground) that any box holding them holds everything:
+    /// Primitives so large (the book's ground) that any box holding them holds everything:
     /// tested on their own after the tree, which then stays tight around the rest.
-    giants: Vec<(Sphere, u32)>,
+    giants: Vec<(P::Item, u32)>,
     /// Deepest level of inner nodes below the root (the root is level 0).
     max_level: usize,
     /// For a thin layer of spheres (the book's cover), the packs a ray in or over it can
     /// meet, found without the walk (see `layer`).
-    layer: Option<LayerGrid>,
+    layer: Option<LayerGrid<P>>,
+}
+
+impl<P: Leaf> Default for Bvh<P> {
+    fn default() -> Self {
+        Self {
+            nodes: Vec::new(),
+            packs: Vec::new(),
+            flat: Vec::new(),
+            giants: Vec::new(),
+            max_level: 0,
+            layer: None,
+        }
+    }
 }
 
 /// Scratch space for traversal, reused from ray to ray so no ray pays to clear or allocate
@@ -111,7 +222,7 @@ impl TraversalStack {
     /// Entries of padding on each side: a cache line's worth.
     const PAD: usize = 64 / std::mem::size_of::<(u32, f32)>();
 
-    fn with_entries(need: usize) -> Self {
+    pub(crate) fn with_entries(need: usize) -> Self {
         TraversalStack(vec![(0, 0.0); need + 2 * Self::PAD])
     }
 
@@ -126,10 +237,21 @@ impl TraversalStack {
     }
 }
 
-impl Bvh {
-    /// Builds the hierarchy over `spheres`.
-    pub fn build(spheres: &[Sphere]) -> Self {
-        build::build(spheres)
+impl<P: Leaf> Bvh<P> {
+    /// Builds the hierarchy over `items`, whose ids are `P::ID_BASE` onwards, with the layer
+    /// grid where they make a layer (see `layer`).
+    pub fn build(items: &[P::Item]) -> Self {
+        build::build(items, true)
+    }
+
+    /// `build` without the layer grid.
+    pub fn build_plain(items: &[P::Item]) -> Self {
+        build::build(items, false)
+    }
+
+    /// True when the hierarchy holds no primitive.
+    pub fn is_empty(&self) -> bool {
+        self.packs.is_empty() && self.giants.is_empty()
     }
 
     /// A stack deep enough for this hierarchy: each inner level pushes at most `WIDTH - 1`
@@ -138,7 +260,7 @@ impl Bvh {
         TraversalStack::with_entries(self.stack_need())
     }
 
-    fn stack_need(&self) -> usize {
+    pub(crate) fn stack_need(&self) -> usize {
         (WIDTH - 1) * (self.max_level + 1) + 1
     }
 
@@ -174,16 +296,26 @@ impl Bvh {
         stack: &mut TraversalStack,
         hints: RayHints,
     ) -> Option<(f32, PrimitiveId)> {
-        self.walk(isa, ray, interval, stack, hints, I::WIDE_SLABS)
+        self.walk(
+            isa,
+            ray,
+            Moment::default(),
+            interval,
+            stack,
+            hints,
+            I::WIDE_SLABS,
+        )
     }
 
     /// `intersect_on`, walking the tree flat (see `FLAT_MAX_PACKS`) when `flat` and the
     /// tree is small enough. Either walk gives the same answer on any path.
     #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
     fn walk<I: Isa>(
         &self,
         isa: I,
         ray: &Ray,
+        moment: Moment,
         interval: Interval,
         stack: &mut TraversalStack,
         hints: RayHints,
@@ -195,6 +327,23 @@ impl Bvh {
             *stack = self.new_stack();
         }
         let mut walk = Traversal::new(isa, ray, interval, hints);
+        self.run(&mut walk, Query { ray, moment }, stack, need, hints, flat);
+        walk.result()
+    }
+
+    /// Walks the hierarchy with `walk` (grid, flat or tree), then tests the giants.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn run<I: Isa>(
+        &self,
+        walk: &mut Traversal<I>,
+        at: Query<'_>,
+        stack: &mut TraversalStack,
+        need: usize,
+        hints: RayHints,
+        flat: bool,
+    ) {
+        let ray = at.ray;
         // Not `Option::and_then`: a closure may be left out of line, compiled for no SIMD path.
         let layer_packs = match &self.layer {
             Some(grid) => grid.packs_for(ray.origin, hints.heading.unwrap_or(ray.dir)),
@@ -202,16 +351,59 @@ impl Bvh {
         };
         if let Some(packs) = layer_packs {
             for pack in packs {
-                walk.test_pack(pack);
+                walk.test_pack(pack, at);
             }
         } else if flat && !self.flat.is_empty() {
-            walk.flat(self);
+            walk.flat(self, at);
         } else if !self.nodes.is_empty() {
             let entries = stack.entries(need);
-            while !walk.step(self, entries) {}
+            while !walk.step(self, entries, at) {}
         }
-        walk.test_giants(self, ray);
-        walk.result()
+        walk.test_giants(self, ray, at.moment);
+    }
+}
+
+/// One ray's walk through several hierarchies in turn (one per kind of primitive), set up
+/// once, the closest hit so far carried from each to the next (which bounds its walk). Ties
+/// go to the lower id, so the order of the hierarchies does not change the answer.
+pub struct MultiWalk<'a, I: Isa> {
+    walk: Traversal<I>,
+    at: Query<'a>,
+    hints: RayHints,
+}
+
+impl<'a, I: Isa> MultiWalk<'a, I> {
+    #[inline(always)]
+    pub fn new(isa: I, ray: &'a Ray, moment: Moment, interval: Interval, hints: RayHints) -> Self {
+        MultiWalk {
+            walk: Traversal::new(isa, ray, interval, hints),
+            at: Query { ray, moment },
+            hints,
+        }
+    }
+
+    /// Walks `bvh`, keeping a hit that beats the closest so far.
+    #[inline(always)]
+    pub fn through<P: Leaf>(&mut self, bvh: &Bvh<P>, stack: &mut TraversalStack) {
+        let need = bvh.stack_need();
+        if !stack.holds(need) {
+            *stack = bvh.new_stack();
+        }
+        bvh.run(
+            &mut self.walk,
+            self.at,
+            stack,
+            need,
+            self.hints,
+            I::WIDE_SLABS,
+        );
+        self.walk.restart();
+    }
+
+    /// The closest hit of every hierarchy walked.
+    #[inline(always)]
+    pub fn result(&self) -> Option<(f32, PrimitiveId)> {
+        self.walk.result()
     }
 }
 
@@ -235,7 +427,7 @@ pub struct RayHints {
     pub heading: Option<Vec3>,
 }
 
-/// The sphere a ray leaves (see `RayHints::leaving`), or none: an id with a value for none
+/// The primitive a ray leaves (see `RayHints::leaving`), or none: an id with a value for none
 /// rather than an `Option`, so a bounce ray's hint is made by a select, not a branch (glass
 /// makes it unpredictable which rays have one). The default is none.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -254,8 +446,8 @@ impl Leaving {
         self != Self::NONE
     }
 
-    /// The id the packs' tests leave out (`NO_SPHERE`, no sphere's, for none).
-    fn id(self) -> u32 {
+    /// The id the packs' tests leave out (`NO_SPHERE`, no primitive's, for none).
+    pub(crate) fn id(self) -> u32 {
         self.0
     }
 }

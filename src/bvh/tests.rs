@@ -1,9 +1,8 @@
 //! The hierarchy against brute force, bit for bit: random rays, rays leaving a sphere,
 //! every-hit-is-a-tie scenes, candidate lists, coincident spheres.
 
-use super::pack::SpherePack;
 use super::*;
-use crate::geometry::MaterialId;
+use crate::geometry::{MaterialId, Sphere};
 use crate::sampling::Sampler;
 use crate::simd::Portable;
 
@@ -27,14 +26,30 @@ fn intersect_brute_force(
 /// The closest hit by each walk the hierarchy has, flat (where the tree is small enough for
 /// one) and down the tree, each checked to agree with the other.
 fn intersect_both_walks(
-    bvh: &Bvh,
+    bvh: &SphereBvh,
     ray: &Ray,
     interval: Interval,
     stack: &mut TraversalStack,
     hints: RayHints,
 ) -> Option<(f32, PrimitiveId)> {
-    let flat = bvh.walk(Portable, ray, interval, stack, hints, true);
-    let tree = bvh.walk(Portable, ray, interval, stack, hints, false);
+    let flat = bvh.walk(
+        Portable,
+        ray,
+        Moment::default(),
+        interval,
+        stack,
+        hints,
+        true,
+    );
+    let tree = bvh.walk(
+        Portable,
+        ray,
+        Moment::default(),
+        interval,
+        stack,
+        hints,
+        false,
+    );
     assert_eq!(flat, tree, "flat and tree walks differ for {ray:?}");
     tree
 }
@@ -63,7 +78,7 @@ fn matches_brute_force_on_random_rays() {
     let mut rng = Sampler::from_seed(5);
     for n in [0, 1, 2, 7, 64, 500, 1000] {
         let spheres = random_spheres(n, &mut rng);
-        let bvh = Bvh::build(&spheres);
+        let bvh = SphereBvh::build(&spheres);
         // Up to 64 packs the tree also has a flat walk.
         assert_eq!(bvh.flat.is_empty(), bvh.packs.len() > FLAT_MAX_PACKS, "{n}");
         let mut stack = TraversalStack::default();
@@ -103,7 +118,7 @@ fn rays_leaving_a_sphere_find_what_brute_force_finds_without_testing_it() {
             Sphere::new(c, rng.range(0.1, 0.5), MaterialId(i))
         })
         .collect();
-    let bvh = Bvh::build(&spheres);
+    let bvh = SphereBvh::build(&spheres);
     let mut stack = TraversalStack::default();
     let iv = Interval::new(0.0, f32::INFINITY);
     let mut neighbours = 0;
@@ -144,7 +159,7 @@ fn ties_go_to_the_lower_id_whatever_the_traversal_order() {
     let mut rng = Sampler::from_seed(9);
     let base = random_spheres(20, &mut rng);
     let spheres: Vec<Sphere> = (0..12).flat_map(|_| base.iter().copied()).collect();
-    let bvh = Bvh::build(&spheres);
+    let bvh = SphereBvh::build(&spheres);
     let mut stack = TraversalStack::default();
     let iv = Interval::new(1e-4, f32::INFINITY);
     let mut hits = 0;
@@ -183,7 +198,7 @@ fn a_giant_and_a_tree_sphere_tied_go_to_the_lower_id() {
             .chain(others.clone())
             .chain(std::iter::once(last))
             .collect();
-        let bvh = Bvh::build(&spheres);
+        let bvh = SphereBvh::build(&spheres);
         assert_eq!(bvh.giants.len(), 1, "the radius-1000 sphere is a giant");
         let mut stack = TraversalStack::default();
         let hit = intersect_both_walks(&bvh, &ray, iv, &mut stack, RayHints::default());
@@ -203,7 +218,7 @@ fn candidates_through_the_tree_equal_a_scan_of_every_sphere() {
     use crate::camera::{Camera, CameraSettings};
     let mut rng = Sampler::from_seed(21);
     let spheres = random_spheres(500, &mut rng);
-    let bvh = Bvh::build(&spheres);
+    let bvh = SphereBvh::build(&spheres);
     let camera = Camera::new(&CameraSettings {
         lookfrom: Vec3::new(13.0, 2.0, 3.0),
         lookat: Vec3::ZERO,
@@ -212,6 +227,7 @@ fn candidates_through_the_tree_equal_a_scan_of_every_sphere() {
         aspect_ratio: 1.5,
         aperture: 0.3,
         focus_dist: 10.0,
+        shutter: (0.0, 0.0),
     });
     let (mut listed, mut refused) = (0, 0);
     for _ in 0..300 {
@@ -245,7 +261,7 @@ fn candidates_through_the_tree_equal_a_scan_of_every_sphere() {
 #[test]
 fn leaves_stay_small_even_for_coincident_spheres() {
     let spheres = vec![Sphere::new(Vec3::ZERO, 1.0, MaterialId(0)); 40];
-    let bvh = Bvh::build(&spheres);
+    let bvh = SphereBvh::build(&spheres);
     // Coincident centroids leave the SAH nothing to split: the median split still cuts
     // them into packs, none empty, holding every sphere exactly once.
     let mut ids: Vec<u32> = bvh.packs.iter().flat_map(SpherePack::ids).collect();
@@ -272,7 +288,7 @@ fn packs_come_out_full_and_small_scenes_need_two_levels_at_most() {
         // Without the giant `random_spheres` adds, so every sphere is in the tree.
         let mut spheres = random_spheres(n, &mut rng);
         spheres.pop();
-        let bvh = Bvh::build(&spheres);
+        let bvh = SphereBvh::build(&spheres);
         assert!(bvh.giants.is_empty());
         // As few packs as `n` spheres need, so at most one is not full.
         assert_eq!(bvh.packs.len(), n.div_ceil(WIDTH), "{n} spheres");
@@ -285,7 +301,7 @@ fn packs_come_out_full_and_small_scenes_need_two_levels_at_most() {
     // The cover: 486 spheres in the tree, 61 packs under 8 nodes under the root.
     let path = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cover.toml"));
     let scene = crate::scene::Scene::load(path, &crate::scene::Overrides::default()).unwrap();
-    let bvh = Bvh::build(&scene.spheres);
+    let bvh = SphereBvh::build(scene.spheres());
     assert_eq!(
         (bvh.packs.len(), bvh.nodes.len(), bvh.max_level),
         (61, 9, 1)
@@ -295,7 +311,7 @@ fn packs_come_out_full_and_small_scenes_need_two_levels_at_most() {
 #[test]
 fn stack_entries_share_no_cache_line_with_other_allocations() {
     let mut rng = Sampler::from_seed(9);
-    let bvh = Bvh::build(&random_spheres(500, &mut rng));
+    let bvh = SphereBvh::build(&random_spheres(500, &mut rng));
     for mut stack in [TraversalStack::default(), bvh.new_stack()] {
         // A walk grows a stack too small for the tree before using it.
         let ray = Ray::new(Vec3::new(0.0, 1.0, -20.0), Vec3::Z);
@@ -343,7 +359,7 @@ fn the_layer_grid_finds_what_brute_force_finds() {
     let mut rng = Sampler::from_seed(33);
     for (spacing, radius) in [(1.0, 0.2), (0.1, 0.02), (1.0, 0.45)] {
         let spheres = layer_scene(&mut rng, spacing, radius);
-        let bvh = Bvh::build(&spheres);
+        let bvh = SphereBvh::build(&spheres);
         let grid = bvh.layer.as_ref().expect("a layer grid for a layer scene");
         let plain = Bvh {
             layer: None,
@@ -419,9 +435,13 @@ fn a_layer_grid_is_built_only_for_a_layer_of_many_spheres() {
         .into_iter()
         .take(40)
         .collect();
-    assert!(Bvh::build(&few).layer.is_none());
-    assert!(Bvh::build(&layer_scene(&mut rng, 1.0, 0.2)).layer.is_some());
-    assert!(Bvh::build(&[]).layer.is_none());
+    assert!(SphereBvh::build(&few).layer.is_none());
+    assert!(
+        SphereBvh::build(&layer_scene(&mut rng, 1.0, 0.2))
+            .layer
+            .is_some()
+    );
+    assert!(SphereBvh::build(&[]).layer.is_none());
 }
 
 /// Rays from far outside the scene walk the tree: the grid's margins are sized for origins
@@ -429,7 +449,7 @@ fn a_layer_grid_is_built_only_for_a_layer_of_many_spheres() {
 #[test]
 fn the_layer_grid_leaves_far_origins_to_the_walk() {
     let mut rng = Sampler::from_seed(35);
-    let bvh = Bvh::build(&layer_scene(&mut rng, 1.0, 0.2));
+    let bvh = SphereBvh::build(&layer_scene(&mut rng, 1.0, 0.2));
     let grid = bvh.layer.as_ref().expect("a layer grid");
     let up = |y: f32| grid.packs_for(Vec3::new(0.5, y, 0.5), Vec3::Y);
     assert!(up(5.0).is_some(), "over the layer, heading up");

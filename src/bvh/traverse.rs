@@ -2,18 +2,19 @@
 //! tested, inner children nearest first; or, for a small tree on a path with sixteen-lane box
 //! tests, every pack's box at once, then the packs hit. The giants come last either way.
 
-use super::pack::SpherePack;
 use super::pack::{beats, hit_of, lowest_lane, lowest_of, splat3};
-use super::{Bvh, FLAT_GROUP, FLAT_MAX_GROUPS, LEAF, NO_HIT, RayHints};
+use super::{
+    Bvh, FLAT_GROUP, FLAT_MAX_GROUPS, LEAF, Leaf, Moment, NO_HIT, PackRay, Query, RayHints,
+};
 use crate::geometry::PrimitiveId;
 use crate::math::{Interval, Vec3};
 use crate::ray::Ray;
 use crate::simd::{Ids, Isa, Lanes, SlabLanes, SlabRay, slab8};
 
-impl Bvh {
+impl<P: Leaf> Bvh<P> {
     /// The pack of the leaf child reference `child`.
     #[inline(always)]
-    pub(super) fn leaf_pack(&self, child: u32) -> &SpherePack {
+    pub(super) fn leaf_pack(&self, child: u32) -> &P {
         &self.packs[(child & !LEAF) as usize]
     }
 }
@@ -28,8 +29,8 @@ pub(super) struct Traversal<I: Isa> {
     /// the origin and `t_min` for the sphere tests).
     lanes: SlabLanes<I>,
     d: [Lanes<I>; 3],
-    /// The id of a sphere the ray cannot hit (`RayHints::leaving`), or `NO_SPHERE`: in lanes
-    /// for the packs, and as it is for the giants.
+    /// The id of a primitive the ray cannot hit (`RayHints::leaving`), or `NO_SPHERE`: in
+    /// lanes for the packs, and as it is for the giants.
     skip: Ids<I>,
     skip_id: u32,
     closest: f32,
@@ -67,21 +68,28 @@ impl<I: Isa> Traversal<I> {
         }
     }
 
-    /// Tests the giant spheres, after the rest: keeps a giant's hit when it `beats` the
-    /// closest so far, as the packs do. Last, so the walk's first box tests wait on no
+    /// Readies the walk for another hierarchy, keeping the closest hit so far.
+    #[inline(always)]
+    pub(super) fn restart(&mut self) {
+        self.current = 0;
+        self.top = 0;
+    }
+
+    /// Tests the giants, after the rest: keeps a giant's hit when it `beats` the closest so
+    /// far, as the packs do. Last, so the walk's first box tests wait on no
     /// square root and division of theirs, and the ground's early exits stay off the walk's
     /// chain. The ground never hides a box in the book's scenes (their boxes stand on it),
     /// so testing it first pruned nothing there.
     #[inline(always)]
-    pub(super) fn test_giants(&mut self, bvh: &Bvh, ray: &Ray) {
+    pub(super) fn test_giants<P: Leaf>(&mut self, bvh: &Bvh<P>, ray: &Ray, moment: Moment) {
         let interval = Interval::new(self.slab.t_min, self.slab.t_max);
-        for (sphere, id) in &bvh.giants {
+        for (item, id) in &bvh.giants {
             // A bounce ray leaving the ground starts on it: its test would not end at the
             // first check (which needs the start outside) and cost a square root.
             if *id == self.skip_id {
                 continue;
             }
-            if let Some(t) = sphere.intersect(ray, interval)
+            if let Some(t) = P::intersect_one(item, *id, ray, moment, interval)
                 && beats(t, *id, self.closest, self.found)
             {
                 self.closest = t;
@@ -94,17 +102,19 @@ impl<I: Isa> Traversal<I> {
         hit_of(self.closest, self.found)
     }
 
-    /// Tests the spheres of `pack`, keeping a hit that beats the closest so far.
+    /// Tests the primitives of `pack`, keeping a hit that beats the closest so far.
     #[inline(always)]
-    pub(super) fn test_pack(&mut self, pack: &SpherePack) {
-        pack.intersect(
-            &self.lanes.origin,
-            &self.d,
-            self.lanes.t_min,
-            self.skip,
-            &mut self.closest,
-            &mut self.found,
-        );
+    pub(super) fn test_pack<P: Leaf>(&mut self, pack: &P, at: Query<'_>) {
+        let ray = PackRay {
+            o: &self.lanes.origin,
+            d: &self.d,
+            t_min: self.lanes.t_min,
+            skip: self.skip,
+            ray: at.ray,
+            t_min_scalar: self.slab.t_min,
+            moment: at.moment,
+        };
+        pack.intersect(&ray, &mut self.closest, &mut self.found);
     }
 
     /// The walk of a flat tree (see `FLAT_MAX_PACKS`): every group of pack boxes tested
@@ -114,7 +124,7 @@ impl<I: Isa> Traversal<I> {
     /// The box tests take the whole interval, not the closest hit so far, so they wait on
     /// no sphere test and start as soon as the ray is known.
     #[inline(always)]
-    pub(super) fn flat(&mut self, bvh: &Bvh) {
+    pub(super) fn flat<P: Leaf>(&mut self, bvh: &Bvh<P>, at: Query<'_>) {
         let isa = self.lanes.t_min.isa();
         let groups = &bvh.flat[..bvh.flat.len().min(FLAT_MAX_GROUPS)];
         let slab = self.slab;
@@ -125,33 +135,90 @@ impl<I: Isa> Traversal<I> {
             hits[g] = meets & boxes.mask;
             t_near[g] = near;
         }
+        if P::OVERLAP {
+            let (start, found) = (self.closest, self.found);
+            let mut best = (start, found);
+            for g in 0..groups.len() {
+                let mut packs = hits[g];
+                while packs != 0 {
+                    let lane = lowest_of::<FLAT_GROUP>(packs);
+                    packs &= packs - 1;
+                    if t_near[g][lane] <= start {
+                        let hit =
+                            self.pack_hit(&bvh.packs[g * FLAT_GROUP + lane], at, start, found);
+                        if beats(hit.0, hit.1, best.0, best.1) {
+                            best = hit;
+                        }
+                    }
+                }
+            }
+            (self.closest, self.found) = best;
+            return;
+        }
         for g in 0..groups.len() {
             let mut packs = hits[g];
             while packs != 0 {
                 let lane = lowest_of::<FLAT_GROUP>(packs);
                 packs &= packs - 1;
                 if t_near[g][lane] <= self.closest {
-                    self.test_pack(&bvh.packs[g * FLAT_GROUP + lane]);
+                    self.test_pack(&bvh.packs[g * FLAT_GROUP + lane], at);
                 }
             }
         }
     }
 
+    /// The best hit of `pack` against `(closest, found)` alone, not the walk's.
+    #[inline(always)]
+    fn pack_hit<P: Leaf>(&self, pack: &P, at: Query<'_>, closest: f32, found: u32) -> (f32, u32) {
+        let ray = PackRay {
+            o: &self.lanes.origin,
+            d: &self.d,
+            t_min: self.lanes.t_min,
+            skip: self.skip,
+            ray: at.ray,
+            t_min_scalar: self.slab.t_min,
+            moment: at.moment,
+        };
+        let (mut c, mut f) = (closest, found);
+        pack.intersect(&ray, &mut c, &mut f);
+        (c, f)
+    }
+
     /// Visits the current node: tests its leaf children's spheres at once and picks the
     /// next inner node. True when the walk is over.
     #[inline(always)]
-    pub(super) fn step(&mut self, bvh: &Bvh, stack: &mut [(u32, f32)]) -> bool {
+    pub(super) fn step<P: Leaf>(
+        &mut self,
+        bvh: &Bvh<P>,
+        stack: &mut [(u32, f32)],
+        at: Query<'_>,
+    ) -> bool {
         let node = &bvh.nodes[self.current as usize];
         let (mut hits, t_near) = slab8(node.planes.each_ref(), &self.lanes, self.closest);
         // Leaves first, as soon as their parent is tested: a pack test costs the same
         // whatever `closest` is, so their order does not matter, only that their boxes are
         // not already behind the closest hit.
         let mut leaves = hits & node.leaf_mask;
+        if P::OVERLAP {
+            let (start, found) = (self.closest, self.found);
+            let mut best = (start, found);
+            while leaves != 0 {
+                let lane = lowest_lane(leaves);
+                leaves &= leaves - 1;
+                if t_near[lane] <= start {
+                    let hit = self.pack_hit(bvh.leaf_pack(node.child[lane]), at, start, found);
+                    if beats(hit.0, hit.1, best.0, best.1) {
+                        best = hit;
+                    }
+                }
+            }
+            (self.closest, self.found) = best;
+        }
         while leaves != 0 {
             let lane = lowest_lane(leaves);
             leaves &= leaves - 1;
             if t_near[lane] <= self.closest {
-                self.test_pack(bvh.leaf_pack(node.child[lane]));
+                self.test_pack(bvh.leaf_pack(node.child[lane]), at);
             }
         }
         hits &= node.inner_mask;

@@ -25,6 +25,11 @@ pub struct Args {
     /// Leave the parts' recipe out of the image's metadata.
     #[arg(long)]
     no_provenance: bool,
+    /// Look for the scene's texture files here first (then next to the first part, then in
+    /// `scenes/`): the merged image's recipe is checked against its scene, textures
+    /// included.
+    #[arg(long, value_name = "DIR")]
+    textures: Option<PathBuf>,
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
@@ -32,6 +37,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         parts,
         output,
         no_provenance,
+        textures,
     } = args;
     Format::from_path(&output)?;
     check_output(&output)?;
@@ -39,14 +45,14 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let (film, render) = tessera::partial::merge_files(&paths)?;
     let recipe = match render.recipe.as_ref().filter(|_| !no_provenance) {
         Some(source) => {
-            let recipe = merged_recipe(source, &render, &film, &paths[0]);
-            if recipe.is_none() {
+            let recipe = merged_recipe(source, &render, &film, &paths[0], textures.as_deref());
+            if let Err(why) = &recipe {
                 note(format_args!(
-                    "tessera: warning: the parts' recipe does not describe them; {} carries none",
+                    "tessera: warning: {why}; {} carries no recipe",
                     output.display()
                 ));
             }
-            recipe
+            recipe.ok()
         }
         None if no_provenance => None,
         None => {
@@ -100,12 +106,25 @@ fn part_files(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
 
 /// The recipe of a merged `film` of `render`'s parts, which carry `source`, when `source`
 /// describes them: the scene it gives has their fingerprint, window and sample count.
-/// `part` names the source in errors.
-fn merged_recipe(source: &Source, render: &RenderId, film: &Film, part: &Path) -> Option<Recipe> {
-    let scene = source.parse(part).ok()?;
+/// `part` names the source in errors; its textures are looked for in `textures` first.
+fn merged_recipe(
+    source: &Source,
+    render: &RenderId,
+    film: &Film,
+    part: &Path,
+    textures: Option<&Path>,
+) -> std::result::Result<Recipe, String> {
+    let dirs = tessera::recipe::texture_dirs(textures, part);
+    let scene = source
+        .parse(part, &dirs)
+        .map_err(|e| format!("the parts' scene cannot be read again ({e})"))?;
     let s = &scene.settings;
-    (format!("{:016x}", scene.fingerprint()) == render.fingerprint
+    let describes = format!("{:016x}", scene.fingerprint()) == render.fingerprint
         && s.window == render.window
-        && s.samples_per_pixel == render.target)
-        .then(|| Recipe::new(source, &scene, film))
+        && s.samples_per_pixel == render.target;
+    if describes {
+        Ok(Recipe::new(source, &scene, film))
+    } else {
+        Err("the parts' recipe does not describe them".to_owned())
+    }
 }

@@ -48,6 +48,10 @@ pub struct Args {
     /// than four book covers' worth is refused before anything is rendered.
     #[arg(long)]
     any_cost: bool,
+    /// Look for the scene's texture files here first (then next to the image, then in
+    /// `scenes/`).
+    #[arg(long, value_name = "DIR")]
+    textures: Option<PathBuf>,
 }
 
 /// The book cover's work: 1200x800 pixels at 500 samples per pixel, up to 50 bounces.
@@ -120,6 +124,13 @@ pub fn info(args: InfoArgs) -> Result<ExitCode> {
         "  sums       {}\n",
         terminal_safe(&recipe.sums, 64)
     ));
+    for texture in &recipe.textures {
+        t.push_str(&format!(
+            "  texture    {} ({})\n",
+            terminal_safe(&texture.name, 80),
+            terminal_safe(&texture.hash, 64)
+        ));
+    }
     t.push_str(&format!(
         "  check      tessera reproduce {}\n",
         path.display()
@@ -183,7 +194,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
             image.display()
         );
     }
-    let scene = recipe.scene(image)?;
+    let dirs = recipe::texture_dirs(args.textures.as_deref(), image);
+    let scene = recipe.scene(image, &dirs)?;
     let window = recipe.window();
     let differs = ExitCode::from(output::NEGATIVE);
     if (header.width, header.height) != (window.width, window.height) {

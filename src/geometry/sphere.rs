@@ -1,6 +1,6 @@
 //! The sphere, with an intersection that stays accurate in `f32` for the radius-1000 ground.
 
-use super::{Aabb, MaterialId};
+use super::{Aabb, MaterialId, OFFSET_PER_UNIT};
 use crate::math::{Interval, Vec3};
 use crate::ray::Ray;
 
@@ -16,12 +16,6 @@ pub struct Sphere {
     /// The part of `escape_offset` that does not depend on the ray.
     offset_floor: f32,
 }
-
-/// A hit's rounding error bound per unit of the magnitudes that went into it: 16 units in the
-/// last place (2⁻²⁴ each). `integrator::tests` bounce off spheres of radius 10⁻³ to 10³ up to
-/// 3000 from the origin: at 8 no bounce started on the wrong side of the surface over
-/// millions (at 4, a few in 10⁵); this is twice that.
-const OFFSET_PER_UNIT: f32 = 16.0 * f32::EPSILON / 2.0;
 
 impl Sphere {
     pub fn new(center: Vec3, radius: f32, material: MaterialId) -> Self {
@@ -59,34 +53,12 @@ impl Sphere {
     /// from `c / q`, so neither root is a difference of nearly equal numbers.
     #[inline]
     pub fn intersect(&self, ray: &Ray, interval: Interval) -> Option<f32> {
-        // Written out per component, in the same order as the SIMD pack test of
-        // `bvh::SpherePack`, so both give bit-identical answers.
-        let (o, d, c) = (ray.origin, ray.dir, self.center);
-        let (fx, fy, fz) = (o.x - c.x, o.y - c.y, o.z - c.z);
-        let b = -(fx * d.x + fy * d.y + fz * d.z);
-        let r2 = self.radius * self.radius;
-        let c = (fx * fx + fy * fy + fz * fz) - r2;
-        // From outside and moving away both roots are negative: every ray leaving the
-        // ground skips the rest. (The full test below says no in this case too.)
-        if c > 0.0 && b < 0.0 && interval.min >= 0.0 {
-            return None;
-        }
-        let (gx, gy, gz) = (fx + b * d.x, fy + b * d.y, fz + b * d.z);
-        let disc = r2 - (gx * gx + gy * gy + gz * gz);
-        if disc < 0.0 {
-            return None;
-        }
-        let sq = disc.sqrt();
-        let q = if b >= 0.0 { b + sq } else { b - sq };
-        let (t0, t1) = if q == 0.0 { (0.0, 0.0) } else { (c / q, q) };
-        let (near, far) = (t0.min(t1), t0.max(t1));
-        if interval.surrounds(near) {
-            Some(near)
-        } else if interval.surrounds(far) {
-            Some(far)
-        } else {
-            None
-        }
+        hit_ball(self.center, self.radius * self.radius, ray, interval)
+    }
+
+    /// Both parameters where the line of `ray` meets the sphere, nearer first.
+    pub fn line_hits(&self, ray: &Ray) -> Option<(f32, f32)> {
+        line_hits_ball(self.center, self.radius * self.radius, ray)
     }
 
     /// Outward geometric normal at a surface point (inward for a negative radius).
@@ -94,6 +66,55 @@ impl Sphere {
     pub fn normal_at(&self, p: Vec3) -> Vec3 {
         (p - self.center) * self.inv_radius
     }
+}
+
+/// The nearest ray parameter in `interval` where `ray` (with a unit direction) meets the ball
+/// of centre `center` and squared radius `r2`: `Sphere::intersect`'s arithmetic, shared with
+/// the moving sphere (at its centre for the ray's time).
+#[inline(always)]
+pub(crate) fn hit_ball(center: Vec3, r2: f32, ray: &Ray, interval: Interval) -> Option<f32> {
+    // Written out per component, in the same order as the SIMD pack test of
+    // `bvh::SpherePack`, so both give bit-identical answers.
+    let (o, d, c) = (ray.origin, ray.dir, center);
+    let (fx, fy, fz) = (o.x - c.x, o.y - c.y, o.z - c.z);
+    let b = -(fx * d.x + fy * d.y + fz * d.z);
+    let c = (fx * fx + fy * fy + fz * fz) - r2;
+    // From outside and moving away both roots are negative: every ray leaving the
+    // ground skips the rest. (The full test below says no in this case too.)
+    if c > 0.0 && b < 0.0 && interval.min >= 0.0 {
+        return None;
+    }
+    let (near, far) = roots(fx, fy, fz, b, c, r2, d)?;
+    if interval.surrounds(near) {
+        Some(near)
+    } else if interval.surrounds(far) {
+        Some(far)
+    } else {
+        None
+    }
+}
+
+/// Both parameters where the line of `ray` meets the ball, nearer first.
+pub(crate) fn line_hits_ball(center: Vec3, r2: f32, ray: &Ray) -> Option<(f32, f32)> {
+    let (o, d, c) = (ray.origin, ray.dir, center);
+    let (fx, fy, fz) = (o.x - c.x, o.y - c.y, o.z - c.z);
+    let b = -(fx * d.x + fy * d.y + fz * d.z);
+    let c = (fx * fx + fy * fy + fz * fz) - r2;
+    roots(fx, fy, fz, b, c, r2, d)
+}
+
+/// The roots of the half-b quadratic of a ray from `f = o - centre` along `d`, nearer first.
+#[inline(always)]
+fn roots(fx: f32, fy: f32, fz: f32, b: f32, c: f32, r2: f32, d: Vec3) -> Option<(f32, f32)> {
+    let (gx, gy, gz) = (fx + b * d.x, fy + b * d.y, fz + b * d.z);
+    let disc = r2 - (gx * gx + gy * gy + gz * gz);
+    if disc < 0.0 {
+        return None;
+    }
+    let sq = disc.sqrt();
+    let q = if b >= 0.0 { b + sq } else { b - sq };
+    let (t0, t1) = if q == 0.0 { (0.0, 0.0) } else { (c / q, q) };
+    Some((t0.min(t1), t0.max(t1)))
 }
 
 #[cfg(test)]

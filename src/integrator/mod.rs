@@ -1,13 +1,15 @@
 //! What a pixel's samples bring back. `pixel` makes each camera sample (film position, lens,
-//! ray) and shades it by the scene's shading mode, the book's early stages or path tracing;
-//! this file traces a path: the book's `ray_color`, as a bounce loop carrying throughput.
-//! No threads, no I/O.
+//! time, ray) and shades it by the scene's shading mode, the book's early stages or path
+//! tracing; this file traces a path: the books' `ray_color`, as a bounce loop carrying
+//! throughput. The first book's scenes (still spheres, no light but the sky, no texture)
+//! take its loop as it was; everything else *The Next Week*'s, which adds what the hit
+//! emits, textures, the ray's time and the media's random numbers. No threads, no I/O.
 
 mod pixel;
 
 pub use pixel::{PixelEvaluator, tile_candidates};
 
-use crate::bvh::{Leaving, RayHints, TraversalStack};
+use crate::bvh::{Leaving, Moment, RayHints, TraversalStack};
 use crate::geometry::Hit;
 use crate::math::{Color, Interval, Vec3};
 use crate::ray::Ray;
@@ -28,6 +30,7 @@ const ANY_DISTANCE: Interval = Interval::new(0.0, f32::INFINITY);
 /// `max_depth` segments, each hit multiplying the throughput by the material's attenuation,
 /// escape rays picking up the background. Its first segment, camera ray `ray`, has been traced
 /// and met `first` (`None`: it escaped); the caller checks that `max_depth` allows one segment.
+/// For the first book's scenes only (still spheres: `Scene::needs_full_paths` is false).
 #[inline(always)]
 pub fn path_trace_from<I: Isa>(
     isa: I,
@@ -64,8 +67,64 @@ pub fn path_trace_from<I: Isa>(
             };
         }
         throughput *= scatter.attenuation;
-        let (next, interval, hints) = bounce(scene, &here, scatter.dir);
-        hit = scene.hit_on(isa, &next, interval, stack, hints);
+        let (next, interval, hints) = bounce::<false>(scene, &here, scatter.dir);
+        hit = scene.hit_still_on(isa, &next, interval, stack, hints);
+        ray = next;
+        rays += 1;
+    }
+}
+
+/// *The Next Week*'s `ray_color`, unrolled as `path_trace_from`: each hit adds what it emits
+/// (times the throughput so far) before it scatters; textured materials take their colour
+/// from the texture where hit. The path keeps the camera ray's time (`moment.time`); each
+/// segment after the first draws the random number media scatter by when the scene has
+/// media (`moment.medium_key`, the camera ray's drawn with its sample).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub fn path_trace_full<I: Isa>(
+    isa: I,
+    scene: &Scene,
+    mut ray: Ray,
+    mut moment: Moment,
+    first: Option<Hit>,
+    rng: &mut Sampler,
+    stack: &mut TraversalStack,
+) -> Radiance {
+    let settings = &scene.settings;
+    let mut radiance = Color::ZERO;
+    let mut throughput = Color::ONE;
+    let mut hit = first;
+    let mut rays = 1;
+    let media = scene.has_media();
+    loop {
+        let Some(here) = hit else {
+            return Radiance {
+                color: radiance + throughput * scene.background.radiance(ray.dir),
+                rays,
+            };
+        };
+        let material = scene.material(&here);
+        let texture = scene.texture_at(&here, moment.time);
+        let tint = |c: Color| texture.map_or(c, |t| c * t);
+        radiance += throughput * tint(material.emitted());
+        let Some(scatter) = material.scatter(ray.dir, &here, settings.diffuse, rng) else {
+            return Radiance {
+                color: radiance,
+                rays,
+            };
+        };
+        if rays >= settings.max_depth {
+            return Radiance {
+                color: radiance,
+                rays,
+            };
+        }
+        throughput *= tint(scatter.attenuation);
+        if media {
+            moment.medium_key = rng.word();
+        }
+        let (next, interval, hints) = bounce::<true>(scene, &here, scatter.dir);
+        hit = scene.hit_at(isa, &next, moment, interval, stack, hints);
         ray = next;
         rays += 1;
     }
@@ -78,9 +137,14 @@ const MAX_SKIP: f32 = 16.0;
 
 /// The segment that leaves `here` along the scattered direction `raw` (not necessarily
 /// unit): the ray, the distances along it where hits count, and what the tree may use to
-/// trace it sooner (`RayHints`).
+/// trace it sooner (`RayHints`). `ANY_KIND`: `here` may be any primitive (else it is a still
+/// sphere, as all a first book's scene holds).
 #[inline(always)]
-pub fn bounce(scene: &Scene, here: &Hit, raw: Vec3) -> (Ray, Interval, RayHints) {
+pub fn bounce<const ANY_KIND: bool>(
+    scene: &Scene,
+    here: &Hit,
+    raw: Vec3,
+) -> (Ray, Interval, RayHints) {
     // `raw / len` is what `normalize` computes; the side and the hints come from `raw` (a
     // positive scale of `dir`), so they are ready before `dir` is.
     let len = raw.length();
@@ -102,7 +166,11 @@ pub fn bounce(scene: &Scene, here: &Hit, raw: Vec3) -> (Ray, Interval, RayHints)
             // sideways, which bends it at the next curved surface: through glass by up to a
             // pixel for 0.001 on a sphere of radius 0.5.) A ray nearly along the surface
             // would ignore too much of its way: it starts that bound off along the normal.
-            let clearance = scene.spheres[here.primitive.0 as usize].escape_offset(here.t);
+            let clearance = if ANY_KIND {
+                scene.leaving(here, along_normal).0
+            } else {
+                scene.still_sphere_offset(here)
+            };
             let across = raw_normal.abs();
             // |cos θ| ≥ 1 / MAX_SKIP, without a square root.
             if across * across * (MAX_SKIP * MAX_SKIP) >= raw.length_squared() {
@@ -117,12 +185,15 @@ pub fn bounce(scene: &Scene, here: &Hit, raw: Vec3) -> (Ray, Interval, RayHints)
         // which loses real hits).
         SurfaceOffset::Fixed(d) => (d, here.p + d * side, ANY_DISTANCE),
     };
+    let leaves = if ANY_KIND {
+        scene.leaving(here, along_normal).1
+    } else {
+        here.leaves_outside(along_normal)
+    };
     let hints = RayHints {
-        // A ray that leaves a sphere from outside cannot meet it again.
-        leaving: Leaving::sphere_if(
-            (clearance > 0.0) & here.leaves_outside(along_normal),
-            here.primitive,
-        ),
+        // A ray that leaves a sphere from outside (or a quad either way) cannot meet it
+        // again.
+        leaving: Leaving::sphere_if((clearance > 0.0) & leaves, here.primitive),
         // From the raw direction, a division sooner than `1 / dir`.
         inv_dir: Some(len * (Vec3::ONE / raw)),
         heading: Some(raw),
@@ -151,7 +222,7 @@ mod tests {
             };
             // Any direction, outwards and inwards, unit or not (as materials give them).
             let raw = rng.range(0.2, 2.0) * rng.unit_vector();
-            let (next, interval, hints) = bounce(&scene, &here, raw);
+            let (next, interval, hints) = bounce::<false>(&scene, &here, raw);
             let plain = scene.hit(&next, interval, &mut stack);
             let hinted = scene.hit_with(&next, interval, &mut stack, hints);
             let key = |h: Option<Hit>| h.map(|h| (h.t.to_bits(), h.primitive));
@@ -182,9 +253,9 @@ mod tests {
         raw: Vec3,
         stack: &mut TraversalStack,
     ) -> (bool, Option<Hit>) {
-        let (next, interval, _) = bounce(scene, here, raw);
+        let (next, interval, _) = bounce::<false>(scene, here, raw);
         let inside = !here.leaves_outside(raw.dot(here.normal) >= 0.0);
-        let radius = scene.spheres[0].radius.abs();
+        let radius = scene.spheres()[0].radius.abs();
         let again = scene.hit(&next, interval, stack);
         let ok = match again {
             None => !inside,
@@ -213,7 +284,7 @@ mod tests {
             (Vec3::new(1800.0, -2400.0, 900.0), 2.0),
         ] {
             let scene = one_sphere(center, radius);
-            let s = scene.spheres[0];
+            let s = scene.spheres()[0];
             let mut stack = scene.new_stack();
             let (mut bounces, mut wrong) = (0, 0);
             for _ in 0..20_000 {
@@ -261,8 +332,8 @@ mod tests {
                 continue;
             };
             let raw = rng.range(0.2, 2.0) * rng.unit_vector();
-            let (next, interval, _) = bounce(&scene, &here, raw);
-            let clearance = scene.spheres[0].escape_offset(here.t);
+            let (next, interval, _) = bounce::<false>(&scene, &here, raw);
+            let clearance = scene.spheres()[0].escape_offset(here.t);
             let cos = next.dir.dot(here.normal).abs();
             if cos * MAX_SKIP >= 1.0 {
                 assert_eq!(next.origin, here.p);

@@ -2,8 +2,8 @@
 //! film, its camera ray, and the radiance the scene's shading mode gives it. The one place a
 //! sample is made, and the only code that knows shading modes.
 
-use super::{ANY_DISTANCE, Radiance, path_trace_from};
-use crate::bvh::{Candidates, RayHints, TraversalStack};
+use super::{ANY_DISTANCE, Radiance, path_trace_from, path_trace_full};
+use crate::bvh::{Candidates, Moment, RayHints, TraversalStack};
 use crate::geometry::Hit;
 use crate::job::SampleRange;
 use crate::material::Material;
@@ -14,7 +14,8 @@ use crate::scene::{Scene, Shading};
 use crate::simd::Isa;
 
 /// One camera sample: where it falls on the film (the book's `u`, `v`), its camera ray, and
-/// its generator after the draws that made them.
+/// its generator after the draws that made them. (Its ray's `Moment` goes beside it, for
+/// the scenes that have one.)
 #[derive(Clone, Debug)]
 struct CameraSample {
     u: f32,
@@ -25,9 +26,11 @@ struct CameraSample {
 
 impl CameraSample {
     /// The sample of pixel `(x, y)` (top row `y = 0`) drawn from the sample's own generator
-    /// `rng`: jitter within the pixel, then the lens.
+    /// `rng`: jitter within the pixel, then the lens, then (`FULL`, for *The Next Week*'s
+    /// scenes) the time when the shutter is open a while and the medium key when the scene
+    /// has media.
     #[inline(always)]
-    fn new(scene: &Scene, x: u32, y: u32, mut rng: Sampler) -> Self {
+    fn new<const FULL: bool>(scene: &Scene, x: u32, y: u32, mut rng: Sampler) -> (Self, Moment) {
         let s = &scene.settings;
         let (du, dv) = if s.jitter {
             (rng.uniform(), rng.uniform())
@@ -38,7 +41,14 @@ impl CameraSample {
         let j = s.height - 1 - y;
         let (u, v) = film_point(scene, x as f32 + du, j as f32 + dv);
         let ray = scene.camera.ray(u, v, &mut rng);
-        CameraSample { u, v, ray, rng }
+        let moment = if FULL {
+            let time = scene.camera.time(&mut rng);
+            let medium_key = if scene.has_media() { rng.word() } else { 0 };
+            Moment { time, medium_key }
+        } else {
+            Moment::default()
+        };
+        (CameraSample { u, v, ray, rng }, moment)
     }
 }
 
@@ -79,20 +89,32 @@ pub fn tile_candidates(scene: &Scene, tile: &PixelRect) -> Option<Candidates> {
 /// How a shading mode turns a camera sample (with its first hit, when the mode traces camera
 /// rays) into radiance, given scratch space.
 trait Shade {
-    fn shade(&self, s: CameraSample, first: Option<Hit>, stack: &mut TraversalStack) -> Radiance;
+    fn shade(
+        &self,
+        s: CameraSample,
+        moment: Moment,
+        first: Option<Hit>,
+        stack: &mut TraversalStack,
+    ) -> Radiance;
 }
 
 /// A closure as a `Shade`, for the modes that run no SIMD code (see `PathTrace`).
 struct Closure<F>(F);
 
-impl<F: Fn(CameraSample, Option<Hit>, &mut TraversalStack) -> Radiance> Shade for Closure<F> {
+impl<F: Fn(CameraSample, Moment, Option<Hit>) -> Radiance> Shade for Closure<F> {
     #[inline(always)]
-    fn shade(&self, s: CameraSample, first: Option<Hit>, stack: &mut TraversalStack) -> Radiance {
-        (self.0)(s, first, stack)
+    fn shade(
+        &self,
+        s: CameraSample,
+        m: Moment,
+        first: Option<Hit>,
+        _: &mut TraversalStack,
+    ) -> Radiance {
+        (self.0)(s, m, first)
     }
 }
 
-fn closure<F: Fn(CameraSample, Option<Hit>, &mut TraversalStack) -> Radiance>(f: F) -> Closure<F> {
+fn closure<F: Fn(CameraSample, Moment, Option<Hit>) -> Radiance>(f: F) -> Closure<F> {
     Closure(f)
 }
 
@@ -106,9 +128,35 @@ struct PathTrace<'a, I: Isa> {
 
 impl<I: Isa> Shade for PathTrace<'_, I> {
     #[inline(always)]
-    fn shade(&self, s: CameraSample, first: Option<Hit>, stack: &mut TraversalStack) -> Radiance {
+    fn shade(
+        &self,
+        s: CameraSample,
+        _: Moment,
+        first: Option<Hit>,
+        stack: &mut TraversalStack,
+    ) -> Radiance {
         let mut rng = s.rng;
         path_trace_from(self.isa, self.scene, s.ray, first, &mut rng, stack)
+    }
+}
+
+/// *The Next Week*'s path tracing (see `PathTrace`).
+struct FullPathTrace<'a, I: Isa> {
+    isa: I,
+    scene: &'a Scene,
+}
+
+impl<I: Isa> Shade for FullPathTrace<'_, I> {
+    #[inline(always)]
+    fn shade(
+        &self,
+        s: CameraSample,
+        moment: Moment,
+        first: Option<Hit>,
+        stack: &mut TraversalStack,
+    ) -> Radiance {
+        let mut rng = s.rng;
+        path_trace_full(self.isa, self.scene, s.ray, moment, first, &mut rng, stack)
     }
 }
 
@@ -121,6 +169,8 @@ pub struct PixelEvaluator<'a, I: Isa> {
     /// The spheres every camera ray may hit (see `tile_candidates`); `None`: the tree.
     candidates: Option<Candidates>,
     stack: TraversalStack,
+    /// The scene needs *The Next Week*'s paths (`Scene::needs_full_paths`).
+    full: bool,
 }
 
 impl<'a, I: Isa> PixelEvaluator<'a, I> {
@@ -144,6 +194,7 @@ impl<'a, I: Isa> PixelEvaluator<'a, I> {
             scene,
             candidates,
             stack: scene.new_stack(),
+            full: scene.needs_full_paths(),
         }
     }
 
@@ -151,11 +202,28 @@ impl<'a, I: Isa> PixelEvaluator<'a, I> {
     /// segments it traced to `add`, in sample order.
     #[inline(always)]
     pub fn evaluate(&mut self, x: u32, y: u32, range: SampleRange, add: impl FnMut(Color, u32)) {
+        if self.full {
+            self.evaluate_as::<true>(x, y, range, add);
+        } else {
+            self.evaluate_as::<false>(x, y, range, add);
+        }
+    }
+
+    /// `evaluate` for the first book's scenes (`FULL` false) or any (true, which a scene
+    /// that `needs_full_paths` must take).
+    #[inline(always)]
+    pub fn evaluate_as<const FULL: bool>(
+        &mut self,
+        x: u32,
+        y: u32,
+        range: SampleRange,
+        add: impl FnMut(Color, u32),
+    ) {
         let (isa, scene) = (self.isa, self.scene);
         let background = |ray: &Ray| scene.background.radiance(ray.dir);
         match scene.settings.shading {
             // Pixel coordinates as red and green (image 1); no rays.
-            Shading::Uv => self.each_sample(
+            Shading::Uv => self.each_sample::<FULL>(
                 x,
                 y,
                 range,
@@ -167,7 +235,7 @@ impl<'a, I: Isa> PixelEvaluator<'a, I> {
                 }),
             ),
             // The background seen through the camera (image 2).
-            Shading::Gradient => self.each_sample(
+            Shading::Gradient => self.each_sample::<FULL>(
                 x,
                 y,
                 range,
@@ -179,33 +247,37 @@ impl<'a, I: Isa> PixelEvaluator<'a, I> {
                 }),
             ),
             // The surface's albedo where a ray hits (image 3).
-            Shading::Flat => self.each_sample(
+            Shading::Flat => self.each_sample::<FULL>(
                 x,
                 y,
                 range,
                 true,
                 add,
-                closure(|s, first, _| {
+                closure(|s, moment, first| {
                     let color = match first {
-                        Some(hit) => match *scene.material(&hit) {
-                            Material::Lambertian { albedo } | Material::Metal { albedo, .. } => {
-                                albedo
-                            }
-                            Material::Dielectric { .. } => Color::ONE,
-                        },
+                        Some(hit) => {
+                            let own = match *scene.material(&hit) {
+                                Material::Lambertian { albedo }
+                                | Material::Metal { albedo, .. }
+                                | Material::Isotropic { albedo } => albedo,
+                                Material::DiffuseLight { emit } => emit,
+                                Material::Dielectric { .. } => Color::ONE,
+                            };
+                            scene.texture_at(&hit, moment.time).map_or(own, |t| own * t)
+                        }
                         None => background(&s.ray),
                     };
                     Radiance { color, rays: 1 }
                 }),
             ),
             // `(n + 1) / 2` of the front-facing normal (images 4–6).
-            Shading::Normals => self.each_sample(
+            Shading::Normals => self.each_sample::<FULL>(
                 x,
                 y,
                 range,
                 true,
                 add,
-                closure(|s, first, _| {
+                closure(|s, _, first| {
                     let color = match first {
                         Some(hit) => 0.5 * (hit.normal + Color::ONE),
                         None => background(&s.ray),
@@ -213,7 +285,7 @@ impl<'a, I: Isa> PixelEvaluator<'a, I> {
                     Radiance { color, rays: 1 }
                 }),
             ),
-            Shading::Path if scene.settings.max_depth == 0 => self.each_sample(
+            Shading::Path if scene.settings.max_depth == 0 => self.each_sample::<FULL>(
                 x,
                 y,
                 range,
@@ -224,7 +296,12 @@ impl<'a, I: Isa> PixelEvaluator<'a, I> {
                     rays: 0,
                 }),
             ),
-            Shading::Path => self.each_sample(x, y, range, true, add, PathTrace { isa, scene }),
+            Shading::Path if FULL => {
+                self.each_sample::<FULL>(x, y, range, true, add, FullPathTrace { isa, scene })
+            }
+            Shading::Path => {
+                self.each_sample::<FULL>(x, y, range, true, add, PathTrace { isa, scene })
+            }
         }
     }
 
@@ -236,7 +313,7 @@ impl<'a, I: Isa> PixelEvaluator<'a, I> {
     /// no branch of its own, so the processor works it out while a path waits on its long
     /// chains of arithmetic, and no mispredicted branch of the path can undo it.
     #[inline(always)]
-    fn each_sample(
+    fn each_sample<const FULL: bool>(
         &mut self,
         x: u32,
         y: u32,
@@ -250,18 +327,18 @@ impl<'a, I: Isa> PixelEvaluator<'a, I> {
         }
         let scene = self.scene;
         let seed = PixelSeed::new(scene.settings.seed, x, y);
-        let mut next = CameraSample::new(scene, x, y, seed.sample(range.start));
+        let mut next = CameraSample::new::<FULL>(scene, x, y, seed.sample(range.start));
         for sample in range.start..range.end {
-            let current = next.clone();
+            let (current, moment) = next.clone();
             let first = if traces {
-                self.camera_hit(&current.ray)
+                self.camera_hit::<FULL>(&current.ray, moment)
             } else {
                 None
             };
             if sample + 1 < range.end {
-                next = CameraSample::new(scene, x, y, seed.sample(sample + 1));
+                next = CameraSample::new::<FULL>(scene, x, y, seed.sample(sample + 1));
             }
-            let r = shade.shade(current, first, &mut self.stack);
+            let r = shade.shade(current, moment, first, &mut self.stack);
             add(r.color, r.rays);
         }
     }
@@ -269,12 +346,23 @@ impl<'a, I: Isa> PixelEvaluator<'a, I> {
     /// What camera ray `ray` hits first: among the candidates when there are some (the same
     /// answer as the tree), else through the tree.
     #[inline(always)]
-    fn camera_hit(&mut self, ray: &Ray) -> Option<Hit> {
+    fn camera_hit<const FULL: bool>(&mut self, ray: &Ray, moment: Moment) -> Option<Hit> {
+        if FULL {
+            let hints = RayHints::default();
+            return (self.scene).hit_at(
+                self.isa,
+                ray,
+                moment,
+                ANY_DISTANCE,
+                &mut self.stack,
+                hints,
+            );
+        }
         match &self.candidates {
             Some(candidates) => {
                 (self.scene).hit_candidates(self.isa, candidates, ray, ANY_DISTANCE)
             }
-            None => (self.scene).hit_on(
+            None => (self.scene).hit_still_on(
                 self.isa,
                 ray,
                 ANY_DISTANCE,

@@ -2,14 +2,17 @@
 //! line, column and field of the first unacceptable value.
 
 use super::check::Checker;
-use super::desc::{self, OffsetDesc, SceneDesc};
+use super::desc::{self, ColorDesc, OffsetDesc, SceneDesc};
+use super::draws::DrawSettings;
 use super::settings::{Background, RenderSettings, SurfaceOffset};
-use super::{Scene, cover};
+use super::textures::{TextureSource, load};
+use super::{Scene, SceneContents, TextureFile, cover, shapes};
 use crate::camera::{Camera, CameraSettings};
 use crate::error::{Error, Result};
-use crate::geometry::{MaterialId, Sphere};
+use crate::geometry::MaterialId;
 use crate::material::{Material, Refraction};
 use crate::math::{Color, PixelRect, Vec3, cross, unit};
+use crate::texture::{Noise, Texture, TextureId};
 use std::collections::BTreeMap;
 use std::ops::Range;
 use std::path::Path;
@@ -33,6 +36,7 @@ pub(super) fn build(
     text: &str,
     path: &Path,
     overrides: &Overrides,
+    source: &TextureSource,
 ) -> Result<Scene> {
     let ck = Checker { text, path };
     let settings = render_settings(desc, &ck, overrides)?;
@@ -46,6 +50,7 @@ pub(super) fn build(
             aspect_ratio: 1.0,
             aperture: 0.0,
             focus_dist: 1.0,
+            shutter: (0.0, 0.0),
         },
     };
     // The viewport keeps the file's shape, whatever width the command line asks for.
@@ -70,61 +75,291 @@ pub(super) fn build(
         },
         Some(b) => background(b, &ck)?,
     };
+    // The file's own seed, not `--seed`'s: what the scene is made of (its generators'
+    // spheres, its noise) stays the same when only the samples change.
+    let file_seed = desc.image.seed;
+    let mut textures = Textures::build(desc, &ck, source, file_seed)?;
 
     let mut materials = Vec::with_capacity(desc.materials.len());
+    let mut material_textures = Vec::with_capacity(desc.materials.len());
     let mut ids = BTreeMap::new();
     for (name, m) in &desc.materials {
         ids.insert(name.as_str(), MaterialId(materials.len() as u32));
-        materials.push(material(name, m, &ck)?);
+        let (material, texture) = material(name, m, &ck, &mut textures)?;
+        materials.push(material);
+        material_textures.push(texture);
     }
-
-    let mut spheres = Vec::with_capacity(desc.spheres.len());
-    for (i, s) in desc.spheres.iter().enumerate() {
-        let field = |f: &str| format!("spheres[{i}].{f}");
-        let center = ck.point(&s.center, &field("center"))?;
-        let radius = ck.radius(&s.radius, &field("radius"), false)?;
-        let name = s.material.get_ref();
-        let Some(&id) = ids.get(name.as_str()) else {
+    let lookup = |name: &Spanned<String>, field: &str| -> Result<MaterialId> {
+        let wanted = name.get_ref();
+        ids.get(wanted.as_str()).copied().ok_or_else(|| {
             let known: Vec<&str> = ids.keys().copied().collect();
             let known = if known.is_empty() {
                 "no materials are defined".to_owned()
             } else {
                 format!("defined materials: {}", known.join(", "))
             };
-            return Err(ck.error(
-                s.material.span(),
-                &field("material"),
-                format!("unknown material `{name}` ({known})"),
-            ));
-        };
-        spheres.push(Sphere::new(center, radius, id));
-    }
+            ck.error(
+                name.span(),
+                field,
+                format!("unknown material `{wanted}` ({known})"),
+            )
+        })
+    };
+    let mut primitives =
+        shapes::primitives(desc, &ck, &lookup, &materials, camera.shutter, file_seed)?;
 
     if let Some(random) = &desc.random_spheres {
         let random = random.get_ref();
         let generator = cover::RandomSpheres::from_desc(random, settings.seed, &ck)?;
+        // Where the generated spheres go among the listed ones.
+        let listed = desc.spheres.len();
         let at = match &random.after_spheres {
-            None => spheres.len(),
+            None => primitives.spheres.len(),
             Some(n) => match usize::try_from(*n.get_ref()) {
-                Ok(k) if k <= spheres.len() => k,
+                // The first `k` listed spheres, as still spheres among them.
+                Ok(k) if k <= listed => desc.spheres[..k]
+                    .iter()
+                    .filter(|s| s.get_ref().center2.is_none())
+                    .count(),
                 _ => {
                     return Err(ck.error(
                         n.span(),
                         "random_spheres.after_spheres",
                         format!(
-                            "must be between 0 and the {} listed spheres, got {}",
-                            spheres.len(),
+                            "must be between 0 and the {listed} listed spheres, got {}",
                             n.get_ref()
                         ),
                     ));
                 }
             },
         };
-        let generated = generator.generate(&mut materials);
-        spheres.splice(at..at, generated);
+        let generated = generator.generate(&mut materials, camera.shutter);
+        material_textures.resize(materials.len(), None);
+        primitives.spheres.splice(at..at, generated.still);
+        primitives.moving_spheres.extend(generated.moving);
+    }
+    // The clouds' spheres after every other.
+    shapes::sphere_clouds(desc, &ck, &lookup, file_seed, &mut primitives)?;
+
+    let (textures, texture_files) = textures.finish();
+    let contents = SceneContents {
+        materials,
+        material_textures,
+        textures,
+        primitives,
+        texture_files,
+    };
+    Ok(Scene::assemble(settings, camera, background, contents))
+}
+
+/// The scene's textures as they are built: the named ones first (in name order, so each
+/// name's id is known before any refers to it), then the colours that checkers and materials
+/// give in place of a name.
+struct Textures {
+    table: Vec<Texture>,
+    names: BTreeMap<String, TextureId>,
+    files: Vec<TextureFile>,
+}
+
+impl Textures {
+    fn build(
+        desc: &SceneDesc,
+        ck: &Checker,
+        source: &TextureSource,
+        file_seed: u64,
+    ) -> Result<Self> {
+        let names: BTreeMap<String, TextureId> = desc
+            .textures
+            .keys()
+            .enumerate()
+            .map(|(i, name)| (name.clone(), TextureId(i as u32)))
+            .collect();
+        let mut t = Textures {
+            table: Vec::with_capacity(names.len()),
+            names,
+            files: Vec::new(),
+        };
+        // Placeholders, so checkers may name any texture; each is replaced below.
+        t.table
+            .resize(desc.textures.len(), Texture::Solid(Color::ZERO));
+        for (i, (name, d)) in desc.textures.iter().enumerate() {
+            let texture = t.texture(name, d, ck, source, file_seed)?;
+            t.table[i] = texture;
+        }
+        t.check_cycles(desc, ck)?;
+        Ok(t)
     }
 
-    Ok(Scene::new(settings, camera, background, materials, spheres))
+    /// The id of the texture `c` gives: a named one, or a solid colour added for it.
+    fn id_of(&mut self, c: &Spanned<ColorDesc>, field: &str, ck: &Checker) -> Result<TextureId> {
+        match c.get_ref() {
+            ColorDesc::Texture(name) => self.names.get(name).copied().ok_or_else(|| {
+                let known: Vec<&str> = self.names.keys().map(String::as_str).collect();
+                let known = if known.is_empty() {
+                    "no textures are defined".to_owned()
+                } else {
+                    format!("defined textures: {}", known.join(", "))
+                };
+                ck.error(
+                    c.span(),
+                    field,
+                    format!("unknown texture `{name}` ({known})"),
+                )
+            }),
+            ColorDesc::Rgb(rgb) => {
+                let color = ck.color(&Spanned::new(c.span(), desc::Exactly(*rgb)), field)?;
+                self.table.push(Texture::Solid(color));
+                Ok(TextureId(self.table.len() as u32 - 1))
+            }
+        }
+    }
+
+    fn texture(
+        &mut self,
+        name: &str,
+        t: &Spanned<desc::TextureDesc>,
+        ck: &Checker,
+        source: &TextureSource,
+        file_seed: u64,
+    ) -> Result<Texture> {
+        let d = t.get_ref();
+        let prefix = format!("textures.{name}");
+        let field = |f: &str| format!("{prefix}.{f}");
+        let kind = d.kind.get_ref().as_str();
+        let present = [
+            ("color", d.color.as_ref().map(Spanned::span)),
+            ("even", d.even.as_ref().map(Spanned::span)),
+            ("odd", d.odd.as_ref().map(Spanned::span)),
+            ("frequency", d.frequency.as_ref().map(Spanned::span)),
+            ("noise", d.noise.as_ref().map(Spanned::span)),
+            ("scale", d.scale.as_ref().map(Spanned::span)),
+            ("generator", d.generator.as_ref().map(Spanned::span)),
+            ("seed", d.seed.as_ref().map(Spanned::span)),
+            ("skip", d.skip.as_ref().map(Spanned::span)),
+            ("draw_order", d.draw_order.as_ref().map(Spanned::span)),
+            ("file", d.file.as_ref().map(Spanned::span)),
+        ];
+        Ok(match kind {
+            "solid" => {
+                only_fields(ck, &prefix, kind, &["color"], &present)?;
+                let c = required(ck, d.color.as_ref(), t.span(), &field("color"), kind)?;
+                Texture::Solid(ck.color(c, &field("color"))?)
+            }
+            "checker" => {
+                only_fields(ck, &prefix, kind, &["even", "odd", "frequency"], &present)?;
+                let even = required(ck, d.even.as_ref(), t.span(), &field("even"), kind)?;
+                let odd = required(ck, d.odd.as_ref(), t.span(), &field("odd"), kind)?;
+                let frequency = match &d.frequency {
+                    None => 10.0,
+                    Some(f) => ck.in_range(
+                        f,
+                        &field("frequency"),
+                        |f| f > 0.0 && f <= 1e6,
+                        "positive, at most 10⁶",
+                    )?,
+                };
+                Texture::Checker {
+                    even: self.id_of(even, &field("even"), ck)?,
+                    odd: self.id_of(odd, &field("odd"), ck)?,
+                    frequency,
+                }
+            }
+            "noise" => {
+                let allowed = ["noise", "scale", "generator", "seed", "skip", "draw_order"];
+                only_fields(ck, &prefix, kind, &allowed, &present)?;
+                let noise = required(ck, d.noise.as_ref(), t.span(), &field("noise"), kind)?;
+                let scale = match &d.scale {
+                    None => 1.0,
+                    Some(s) => ck.in_range(
+                        s,
+                        &field("scale"),
+                        |s| s > 0.0 && s <= 1e6,
+                        "positive, at most 10⁶",
+                    )?,
+                };
+                let generator = d
+                    .generator
+                    .as_ref()
+                    .map_or(desc::SphereGenerator::Pcg, |g| *g.get_ref());
+                let draws = DrawSettings::check(
+                    ck,
+                    &prefix,
+                    generator,
+                    d.seed.as_ref(),
+                    d.skip.as_ref(),
+                    d.draw_order.as_ref().map(|o| *o.get_ref()),
+                    file_seed,
+                )?;
+                Texture::Noise(Noise::new(*noise.get_ref(), scale, &mut draws.draws()))
+            }
+            "image" => {
+                only_fields(ck, &prefix, kind, &["file"], &present)?;
+                let file = required(ck, d.file.as_ref(), t.span(), &field("file"), kind)?;
+                let loaded = load(file.get_ref(), source)
+                    .map_err(|e| ck.error(file.span(), &field("file"), e))?;
+                let _ = loaded.found;
+                self.files.push(loaded.file);
+                Texture::Image(loaded.image)
+            }
+            other => {
+                return Err(ck.error(
+                    d.kind.span(),
+                    &field("type"),
+                    format!(
+                        "unknown texture type `{other}`; expected `solid`, `checker`, `noise` \
+                         or `image`"
+                    ),
+                ));
+            }
+        })
+    }
+
+    /// Refuses a checker whose squares lead back to itself.
+    fn check_cycles(&self, desc: &SceneDesc, ck: &Checker) -> Result<()> {
+        for (start, (name, t)) in desc.textures.iter().enumerate() {
+            let mut id = TextureId(start as u32);
+            for _ in 0..=self.table.len() {
+                let Texture::Checker { even, odd, .. } = &self.table[id.0 as usize] else {
+                    break;
+                };
+                // Either square may lead on; follow both, one at a time.
+                for next in [*even, *odd] {
+                    if self.reaches(next, TextureId(start as u32)) {
+                        return Err(ck.error(
+                            t.span(),
+                            &format!("textures.{name}"),
+                            "a checker's squares lead back to itself: textures must not form \
+                             a cycle",
+                        ));
+                    }
+                }
+                id = *even;
+            }
+        }
+        Ok(())
+    }
+
+    /// Whether texture `from` is, or leads through checkers to, `to`.
+    fn reaches(&self, from: TextureId, to: TextureId) -> bool {
+        let mut todo = vec![from];
+        let mut seen = vec![false; self.table.len()];
+        while let Some(id) = todo.pop() {
+            if id == to {
+                return true;
+            }
+            if std::mem::replace(&mut seen[id.0 as usize], true) {
+                continue;
+            }
+            if let Texture::Checker { even, odd, .. } = &self.table[id.0 as usize] {
+                todo.extend([*even, *odd]);
+            }
+        }
+        false
+    }
+
+    fn finish(self) -> (Vec<Texture>, Vec<TextureFile>) {
+        (self.table, self.files)
+    }
 }
 
 fn render_settings(desc: &SceneDesc, ck: &Checker, ov: &Overrides) -> Result<RenderSettings> {
@@ -274,6 +509,13 @@ fn camera_settings(c: &desc::CameraDesc, ck: &Checker) -> Result<CameraSettings>
         Some(f) => ck.length(f, "camera.focus_dist", |f| f > 0.0, "positive")?,
         None => view.length(),
     };
+    let shutter = match &c.shutter {
+        None => (0.0, 0.0),
+        Some(s) => {
+            let (open, close) = ck.range(s, "camera.shutter")?;
+            (open as f32, close as f32)
+        }
+    };
     Ok(CameraSettings {
         lookfrom,
         lookat,
@@ -282,6 +524,7 @@ fn camera_settings(c: &desc::CameraDesc, ck: &Checker) -> Result<CameraSettings>
         aspect_ratio: 1.0,
         aperture,
         focus_dist,
+        shutter,
     })
 }
 
@@ -351,25 +594,42 @@ fn background(b: &Spanned<desc::BackgroundDesc>, ck: &Checker) -> Result<Backgro
     }
 }
 
-fn material(name: &str, m: &Spanned<desc::MaterialDesc>, ck: &Checker) -> Result<Material> {
+/// A material and the texture its colour comes from, if it names one.
+fn material(
+    name: &str,
+    m: &Spanned<desc::MaterialDesc>,
+    ck: &Checker,
+    textures: &mut Textures,
+) -> Result<(Material, Option<TextureId>)> {
     let d = m.get_ref();
     let prefix = format!("materials.{name}");
     let field = |f: &str| format!("{prefix}.{f}");
     let kind = d.kind.get_ref().as_str();
     let present = [
         ("albedo", d.albedo.as_ref().map(Spanned::span)),
+        ("emit", d.emit.as_ref().map(Spanned::span)),
         ("fuzz", d.fuzz.as_ref().map(Spanned::span)),
         ("ir", d.ir.as_ref().map(Spanned::span)),
         ("refraction", d.refraction.as_ref().map(Spanned::span)),
     ];
-    let albedo = || {
-        let v = required(ck, d.albedo.as_ref(), m.span(), &field("albedo"), kind)?;
-        ck.color(v, &field("albedo"))
+    // A colour, or a texture: white, with the texture's value multiplied in where hit.
+    let mut colour = |v: Option<&Spanned<ColorDesc>>,
+                      key: &str|
+     -> Result<(Color, Option<TextureId>)> {
+        let v = required(ck, v, m.span(), &field(key), kind)?;
+        match v.get_ref() {
+            ColorDesc::Rgb(rgb) => {
+                let c = ck.color(&Spanned::new(v.span(), desc::Exactly(*rgb)), &field(key))?;
+                Ok((c, None))
+            }
+            ColorDesc::Texture(_) => Ok((Color::ONE, Some(textures.id_of(v, &field(key), ck)?))),
+        }
     };
     Ok(match kind {
         "lambertian" => {
             only_fields(ck, &prefix, kind, &["albedo"], &present)?;
-            Material::Lambertian { albedo: albedo()? }
+            let (albedo, texture) = colour(d.albedo.as_ref(), "albedo")?;
+            (Material::Lambertian { albedo }, texture)
         }
         "metal" => {
             only_fields(ck, &prefix, kind, &["albedo", "fuzz"], &present)?;
@@ -379,28 +639,38 @@ fn material(name: &str, m: &Spanned<desc::MaterialDesc>, ck: &Checker) -> Result
                 }
                 None => 0.0,
             };
-            Material::Metal {
-                albedo: albedo()?,
-                fuzz,
-            }
+            let (albedo, texture) = colour(d.albedo.as_ref(), "albedo")?;
+            (Material::Metal { albedo, fuzz }, texture)
         }
         "dielectric" => {
             only_fields(ck, &prefix, kind, &["ir", "refraction"], &present)?;
             let ir = required(ck, d.ir.as_ref(), m.span(), &field("ir"), kind)?;
-            Material::Dielectric {
+            let material = Material::Dielectric {
                 ir: ck.in_range(ir, &field("ir"), |i| i > 0.0, "positive")?,
                 refraction: d
                     .refraction
                     .as_ref()
                     .map_or_else(Refraction::default, |r| *r.get_ref()),
-            }
+            };
+            (material, None)
+        }
+        "diffuse_light" => {
+            only_fields(ck, &prefix, kind, &["emit"], &present)?;
+            let (emit, texture) = colour(d.emit.as_ref(), "emit")?;
+            (Material::DiffuseLight { emit }, texture)
+        }
+        "isotropic" => {
+            only_fields(ck, &prefix, kind, &["albedo"], &present)?;
+            let (albedo, texture) = colour(d.albedo.as_ref(), "albedo")?;
+            (Material::Isotropic { albedo }, texture)
         }
         other => {
             return Err(ck.error(
                 d.kind.span(),
                 &field("type"),
                 format!(
-                    "unknown material type `{other}`; expected `lambertian`, `metal` or `dielectric`"
+                    "unknown material type `{other}`; expected `lambertian`, `metal`, \
+                     `dielectric`, `diffuse_light` or `isotropic`"
                 ),
             ));
         }

@@ -175,6 +175,29 @@ impl Checker<'_> {
         ))
     }
 
+    /// A range `[low, high]` of finite numbers within `±MAX_LENGTH`, `low ≤ high`.
+    pub(super) fn range(
+        &self,
+        v: &Spanned<super::desc::Exactly<f64, 2>>,
+        field: &str,
+    ) -> Result<(f64, f64)> {
+        let [a, b] = v.get_ref().0;
+        let limit = f64::from(MAX_LENGTH);
+        let ok = |x: f64| x.is_finite() && x.abs() <= limit;
+        if !(ok(a) && ok(b) && a <= b) {
+            return Err(self.error(
+                v.span(),
+                field,
+                format!(
+                    "must be a range [low, high] of finite numbers within ±{MAX_LENGTH:e}, low                      at most high, got [{}, {}]",
+                    plain(a),
+                    plain(b)
+                ),
+            ));
+        }
+        Ok((a, b))
+    }
+
     pub(super) fn color(&self, v: &Vec3Desc, field: &str) -> Result<Color> {
         let c = self.vec3(v, field)?;
         if c.min_element() < 0.0 {

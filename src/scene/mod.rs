@@ -1,27 +1,35 @@
 //! Scenes: loading a TOML scene file, validating it, and the runtime scene the renderer reads.
 
+mod accel;
 mod build;
 mod check;
 mod cover;
 pub mod desc;
+mod draws;
 mod settings;
+mod shapes;
+mod textures;
 
 pub use build::{MAX_PIXELS, Overrides};
 pub use check::{MAX_LENGTH, MIN_RADIUS};
+pub use textures::{MAX_TEXTURE_BYTES, MAX_TEXTURE_PIXELS, TextureSource};
 
 /// The longest scene file tessera reads: the cover's is 3 KiB, 20,000 spheres written out
 /// about 2 MiB.
 pub const MAX_SCENE_BYTES: u64 = 64 << 20;
 pub use settings::{Background, RenderSettings, Shading, SurfaceOffset};
 
-use crate::bvh::{Bvh, Candidates, RayHints, TraversalStack};
+use crate::bvh::{Candidates, Moment, RayHints, TraversalStack};
 use crate::camera::{Camera, CameraSettings};
 use crate::error::{Error, Location, Result};
-use crate::geometry::{Hit, PrimitiveId, Sphere};
+use crate::geometry::{Hit, PrimitiveId, PrimitiveKind, Sphere};
 use crate::material::Material;
-use crate::math::{Interval, Vec3};
+use crate::math::{Color, Interval, Vec3, atan2};
 use crate::ray::Ray;
 use crate::simd::{Isa, Portable};
+use crate::texture::{Texture, TextureId};
+use accel::Accelerator;
+pub use accel::{AcceleratorChoice, Primitives};
 use std::path::Path;
 
 /// A validated, ready-to-render scene.
@@ -32,12 +40,38 @@ pub struct Scene {
     pub camera: Camera,
     pub background: Background,
     pub materials: Vec<Material>,
-    pub spheres: Vec<Sphere>,
-    bvh: Bvh,
+    /// The texture each material's colour comes from (its albedo, or a light's emission),
+    /// or `None` for the material's own constant colour.
+    pub material_textures: Vec<Option<TextureId>>,
+    pub textures: Vec<Texture>,
+    pub primitives: Primitives,
+    /// The image files the textures were read from, for the recipe.
+    pub texture_files: Vec<TextureFile>,
+    /// Some material takes its colour from a texture.
+    textured: bool,
+    accel: Accelerator,
+}
+
+/// An image file a texture was read from: its name as the scene file gives it, and the
+/// XXH3-128 of its bytes.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct TextureFile {
+    pub name: String,
+    pub hash: u128,
+}
+
+/// What a scene is made of besides its settings, camera and background.
+#[derive(Clone, Debug, Default)]
+pub struct SceneContents {
+    pub materials: Vec<Material>,
+    pub material_textures: Vec<Option<TextureId>>,
+    pub textures: Vec<Texture>,
+    pub primitives: Primitives,
+    pub texture_files: Vec<TextureFile>,
 }
 
 impl Scene {
-    /// Assembles a scene from runtime parts (used by the builder and by tests).
+    /// Assembles a scene of still spheres from runtime parts (used by tests).
     pub fn new(
         settings: RenderSettings,
         camera_settings: CameraSettings,
@@ -45,23 +79,77 @@ impl Scene {
         materials: Vec<Material>,
         spheres: Vec<Sphere>,
     ) -> Self {
-        let bvh = Bvh::build(&spheres);
+        let contents = SceneContents {
+            material_textures: vec![None; materials.len()],
+            materials,
+            primitives: Primitives {
+                spheres,
+                ..Primitives::default()
+            },
+            ..SceneContents::default()
+        };
+        Self::assemble(settings, camera_settings, background, contents)
+    }
+
+    /// Assembles a scene from runtime parts, building its accelerator.
+    pub fn assemble(
+        settings: RenderSettings,
+        camera_settings: CameraSettings,
+        background: Background,
+        contents: SceneContents,
+    ) -> Self {
+        let accel = Accelerator::build(&contents.primitives);
+        let textured = contents.material_textures.iter().any(Option::is_some);
         Self {
+            textured,
             settings,
             camera: Camera::new(&camera_settings),
             camera_settings,
             background,
-            materials,
-            spheres,
-            bvh,
+            materials: contents.materials,
+            material_textures: contents.material_textures,
+            textures: contents.textures,
+            primitives: contents.primitives,
+            texture_files: contents.texture_files,
+            accel,
         }
     }
 
-    /// Reads, parses and validates a scene file, applying command-line overrides.
+    /// The still spheres (the only primitives of the first book's scenes).
+    pub fn spheres(&self) -> &[Sphere] {
+        &self.primitives.spheres
+    }
+
+    /// How the scene's accelerator is shaped (see `AcceleratorChoice`).
+    pub fn accelerator(&self) -> AcceleratorChoice {
+        self.accel.choice()
+    }
+
+    /// True when a path needs more than the first book's integrator: something emits, is
+    /// textured, moves, or scatters inside a medium, or the camera's shutter stays open.
+    pub fn needs_full_paths(&self) -> bool {
+        self.accel.choice() != AcceleratorChoice::StillSpheres
+            || self.camera.has_shutter()
+            || self.textured
+            || self.materials.iter().any(|m| {
+                matches!(
+                    m,
+                    Material::DiffuseLight { .. } | Material::Isotropic { .. }
+                )
+            })
+    }
+
+    /// True when the scene holds a medium: each ray segment then draws the random number a
+    /// medium turns into its scattering distance (`Moment::medium_key`).
+    pub fn has_media(&self) -> bool {
+        !self.primitives.media.is_empty()
+    }
+
+    /// Reads, parses and validates a scene file, applying command-line overrides. Image
+    /// textures are read from the scene file's directory.
     pub fn load(path: &Path, overrides: &Overrides) -> Result<Scene> {
         Self::parse(&Self::read_text(path)?, path, overrides)
     }
-
     /// The text of the scene file at `path`, which must be UTF-8 and at most
     /// `MAX_SCENE_BYTES` long. (A pipe is read too: `tessera render <(generate)`.)
     pub fn read_text(path: &Path) -> Result<String> {
@@ -99,8 +187,20 @@ impl Scene {
         Ok(text)
     }
 
-    /// Parses and validates scene text; `path` only names the source in errors.
+    /// Parses and validates scene text; `path` names the source in errors, and image textures
+    /// are read from its directory.
     pub fn parse(text: &str, path: &Path, overrides: &Overrides) -> Result<Scene> {
+        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        Self::parse_with(text, path, overrides, &TextureSource::Dirs(vec![dir]))
+    }
+
+    /// `parse`, reading image textures from `source`.
+    pub fn parse_with(
+        text: &str,
+        path: &Path,
+        overrides: &Overrides,
+        source: &TextureSource,
+    ) -> Result<Scene> {
         let desc: desc::SceneDesc = toml::from_str(text).map_err(|e| {
             let start = e.span().map_or(0, |s| s.start);
             Error::SceneSyntax {
@@ -109,7 +209,7 @@ impl Scene {
                 message: name_the_table(text, start, &plain_types(e.message().trim())),
             }
         })?;
-        build::build(&desc, text, path, overrides)
+        build::build(&desc, text, path, overrides, source)
     }
 
     /// The closest hit along `ray` within `interval`, using `stack` as scratch space.
@@ -130,7 +230,8 @@ impl Scene {
         self.hit_on(Portable, ray, interval, stack, hints)
     }
 
-    /// `hit_with` on the SIMD path of `isa`: the same answer on every path.
+    /// `hit_with` on the SIMD path of `isa`: the same answer on every path. Rays are taken
+    /// at time 0 and media scatter by the key 0 (`hit_at` gives both).
     #[inline(always)]
     pub fn hit_on<I: Isa>(
         &self,
@@ -140,20 +241,58 @@ impl Scene {
         stack: &mut TraversalStack,
         hints: RayHints,
     ) -> Option<Hit> {
-        self.bvh
-            .intersect_on(isa, ray, interval, stack, hints)
-            .map(|(t, id)| self.surface(ray, t, id))
+        if self.accel.choice() == AcceleratorChoice::StillSpheres {
+            self.accel
+                .hit_spheres(isa, ray, interval, stack, hints)
+                .map(|(t, id)| self.sphere_surface(ray, t, id))
+        } else {
+            self.hit_at(isa, ray, Moment::default(), interval, stack, hints)
+        }
+    }
+
+    /// `hit_on` for a scene of still spheres only (`AcceleratorChoice::StillSpheres`: the
+    /// first book's path takes it, so as not to ask at each hit).
+    #[inline(always)]
+    pub fn hit_still_on<I: Isa>(
+        &self,
+        isa: I,
+        ray: &Ray,
+        interval: Interval,
+        stack: &mut TraversalStack,
+        hints: RayHints,
+    ) -> Option<Hit> {
+        self.accel
+            .hit_spheres(isa, ray, interval, stack, hints)
+            .map(|(t, id)| self.sphere_surface(ray, t, id))
+    }
+
+    /// The closest hit along `ray` taken at `moment` (its time, and its segment's random
+    /// number for media), on the SIMD path of `isa`.
+    #[inline(always)]
+    pub fn hit_at<I: Isa>(
+        &self,
+        isa: I,
+        ray: &Ray,
+        moment: Moment,
+        interval: Interval,
+        stack: &mut TraversalStack,
+        hints: RayHints,
+    ) -> Option<Hit> {
+        self.accel
+            .hit_all(isa, ray, moment, interval, stack, hints)
+            .map(|(t, id)| self.surface(ray, moment, t, id))
     }
 
     /// The spheres, giants included, that `keep` accepts, when they are few enough to test
     /// without the hierarchy (see `Bvh::candidates`; `keep_box` must accept every box
-    /// holding a sphere `keep` would).
+    /// holding a sphere `keep` would). Only scenes of still spheres have them.
     pub fn candidates(
         &self,
         keep_box: impl Fn(Vec3, Vec3) -> bool,
         keep: impl Fn(&Sphere) -> bool,
     ) -> Option<Candidates> {
-        self.bvh.candidates(&self.spheres, keep_box, keep)
+        self.accel
+            .candidates(&self.primitives.spheres, keep_box, keep)
     }
 
     /// The closest hit along a camera ray among the `candidates` picked for it: the same as
@@ -166,19 +305,21 @@ impl Scene {
         ray: &Ray,
         interval: Interval,
     ) -> Option<Hit> {
-        self.bvh
-            .intersect_candidates(isa, candidates, ray, interval)
-            .map(|(t, id)| self.surface(ray, t, id))
+        self.accel
+            .hit_candidates(isa, candidates, ray, interval)
+            .map(|(t, id)| self.sphere_surface(ray, t, id))
     }
 
     /// Scratch space for `hit`, sized for this scene.
     pub fn new_stack(&self) -> TraversalStack {
-        self.bvh.new_stack()
+        self.accel.new_stack()
     }
 
-    #[inline]
-    fn surface(&self, ray: &Ray, t: f32, id: PrimitiveId) -> Hit {
-        let sphere = &self.spheres[id.0 as usize];
+    /// The hit record of still sphere `id` at `t` along `ray`.
+    #[inline(always)]
+    fn sphere_surface(&self, ray: &Ray, t: f32, id: PrimitiveId) -> Hit {
+        // A still sphere's id is its index (`PrimitiveId::SPHERES` is 0).
+        let sphere = &self.primitives.spheres[id.0 as usize];
         let p = ray.at(t);
         let outward = sphere.normal_at(p);
         let front_face = ray.dir.dot(outward) < 0.0;
@@ -192,6 +333,136 @@ impl Scene {
             material: sphere.material,
             primitive: id,
         }
+    }
+
+    /// The hit record of primitive `id` at `t` along `ray` taken at `moment`.
+    #[inline(always)]
+    fn surface(&self, ray: &Ray, moment: Moment, t: f32, id: PrimitiveId) -> Hit {
+        let p = ray.at(t);
+        let (outward, radius_sign, material) = match id.kind() {
+            PrimitiveKind::Sphere => return self.sphere_surface(ray, t, id),
+            PrimitiveKind::MovingSphere => {
+                let s = &self.primitives.moving_spheres[id.index()];
+                (s.normal_at(p, moment.time), s.radius > 0.0, s.material)
+            }
+            PrimitiveKind::Quad => {
+                let q = &self.primitives.quads[id.index()];
+                (q.normal, true, q.material)
+            }
+            PrimitiveKind::Medium => {
+                // A scattering point inside a medium: no surface; the book's record.
+                let m = &self.primitives.media[id.index()];
+                return Hit {
+                    t,
+                    p,
+                    normal: crate::geometry::SCATTER_NORMAL,
+                    front_face: true,
+                    normal_points_out: true,
+                    material: m.material,
+                    primitive: id,
+                };
+            }
+        };
+        let front_face = ray.dir.dot(outward) < 0.0;
+        Hit {
+            t,
+            p,
+            normal: if front_face { outward } else { -outward },
+            front_face,
+            normal_points_out: radius_sign == front_face,
+            material,
+            primitive: id,
+        }
+    }
+
+    /// `escape_offset` of a hit on a still sphere (all a scene of still spheres has).
+    #[inline(always)]
+    pub fn still_sphere_offset(&self, hit: &Hit) -> f32 {
+        self.primitives.spheres[hit.primitive.0 as usize].escape_offset(hit.t)
+    }
+
+    /// How far off the surface a ray leaving `hit` must start to clear the rounding of the
+    /// hit (see `Sphere::escape_offset`); 0 inside a medium, where there is no surface.
+    #[inline(always)]
+    pub fn escape_offset(&self, hit: &Hit) -> f32 {
+        let i = hit.primitive.index();
+        match hit.primitive.kind() {
+            PrimitiveKind::Sphere => self.primitives.spheres[i].escape_offset(hit.t),
+            PrimitiveKind::MovingSphere => self.primitives.moving_spheres[i].escape_offset(hit.t),
+            PrimitiveKind::Quad => self.primitives.quads[i].escape_offset(hit.t),
+            PrimitiveKind::Medium => 0.0,
+        }
+    }
+
+    /// True when no ray leaving `hit` to the side `side_is_normal` can meet the primitive
+    /// hit again: off a sphere's outside (convex), and off a quad either way (flat).
+    #[inline(always)]
+    pub fn leaves_for_good(&self, hit: &Hit, side_is_normal: bool) -> bool {
+        self.leaving(hit, side_is_normal).1
+    }
+
+    /// `escape_offset` and `leaves_for_good` at once, with one look at the hit's kind.
+    #[inline(always)]
+    pub fn leaving(&self, hit: &Hit, side_is_normal: bool) -> (f32, bool) {
+        let i = hit.primitive.index();
+        let outside = hit.leaves_outside(side_is_normal);
+        match hit.primitive.kind() {
+            PrimitiveKind::Sphere => (self.primitives.spheres[i].escape_offset(hit.t), outside),
+            PrimitiveKind::MovingSphere => (
+                self.primitives.moving_spheres[i].escape_offset(hit.t),
+                outside,
+            ),
+            PrimitiveKind::Quad => (self.primitives.quads[i].escape_offset(hit.t), true),
+            PrimitiveKind::Medium => (0.0, false),
+        }
+    }
+
+    /// The texture coordinates of `hit` (the book's `get_sphere_uv` on spheres, the edge
+    /// coordinates on quads; 0 in media), at `time` for a moving sphere.
+    pub fn uv(&self, hit: &Hit, time: f32) -> (f32, f32) {
+        let i = hit.primitive.index();
+        let on_ball = |n: Vec3| {
+            // theta from -y up, phi around y from -x: u = phi / 2π, v = theta / π.
+            use std::f64::consts::PI;
+            let (x, y, z) = (f64::from(n.x), f64::from(n.y), f64::from(n.z));
+            let theta = atan2((1.0 - y * y).max(0.0).sqrt(), -y);
+            let phi = atan2(-z, x) + PI;
+            ((phi / (2.0 * PI)) as f32, (theta / PI) as f32)
+        };
+        match hit.primitive.kind() {
+            PrimitiveKind::Sphere => {
+                let s = &self.primitives.spheres[i];
+                on_ball(((hit.p - s.center) / s.radius.abs()).clamp(-Vec3::ONE, Vec3::ONE))
+            }
+            PrimitiveKind::MovingSphere => {
+                let s = &self.primitives.moving_spheres[i];
+                let n = (hit.p - s.center(time)) / s.radius.abs();
+                on_ball(n.clamp(-Vec3::ONE, Vec3::ONE))
+            }
+            PrimitiveKind::Quad => self.primitives.quads[i].uv(hit.p),
+            PrimitiveKind::Medium => (0.0, 0.0),
+        }
+    }
+
+    /// The value at `hit` of the texture that colours its material, if it has one.
+    #[inline(always)]
+    pub fn texture_at(&self, hit: &Hit, time: f32) -> Option<Color> {
+        if !self.textured {
+            return None;
+        }
+        self.texture_value(hit, time)
+    }
+
+    /// `texture_at` for a scene with textures.
+    #[inline(never)]
+    fn texture_value(&self, hit: &Hit, time: f32) -> Option<Color> {
+        let id = self.material_textures[hit.material.0 as usize]?;
+        let (u, v) = match self.textures[id.0 as usize] {
+            // Only image textures read the coordinates.
+            Texture::Image(_) | Texture::Checker { .. } => self.uv(hit, time),
+            _ => (0.0, 0.0),
+        };
+        Some(Texture::value(&self.textures, id, u, v, hit.p))
     }
 
     /// A 64-bit hash of everything that decides a sample's value: image size, depth, seed,
@@ -247,11 +518,92 @@ impl Scene {
                 Material::Dielectric { ir, refraction } => {
                     words.extend([12, f(ir), refraction as u64]);
                 }
+                Material::DiffuseLight { emit } => {
+                    words.push(13);
+                    words.extend(v(emit));
+                }
+                Material::Isotropic { albedo } => {
+                    words.push(14);
+                    words.extend(v(albedo));
+                }
             }
         }
-        for sphere in &self.spheres {
+        for sphere in &self.primitives.spheres {
             words.extend(v(sphere.center));
             words.extend([f(sphere.radius), u64::from(sphere.material.0)]);
+        }
+        // What the first book's scenes lack adds words only where a scene has it, so their
+        // fingerprints (and the parts that carry them) stay as they were.
+        if c.shutter != (0.0, 0.0) {
+            words.extend([20, f(c.shutter.0), f(c.shutter.1)]);
+        }
+        for (i, texture) in self.material_textures.iter().enumerate() {
+            if let Some(t) = texture {
+                words.extend([21, i as u64, u64::from(t.0)]);
+            }
+        }
+        for texture in &self.textures {
+            match texture {
+                Texture::Solid(c) => {
+                    words.push(22);
+                    words.extend(v(*c));
+                }
+                Texture::Checker {
+                    even,
+                    odd,
+                    frequency,
+                } => words.extend([23, u64::from(even.0), u64::from(odd.0), f(*frequency)]),
+                Texture::Noise(n) => {
+                    words.extend([24, n.kind as u64, f(n.scale), n.tables_digest()]);
+                }
+                Texture::Image(image) => {
+                    let hash = xxhash_rust::xxh3::xxh3_64(image.pixels());
+                    words.extend([25, u64::from(image.width), u64::from(image.height), hash]);
+                }
+            }
+        }
+        for s in &self.primitives.moving_spheres {
+            words.push(30);
+            words.extend(v(s.center0));
+            words.extend(v(s.center1));
+            words.extend([
+                f(s.time0),
+                f(s.inv_duration),
+                f(s.radius),
+                u64::from(s.material.0),
+            ]);
+        }
+        let quad_words = |words: &mut Vec<u64>, q: &crate::geometry::Quad| {
+            words.extend(v(q.corner));
+            words.extend(v(q.u));
+            words.extend(v(q.v));
+            words.push(u64::from(q.material.0));
+        };
+        for q in &self.primitives.quads {
+            words.push(31);
+            quad_words(&mut words, q);
+        }
+        for m in &self.primitives.media {
+            words.extend([32, f(m.density), u64::from(m.material.0)]);
+            match &m.boundary {
+                crate::geometry::Boundary::Sphere(s) => {
+                    words.push(33);
+                    words.extend(v(s.center));
+                    words.push(f(s.radius));
+                }
+                crate::geometry::Boundary::MovingSphere(s) => {
+                    words.push(34);
+                    words.extend(v(s.center0));
+                    words.extend(v(s.center1));
+                    words.extend([f(s.time0), f(s.inv_duration), f(s.radius)]);
+                }
+                crate::geometry::Boundary::Quads(quads) => {
+                    words.push(35);
+                    for q in quads {
+                        quad_words(&mut words, q);
+                    }
+                }
+            }
         }
         crate::sampling::hash_words(0x7e55_e4a0, &words)
     }
@@ -262,14 +614,20 @@ impl Scene {
 }
 
 /// The tables a scene file holds at its top level (`desc::SceneDesc`'s fields).
-const TOP_LEVEL: [&str; 7] = [
+const TOP_LEVEL: [&str; 13] = [
     "image",
     "render",
     "camera",
     "background",
+    "textures",
     "materials",
     "spheres",
+    "quads",
+    "rects",
+    "boxes",
+    "media",
     "random_spheres",
+    "random_boxes",
 ];
 
 /// A missing key's message with the table it is missing from: for a whole table, the
@@ -416,7 +774,7 @@ mod tests {
             let Some(hit) = scene.hit(&ray, Interval::new(1e-3, f32::INFINITY), &mut stack) else {
                 continue;
             };
-            let sphere = &scene.spheres[hit.primitive.0 as usize];
+            let sphere = &scene.spheres()[hit.primitive.index()];
             for side_is_normal in [true, false] {
                 let side = if side_is_normal {
                     hit.normal

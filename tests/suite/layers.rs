@@ -15,6 +15,7 @@ const LAYERS: &[&str] = &[
     "input_file",
     "ray",
     "sampling",
+    "texture",
     "geometry",
     "material",
     "camera",

@@ -26,7 +26,7 @@ impl Reference<'_> {
     fn hit(&self, o: DVec3, dir: DVec3) -> Option<(f64, DVec3, DVec3, bool, usize)> {
         let mut closest = f64::INFINITY;
         let mut found = None;
-        for (i, s) in self.scene.spheres.iter().enumerate() {
+        for (i, s) in self.scene.spheres().iter().enumerate() {
             let (c, r) = (d(s.center), f64::from(s.radius));
             let oc = o - c;
             let a = dir.length_squared();
@@ -68,7 +68,7 @@ impl Reference<'_> {
                 Background::Uniform(c) => d(c),
             };
         };
-        let material = self.scene.materials[self.scene.spheres[i].material.0 as usize];
+        let material = self.scene.materials[self.scene.spheres()[i].material.0 as usize];
         let in_sphere = |rng: &mut Sampler| loop {
             let v = DVec3::new(rng.uniform_f64(), rng.uniform_f64(), rng.uniform_f64()) * 2.0
                 - DVec3::ONE;
@@ -111,6 +111,9 @@ impl Reference<'_> {
                     perp + parallel
                 };
                 (DVec3::ONE, s)
+            }
+            Material::DiffuseLight { .. } | Material::Isotropic { .. } => {
+                unreachable!("the first book's scenes have neither lights nor media")
             }
         };
         attenuation * self.ray_color(p, scattered, depth - 1, rng)

@@ -49,11 +49,11 @@ fn cover_has_the_books_settings_and_random_spheres() {
     assert_eq!(c.lookat, tessera::math::Vec3::ZERO);
     assert_eq!((c.vfov_deg, c.aperture, c.focus_dist), (20.0, 0.1, 10.0));
     // Ground + 3 big spheres + the grid: 22×22 cells minus the few near (4, 0.2, 0).
-    let small = scene.spheres.len() - 4;
+    let small = scene.spheres().len() - 4;
     assert!((470..=484).contains(&small), "{small} small spheres");
     let count = |f: fn(&tessera::material::Material) -> bool| {
         scene
-            .spheres
+            .spheres()
             .iter()
             .filter(|s| s.radius == 0.2 && f(&scene.materials[s.material.0 as usize]))
             .count() as f64
@@ -72,7 +72,7 @@ fn cover_has_the_books_settings_and_random_spheres() {
 fn cover_generator_is_seeded() {
     let a = load(&scene_path("cover.toml"), Overrides::default());
     let b = load(&scene_path("cover.toml"), Overrides::default());
-    assert_eq!(a.spheres, b.spheres);
+    assert_eq!(a.spheres(), b.spheres());
     let c = load(
         &scene_path("cover.toml"),
         Overrides {
@@ -80,7 +80,7 @@ fn cover_generator_is_seeded() {
             ..Overrides::default()
         },
     );
-    assert_ne!(a.spheres, c.spheres, "the grid follows the seed");
+    assert_ne!(a.spheres(), c.spheres(), "the grid follows the seed");
 }
 
 /// `scenes/cover-book.toml` places the book's own spheres: those the book's `random_scene()`
@@ -92,8 +92,8 @@ fn the_book_cover_scene_has_the_books_spheres_in_the_books_order() {
     use tessera::material::Material;
     use tessera::math::Color;
     let scene = load(&scene_path("cover-book.toml"), Overrides::default());
-    assert_eq!(scene.spheres.len(), 487);
-    let s = &scene.spheres;
+    assert_eq!(scene.spheres().len(), 487);
+    let s = &scene.spheres();
     let at = |i: usize| (s[i].center.x, s[i].center.y, s[i].center.z, s[i].radius);
     // The ground first, the three big spheres last.
     assert_eq!(at(0), (0.0, -1000.0, 0.0, 1000.0));
@@ -149,5 +149,5 @@ fn the_book_cover_scene_has_the_books_spheres_in_the_books_order() {
     );
     // The PCG cover is another layout of the same kind.
     let pcg = load(&scene_path("cover.toml"), Overrides::default());
-    assert_eq!(pcg.spheres.len(), 485);
+    assert_eq!(pcg.spheres().len(), 485);
 }

@@ -5,13 +5,29 @@
 use anyhow::{Context, Result, bail};
 use serde::Deserialize;
 use std::path::Path;
-use tessera::scene::{Overrides, Scene};
+use tessera::scene::{Overrides, Scene, TextureSource};
 
 /// The standard workloads and their expected image hashes, as kept in the repository.
 const WORKLOADS: &str = include_str!("../../../benches/workloads.toml");
 
 /// The scenes a standard workload may name, compiled in so `bench` runs from anywhere.
-const SCENES: &[(&str, &str)] = &[("cover.toml", include_str!("../../../scenes/cover.toml"))];
+const SCENES: &[(&str, &str)] = &[
+    ("cover.toml", include_str!("../../../scenes/cover.toml")),
+    (
+        "img-2.20-cornell-standard.toml",
+        include_str!("../../../scenes/img-2.20-cornell-standard.toml"),
+    ),
+    (
+        "img-2.22-book2-final.toml",
+        include_str!("../../../scenes/img-2.22-book2-final.toml"),
+    ),
+];
+
+/// The image textures those scenes read, compiled in with them.
+const TEXTURES: &[(&str, &[u8])] = &[(
+    "earthmap.jpg",
+    include_bytes!("../../../scenes/earthmap.jpg"),
+)];
 
 /// One standard workload as `benches/workloads.toml` lists it.
 #[derive(Clone, Debug, Deserialize)]
@@ -107,7 +123,7 @@ impl Workload {
             ..Overrides::default()
         };
         let path = Path::new("scenes").join(&w.scene);
-        let scene = Scene::parse(text, &path, &overrides)?;
+        let scene = Scene::parse_with(text, &path, &overrides, &TextureSource::Embedded(TEXTURES))?;
         Ok(Self {
             name: w.name.clone(),
             scene_name: w.scene.clone(),
@@ -176,7 +192,7 @@ mod tests {
     fn the_workloads_file_compiled_in_is_whole() {
         let all = standard();
         let names: Vec<_> = all.iter().map(|w| w.name.as_str()).collect();
-        assert_eq!(names, ["quick", "cover"]);
+        assert_eq!(names, ["quick", "cover", "cornell", "next-week"]);
         for w in &all {
             let loaded = Workload::from_standard(w).unwrap();
             assert!(loaded.id.starts_with("xxh3-128:") && loaded.id.len() == 41);

@@ -122,7 +122,7 @@ fn check(bytes: &[u8]) -> Result<Outcome, String> {
     let Ok(recipe) = Recipe::parse(&text, Path::new("fuzz.png")) else {
         return Ok(Outcome::Refused);
     };
-    match recipe.scene(Path::new("fuzz.png")) {
+    match recipe.scene(Path::new("fuzz.png"), &[]) {
         Ok(_) => Ok(Outcome::Accepted),
         Err(e) if e.to_string().starts_with("fuzz.png") => Ok(Outcome::Refused),
         Err(e) => Err(format!("a refusal that does not name the image: {e}")),

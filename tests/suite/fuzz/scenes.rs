@@ -172,11 +172,12 @@ glass_ir = 1.5
 seed = 7
 "#;
 
-/// The scene files to mutate: every file in `scenes/` and `EVERYTHING`.
+/// The scene files to mutate: every scene file in `scenes/` and `EVERYTHING`.
 fn scene_corpus() -> Vec<String> {
     let mut files: Vec<PathBuf> = std::fs::read_dir(root().join("scenes"))
         .unwrap()
         .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
         .collect();
     files.sort();
     let mut corpus: Vec<String> = files

@@ -1,0 +1,166 @@
+//! Reading the image files of image textures: where they are looked for, and the limits that
+//! keep a stranger's file (a scene, a recipe's scene) from costing more than a texture may.
+//! A texture file is found by a relative name, without `..`, in the scene file's directory
+//! (or the directories `TextureSource` lists), checked to be a regular file of at most
+//! `MAX_TEXTURE_BYTES`, and its claimed size checked against `MAX_TEXTURE_PIXELS` before it
+//! is decoded.
+
+use super::TextureFile;
+use crate::input_file::open_regular;
+use crate::texture::ImageTexture;
+use std::io::Read;
+use std::path::{Component, Path, PathBuf};
+
+/// The largest texture file tessera reads (the book's earth map is 158 KiB).
+pub const MAX_TEXTURE_BYTES: u64 = 64 << 20;
+/// The most pixels a texture may have: 2²⁵, 96 MiB of RGB.
+pub const MAX_TEXTURE_PIXELS: u64 = 1 << 25;
+
+/// Where image textures come from.
+#[derive(Clone, Debug)]
+pub enum TextureSource {
+    /// Files looked for in these directories, in order.
+    Dirs(Vec<PathBuf>),
+    /// Files compiled in, by name (the standard workloads' textures).
+    Embedded(&'static [(&'static str, &'static [u8])]),
+}
+
+/// A texture file read and decoded.
+pub(super) struct LoadedImage {
+    pub(super) image: ImageTexture,
+    pub(super) file: TextureFile,
+    /// Where it was found, for messages.
+    pub(super) found: String,
+}
+
+/// Reads and decodes the texture file `name`; the error says what was wrong, with the file.
+pub(super) fn load(name: &str, source: &TextureSource) -> Result<LoadedImage, String> {
+    let relative = Path::new(name);
+    let plain = !name.is_empty()
+        && relative
+            .components()
+            .all(|c| matches!(c, Component::Normal(_) | Component::CurDir));
+    if !plain {
+        return Err(format!(
+            "`{name}` must be a relative file name without `..` (textures are found next to \
+             the scene file)"
+        ));
+    }
+    let (bytes, found) = match source {
+        TextureSource::Embedded(files) => match files.iter().find(|(n, _)| *n == name) {
+            Some((_, bytes)) => (bytes.to_vec(), format!("{name} (compiled in)")),
+            None => return Err(format!("no texture `{name}` is compiled in")),
+        },
+        TextureSource::Dirs(dirs) => {
+            let Some(path) = dirs.iter().map(|d| d.join(relative)).find(|p| p.exists()) else {
+                let looked: Vec<String> = dirs
+                    .iter()
+                    .map(|d| {
+                        let shown = d.display().to_string();
+                        if shown.is_empty() { ".".into() } else { shown }
+                    })
+                    .collect();
+                return Err(format!(
+                    "texture file `{name}` not found (looked in {})",
+                    looked.join(", ")
+                ));
+            };
+            (read_limited(&path)?, path.display().to_string())
+        }
+    };
+    let hash = xxhash_rust::xxh3::xxh3_128(&bytes);
+    let image = decode(&bytes).map_err(|e| format!("{found}: {e}"))?;
+    Ok(LoadedImage {
+        image,
+        file: TextureFile {
+            name: name.to_owned(),
+            hash,
+        },
+        found,
+    })
+}
+
+/// The bytes of the regular file `path`, at most `MAX_TEXTURE_BYTES`.
+fn read_limited(path: &Path) -> Result<Vec<u8>, String> {
+    let shown = path.display();
+    let file = open_regular(path).map_err(|e| format!("{shown}: {e}"))?;
+    let mut bytes = Vec::new();
+    file.take(MAX_TEXTURE_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| format!("{shown}: {e}"))?;
+    if bytes.len() as u64 > MAX_TEXTURE_BYTES {
+        return Err(format!(
+            "{shown}: is larger than the {} MiB a texture file may be",
+            MAX_TEXTURE_BYTES >> 20
+        ));
+    }
+    Ok(bytes)
+}
+
+/// Decodes a PNG, JPEG or other image the `image` crate reads into 8-bit RGB, its size
+/// checked before its pixels are.
+pub fn decode(bytes: &[u8]) -> Result<ImageTexture, String> {
+    let reader = image::ImageReader::new(std::io::Cursor::new(bytes))
+        .with_guessed_format()
+        .map_err(|e| e.to_string())?;
+    if reader.format().is_none() {
+        return Err("is not an image tessera reads (PNG, JPEG, PPM or EXR)".into());
+    }
+    let (width, height) = reader
+        .into_dimensions()
+        .map_err(|e| format!("cannot read the image's size: {e}"))?;
+    let pixels = u64::from(width) * u64::from(height);
+    if pixels == 0 || pixels > MAX_TEXTURE_PIXELS {
+        return Err(format!(
+            "is {width}x{height}: a texture must have between 1 and {MAX_TEXTURE_PIXELS} pixels"
+        ));
+    }
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
+        .with_guessed_format()
+        .map_err(|e| e.to_string())?;
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(width);
+    limits.max_image_height = Some(height);
+    // The decoded image and the decoder's own buffers: a few times the RGBA pixels.
+    limits.max_alloc = Some(16 * pixels + (16 << 20));
+    reader.limits(limits);
+    let decoded = reader
+        .decode()
+        .map_err(|e| format!("cannot decode the image: {e}"))?;
+    let rgb = decoded.into_rgb8();
+    ImageTexture::new(rgb.width(), rgb.height(), rgb.into_raw())
+        .ok_or_else(|| "the decoded image has no pixels".to_owned())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_that_leave_the_scene_directory_are_refused() {
+        let source = TextureSource::Dirs(vec![PathBuf::from(".")]);
+        for name in ["/etc/passwd", "../x.jpg", "a/../../b.png", ""] {
+            let e = load(name, &source).err().unwrap();
+            assert!(e.contains("relative file name"), "{name}: {e}");
+        }
+        let missing = load("no-such.jpg", &source).err().unwrap();
+        assert!(missing.contains("not found (looked in ."), "{missing}");
+    }
+
+    #[test]
+    fn what_is_not_an_image_or_too_large_is_refused_before_decoding() {
+        assert!(decode(b"hello").unwrap_err().contains("not an image"));
+        // A PNG header claiming 100000 x 100000 pixels, and nothing else.
+        let mut png = b"\x89PNG\r\n\x1a\n\0\0\0\x0dIHDR".to_vec();
+        png.extend(100_000u32.to_be_bytes());
+        png.extend(100_000u32.to_be_bytes());
+        png.extend([8, 2, 0, 0, 0]);
+        let crc = crc32fast::hash(&png[12..29]);
+        png.extend(crc.to_be_bytes());
+        // An empty IDAT, where the header ends.
+        png.extend(b"\0\0\0\0IDAT");
+        png.extend(crc32fast::hash(b"IDAT").to_be_bytes());
+        let e = decode(&png).unwrap_err();
+        assert!(e.contains("100000x100000"), "{e}");
+    }
+}
