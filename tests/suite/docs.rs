@@ -229,6 +229,9 @@ fn run_page(page: &str, heavy: bool, after: &mut dyn FnMut(&Path, &str)) -> Vec<
             "toml" => {
                 let name = "example.toml";
                 std::fs::write(dir.join(name), &block.text).unwrap();
+                // The texture the examples name, as it lies next to the scenes.
+                std::fs::copy(root().join("scenes/earthmap.jpg"), dir.join("earthmap.jpg"))
+                    .unwrap();
                 let o = run_command(&dir, "tessera render example.toml -q");
                 assert!(o.status.success(), "{at}: the scene fails: {}", stderr(&o));
                 assert!(dir.join("example.png").exists(), "{at}");

@@ -24,6 +24,7 @@ mod figures;
 mod fuzz;
 mod hostile;
 mod layers;
+mod next_week;
 #[cfg(feature = "preview")]
 mod preview;
 mod provenance;

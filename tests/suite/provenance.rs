@@ -459,3 +459,70 @@ fn itxt_png(data: &[u8]) -> Vec<u8> {
     chunk(b"IEND", &[]);
     out
 }
+
+/// An image of a textured scene records each texture file's name and hash; `reproduce` finds
+/// the file next to the image or in `scenes/`, or where `--textures` says, and refuses, by
+/// name, one that is missing or not the file the image was made with.
+#[test]
+fn a_textured_scenes_recipe_names_its_texture_and_reproduce_checks_it() {
+    let dir = temp_dir("recipe-texture");
+    let scene = dir.join("earth.toml");
+    std::fs::copy(scene_path("img-2.15-earth-sphere.toml"), &scene).unwrap();
+    std::fs::copy(scene_path("earthmap.jpg"), dir.join("earthmap.jpg")).unwrap();
+    let args = [
+        "render",
+        "earth.toml",
+        "--width",
+        "60",
+        "--spp",
+        "4",
+        "-q",
+        "-o",
+        "earth.png",
+    ];
+    ok(&args, &dir);
+    let text = png_recipe_text(&dir.join("earth.png")).expect("a recipe");
+    let recipe = Recipe::parse(&text, Path::new("earth.png")).unwrap();
+    let hash = format!(
+        "xxh3-128:{:032x}",
+        xxhash_rust::xxh3::xxh3_128(&std::fs::read(dir.join("earthmap.jpg")).unwrap())
+    );
+    assert_eq!(recipe.textures.len(), 1);
+    assert_eq!(
+        (recipe.textures[0].name.as_str(), &recipe.textures[0].hash),
+        ("earthmap.jpg", &hash)
+    );
+    let info = run(&["info", "earth.png"], &dir);
+    assert!(
+        out_text(&info).contains("texture    earthmap.jpg (xxh3-128:"),
+        "{}",
+        out_text(&info)
+    );
+    // Next to the image.
+    assert_identical(&dir.join("earth.png"), &dir);
+    // Moved away from its texture: found in a directory given, else refused by name.
+    std::fs::create_dir_all(dir.join("elsewhere")).unwrap();
+    std::fs::rename(dir.join("earth.png"), dir.join("elsewhere/earth.png")).unwrap();
+    let missing = run(&["reproduce", "elsewhere/earth.png", "-q"], &dir);
+    assert_eq!(missing.status.code(), Some(2), "{}", out_text(&missing));
+    assert!(
+        stderr(&missing).contains("texture file `earthmap.jpg` is not found")
+            && stderr(&missing).contains("--textures"),
+        "{}",
+        stderr(&missing)
+    );
+    let o = run(
+        &["reproduce", "elsewhere/earth.png", "-q", "--textures", "."],
+        &dir,
+    );
+    assert_eq!(o.status.code(), Some(0), "{}{}", out_text(&o), stderr(&o));
+    // A different file of the same name next to the image.
+    std::fs::write(dir.join("elsewhere/earthmap.jpg"), b"not the earth").unwrap();
+    let other = run(&["reproduce", "elsewhere/earth.png", "-q"], &dir);
+    assert_eq!(other.status.code(), Some(2));
+    assert!(
+        stderr(&other).contains("is not the file the image was made with"),
+        "{}",
+        stderr(&other)
+    );
+}
