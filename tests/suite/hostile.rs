@@ -616,3 +616,71 @@ fn the_report_shows_bidirectional_and_invisible_characters_escaped() {
         "the CPU is not named"
     );
 }
+
+// --- Image textures ---------------------------------------------------------------------------
+
+/// A scene with one image texture, `file`, on a sphere.
+fn textured_scene(file: &str) -> String {
+    format!(
+        "[image]\nwidth = 16\nheight = 8\nsamples_per_pixel = 1\nmax_depth = 4\n\
+         [textures.t]\ntype = \"image\"\nfile = \"{file}\"\n\
+         [materials.m]\ntype = \"lambertian\"\nalbedo = \"t\"\n\
+         [[spheres]]\ncenter = [0.0, 0.0, -1.0]\nradius = 0.5\nmaterial = \"m\"\n"
+    )
+}
+
+#[test]
+fn texture_files_a_stranger_names_are_refused_with_the_reason_within_bounds() {
+    let dir = temp_dir("hostile-textures");
+    let earth = std::fs::read(root().join("scenes/earthmap.jpg")).unwrap();
+    // Cut where its scan begins: headers and no pixels. (A JPEG cut inside its scan decodes,
+    // the rest grey, as image viewers show it; a recipe's texture hash tells it apart.)
+    let scan = (0..earth.len() - 1)
+        .find(|&i| earth[i] == 0xFF && earth[i + 1] == 0xDA)
+        .expect("a scan");
+    std::fs::write(dir.join("truncated.jpg"), &earth[..scan]).unwrap();
+    // A JPEG whose frame header claims 65535 x 65535 pixels (4 G pixels): refused from the
+    // header, before anything of that size is allocated.
+    let mut huge = earth.clone();
+    let sof = (0..huge.len() - 1)
+        .find(|&i| huge[i] == 0xFF && (huge[i + 1] == 0xC0 || huge[i + 1] == 0xC2))
+        .expect("a frame header");
+    huge[sof + 5..sof + 9].copy_from_slice(&[0xFF, 0xFF, 0xFF, 0xFF]);
+    std::fs::write(dir.join("huge.jpg"), &huge).unwrap();
+    std::fs::write(dir.join("text.jpg"), b"not an image at all").unwrap();
+    std::fs::create_dir_all(dir.join("folder.jpg")).unwrap();
+    std::os::unix::fs::symlink("/dev/zero", dir.join("zero.jpg")).unwrap();
+    let fifo = Command::new("mkfifo")
+        .arg(dir.join("fifo.jpg"))
+        .status()
+        .is_ok_and(|s| s.success());
+    let mut cases = vec![
+        ("truncated.jpg", "truncated.jpg: cannot read the image"),
+        ("huge.jpg", "65535x65535: a texture must have between 1 and"),
+        ("text.jpg", "is not an image tessera reads"),
+        ("folder.jpg", "folder.jpg"),
+        ("zero.jpg", "is a device"),
+        (
+            "../earthmap.jpg",
+            "must be a relative file name without `..`",
+        ),
+        ("/etc/passwd", "must be a relative file name without `..`"),
+        ("missing.jpg", "texture file `missing.jpg` not found"),
+    ];
+    if fifo {
+        cases.push(("fifo.jpg", "is a pipe (FIFO)"));
+    }
+    for (file, why) in cases {
+        let scene = format!("{}.toml", file.replace(['/', '.'], "_"));
+        std::fs::write(dir.join(&scene), textured_scene(file)).unwrap();
+        // In 1 GiB of address space: what the huge header claims would need 12 GiB.
+        let o = run_capped(&["render", &scene, "-o", "out.png"], &dir, 1024);
+        refused(&o, why, file);
+        assert!(
+            stderr(&o).contains(&scene),
+            "{file}: the message names the scene: {}",
+            stderr(&o)
+        );
+        assert!(!dir.join("out.png").exists(), "{file}: no output");
+    }
+}
