@@ -23,11 +23,21 @@ fn json(path: &Path) -> Value {
 }
 
 /// Keeps `benches/workloads.toml` true: regenerating it renders every standard workload
-/// (the full cover included) and must give the very file in the repository.
+/// (the full cover included) and must give the very file in the repository. With the heavy
+/// tests on, two of them render the full cover and check its hash (docs.rs, the README's
+/// set-up render; container.rs, the indexed job's merged image), so this one renders the
+/// others only (`--workload` repeated), which also checks that a workload not named keeps
+/// its hash.
 #[test]
 fn the_standard_workloads_produce_the_images_the_repository_expects() {
     let dir = temp_dir("bench-workloads");
-    ok(&["bench", "--write-workloads", "workloads.toml"], &dir);
+    let mut args = vec!["bench", "--write-workloads", "workloads.toml"];
+    if heavy_on() {
+        for name in ["quick", "cornell", "next-week"] {
+            args.extend(["--workload", name]);
+        }
+    }
+    ok(&args, &dir);
     let regenerated = std::fs::read_to_string(dir.join("workloads.toml")).unwrap();
     let kept = std::fs::read_to_string(root().join("benches/workloads.toml")).unwrap();
     assert!(
@@ -228,6 +238,14 @@ fn bad_results_and_workloads_are_refused_with_status_2() {
             "different workloads",
         ),
         (&["--workload", "nope"], "unknown workload `nope`"),
+        (
+            &["--workload", "quick", "--workload", "cover"],
+            "one workload at a time",
+        ),
+        (
+            &["--write-workloads", "w.toml", "--workload", "nope"],
+            "unknown workload `nope`",
+        ),
     ];
     for (args, message) in cases {
         let o = run(&[&["bench"][..], args].concat(), &dir);
@@ -235,4 +253,35 @@ fn bad_results_and_workloads_are_refused_with_status_2() {
         assert!(stderr(&o).contains(message), "{args:?}: {}", stderr(&o));
     }
     assert!(!dir.join("c.svg").exists());
+    assert!(!dir.join("w.toml").exists());
+}
+
+/// `--write-workloads` with `--workload` renders only the workloads named: the quick one
+/// here, the file then the repository's, the others' hashes kept as built in.
+#[test]
+fn writing_the_workloads_of_one_name_keeps_the_other_hashes() {
+    let dir = temp_dir("bench-write-one");
+    let o = run(
+        &[
+            "bench",
+            "--write-workloads",
+            "w.toml",
+            "--workload",
+            "quick",
+        ],
+        &dir,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let said = stderr(&o);
+    assert!(said.contains("quick: xxh3-128:") && said.contains("(rendered, unchanged)"));
+    for other in ["cover", "cornell", "next-week"] {
+        assert!(
+            said.contains(&format!("{other}: xxh3-128:")) && said.contains("(kept, not rendered)"),
+            "{said}"
+        );
+    }
+    assert_eq!(said.matches("(rendered").count(), 1, "{said}");
+    let written = std::fs::read_to_string(dir.join("w.toml")).unwrap();
+    let kept = std::fs::read_to_string(root().join("benches/workloads.toml")).unwrap();
+    assert_eq!(written, kept);
 }

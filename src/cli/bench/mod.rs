@@ -30,8 +30,9 @@ pub struct Args {
     scene: Option<PathBuf>,
     /// Standard workload: `quick` (default, seconds) or `cover` (the full book cover);
     /// `--list` describes them. Its image is checked against the hash it must produce.
-    #[arg(long, conflicts_with = "scene")]
-    workload: Option<String>,
+    /// With `--write-workloads`, it may repeat: only those are rendered.
+    #[arg(long, conflicts_with = "scene", value_name = "NAME")]
+    workload: Vec<String>,
     /// Image width of a custom workload.
     #[arg(long, requires = "scene", value_name = "PX", allow_negative_numbers = true, value_parser = flags::positive_u32)]
     width: Option<u32>,
@@ -73,7 +74,8 @@ pub struct Args {
     #[arg(long)]
     list: bool,
     /// Render each standard workload once and write the workloads file with their image
-    /// hashes (after a deliberate change of the image): `--write-workloads benches/workloads.toml`.
+    /// hashes (after a deliberate change of the image): `--write-workloads benches/workloads.toml`;
+    /// with `--workload NAME …`, only those, the others keeping the hashes built in.
     #[arg(long, value_name = "FILE")]
     write_workloads: Option<PathBuf>,
 }
@@ -93,6 +95,8 @@ enum BenchMode {
     WriteWorkloads {
         path: PathBuf,
         options: RenderOptions,
+        /// The workloads to render (none: all); the others keep their hashes.
+        only: Vec<String>,
     },
 }
 
@@ -147,11 +151,28 @@ pub fn run(args: Args) -> Result<ExitCode> {
             out(&text)?;
             Ok(ExitCode::SUCCESS)
         }
-        BenchMode::WriteWorkloads { path, options } => {
+        BenchMode::WriteWorkloads {
+            path,
+            options,
+            only,
+        } => {
             let text = workload::with_new_hashes(&mut |w| {
+                if !only.is_empty() && !only.contains(&w.name) {
+                    note(format_args!("{}: {} (kept, not rendered)", w.name, w.image));
+                    return Ok(w.image.clone());
+                }
                 let workload = Workload::from_standard(w)?;
                 let (film, _) = render::render(&workload.scene, &options, &|_| {})?;
-                Ok(hash_text(film.content_hash()))
+                let hash = hash_text(film.content_hash());
+                if hash == w.image {
+                    note(format_args!("{}: {hash} (rendered, unchanged)", w.name));
+                } else {
+                    note(format_args!(
+                        "{}: {hash} (rendered, changed from {})",
+                        w.name, w.image
+                    ));
+                }
+                Ok(hash)
             })?;
             write_atomically(&path, text.as_bytes())?;
             Ok(ExitCode::SUCCESS)
@@ -187,7 +208,19 @@ impl BenchMode {
                 tile: render::DEFAULT_TILE,
                 simd,
             };
-            return Ok(Self::WriteWorkloads { path, options });
+            for name in &args.workload {
+                workload::standard_named(name)?;
+            }
+            return Ok(Self::WriteWorkloads {
+                path,
+                options,
+                only: args.workload,
+            });
+        }
+        if args.workload.len() > 1 {
+            bail!(
+                "--workload: bench measures one workload at a time (several only with --write-workloads)"
+            );
         }
         let workload = match &args.scene {
             Some(scene) => {
@@ -200,7 +233,12 @@ impl BenchMode {
             }
             None => {
                 let default = workload::standard().first().map(|w| w.name.clone());
-                let name = args.workload.or(default).unwrap_or_default();
+                let name = args
+                    .workload
+                    .into_iter()
+                    .next()
+                    .or(default)
+                    .unwrap_or_default();
                 Workload::named(&name)?
             }
         };

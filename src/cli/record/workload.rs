@@ -54,6 +54,19 @@ pub fn standard() -> Vec<Standard> {
     toml::from_str::<File>(WORKLOADS).map_or_else(|_| Vec::new(), |f| f.workload)
 }
 
+/// The standard workload `name`, or an error listing them all.
+pub fn standard_named(name: &str) -> Result<Standard> {
+    let all = standard();
+    let Some(w) = all.iter().find(|w| w.name == name) else {
+        let names: Vec<_> = all.iter().map(|w| w.name.as_str()).collect();
+        bail!(
+            "unknown workload `{name}` (the workloads are: {})",
+            names.join(", ")
+        );
+    };
+    Ok(w.clone())
+}
+
 /// The text of the compiled-in scene file `name`.
 fn compiled_scene(name: &str) -> Option<&'static str> {
     SCENES
@@ -98,15 +111,7 @@ fn workload_id(text: &str, scene: &Scene) -> String {
 impl Workload {
     /// The standard workload `name`.
     pub fn named(name: &str) -> Result<Self> {
-        let all = standard();
-        let Some(w) = all.iter().find(|w| w.name == name) else {
-            let names: Vec<_> = all.iter().map(|w| w.name.as_str()).collect();
-            bail!(
-                "unknown workload `{name}` (the workloads are: {})",
-                names.join(", ")
-            );
-        };
-        Self::from_standard(w)
+        Self::from_standard(&standard_named(name)?)
     }
 
     pub fn from_standard(w: &Standard) -> Result<Self> {
