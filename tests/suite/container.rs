@@ -415,6 +415,11 @@ fn the_image_is_small_labelled_and_runs_without_privileges() {
         ))
     };
     assert_eq!(label("version"), env!("CARGO_PKG_VERSION"));
+    let about = label("description");
+    assert!(
+        about.contains("One Weekend") && about.contains("The Next Week"),
+        "the image describes both books: {about}"
+    );
     // `--version` in the image names the commit its label names, and this build's.
     let o = run_image(&image, &[], &["--version"]);
     assert!(o.status.success(), "{}", text(&o.stderr));
