@@ -851,10 +851,7 @@ fn the_indexed_job_survives_killed_pods_and_merges_to_the_single_render() {
         .unwrap();
     assert!(info.status.success(), "{}", text(&info.stderr));
     let recipe: serde_json::Value = serde_json::from_slice(&info.stdout).unwrap();
-    let workloads = std::fs::read_to_string(root().join("benches/workloads.toml")).unwrap();
-    let cover = workloads.split("name = \"cover\"").nth(1).unwrap();
-    let image = cover.split("image = \"").nth(1).unwrap();
-    let image = image.split('"').next().unwrap();
+    let image = kept_workload_image("cover");
     assert_eq!(
         recipe["sums"], image,
         "the merged image is not the single render's (the cover workload's image)"

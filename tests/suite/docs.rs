@@ -326,10 +326,7 @@ fn every_example_of_the_readme_runs_as_written() {
         if words == ["cargo", "run", "--release", "--", "render"] {
             let info = run_in_dir(dir, &["info", "--json", "cover.png"]);
             let recipe: serde_json::Value = serde_json::from_slice(&info.stdout).unwrap();
-            let workloads = std::fs::read_to_string(root().join("benches/workloads.toml")).unwrap();
-            let cover = workloads.split("name = \"cover\"").nth(1).unwrap();
-            let image = cover.split("image = \"").nth(1).unwrap();
-            let image = image.split('"').next().unwrap();
+            let image = kept_workload_image("cover");
             assert_eq!(
                 recipe["sums"], image,
                 "the set-up's cover is not the cover workload's image"

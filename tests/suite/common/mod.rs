@@ -11,6 +11,17 @@ pub fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
+/// The image hash benches/workloads.toml keeps for the standard workload `name`.
+pub fn kept_workload_image(name: &str) -> String {
+    let workloads = std::fs::read_to_string(root().join("benches/workloads.toml")).unwrap();
+    let entry = workloads
+        .split(&format!("name = \"{name}\""))
+        .nth(1)
+        .unwrap_or_else(|| panic!("benches/workloads.toml has no workload {name}"));
+    let image = entry.split("image = \"").nth(1).unwrap();
+    image.split('"').next().unwrap().to_owned()
+}
+
 pub fn scene_path(name: &str) -> PathBuf {
     root().join("scenes").join(name)
 }
