@@ -832,8 +832,9 @@ fn the_indexed_job_survives_killed_pods_and_merges_to_the_single_render() {
     let merged = std::fs::read(on_host(output, 0)).expect("the merged image");
     // The single render is the render job's arguments without the sharding: the cover at
     // its own settings, the `cover` workload, whose image hash benches/workloads.toml keeps
-    // (docs.rs checks the README's set-up render against it; bench.rs, without the heavy tests). The merged image's sums must be that hash,
-    // on this machine a glibc build's, so this also holds the static binary to its bytes.
+    // (docs.rs checks the README's set-up render against it; bench.rs, without the heavy
+    // tests). The merged image's sums must be that hash, on this machine a glibc build's,
+    // so this also holds the static binary to its bytes.
     let mut single: Vec<String> = render.pod.args.clone();
     for flag in ["--shard", "--checkpoint", "-o"] {
         single = without_flag(&single, flag);
