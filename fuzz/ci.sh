@@ -10,6 +10,16 @@
 #   FUZZ_SECONDS=300 fuzz/ci.sh part request
 #   FUZZ_FINDINGS=0 fuzz/ci.sh      without fuzz/findings as seeds (a known finding not yet
 #                                   fixed crashes its target at once)
+#   FUZZ_BUILD=shared fuzz/ci.sh    instrument only tessera and the targets, reusing the
+#                                   dependencies a `cargo test --release` built (.ci/run)
+#   FUZZ_SECONDS=0 fuzz/ci.sh       build only
+#
+# The build (FUZZ_BUILD=own, the default) instruments every crate, dependencies too (the
+# TOML, PNG, EXR and HTTP parsers), in fuzz/target (FUZZ_TARGET_DIR): the build for fuzzing
+# at length. FUZZ_BUILD=shared builds in the workspace's target directory with the profile
+# the caller's CARGO_PROFILE_RELEASE_* give, so that only tessera, the targets and the
+# libFuzzer crate compile: a third of the time, for a fuzzer that sees the dependencies'
+# code as a black box (their crashes are still crashes) and learns from tessera's alone.
 #
 # Needs cargo (stable is enough) and a C++ compiler (libfuzzer-sys compiles libFuzzer);
 # as root it installs g++ with apt-get when there is none. New inputs that add coverage go
@@ -39,25 +49,55 @@ if ! command -v c++ >/dev/null 2>&1; then
   fi
 fi
 
-# The profile is fuzz/Cargo.toml's, whatever a caller (.ci/run) set for its own builds.
-for v in $(compgen -e | grep -E '^(CARGO_PROFILE_|CARGO_ENCODED_RUSTFLAGS$|CARGO_BUILD_RUSTFLAGS$)' || true); do
-  unset "$v"
-done
-
 # What cargo-fuzz passes with `--sanitizer none`: SanitizerCoverage's inline 8-bit edge
 # counters, the table of their PCs and comparison tracing, which libFuzzer reads; all stable.
-# Given with an explicit --target, so build scripts and proc-macros are not instrumented.
-export RUSTFLAGS="-Cpasses=sancov-module -Cllvm-args=-sanitizer-coverage-level=4 \
+instrument="-Cpasses=sancov-module -Cllvm-args=-sanitizer-coverage-level=4 \
 -Cllvm-args=-sanitizer-coverage-inline-8bit-counters -Cllvm-args=-sanitizer-coverage-pc-table \
 -Cllvm-args=-sanitizer-coverage-trace-compares --cfg fuzzing"
-export CARGO_TARGET_DIR=${FUZZ_TARGET_DIR:-$PWD/target}
-triple=$(rustc -vV | sed -n 's/^host: //p')
-say "building ${targets[*]} ($(rustc --version))"
+# tessera's own code keeps its debug assertions and overflow checks, so that an overflow in
+# a size computation is a finding, not a wrapped number; optimised lightly, which halves its
+# build and costs executions per second, not coverage.
+profile=(--config 'profile.release.package.tessera.debug-assertions=true'
+  --config 'profile.release.package.tessera.overflow-checks=true'
+  --config 'profile.release.package.tessera.opt-level=1'
+  --config 'profile.release.package.tessera.debug="line-tables-only"')
 bins=()
 for t in "${targets[@]}"; do bins+=(--bin "$t"); done
-cargo build --release --locked --target "$triple" "${bins[@]}"
-bin=$CARGO_TARGET_DIR/$triple/release
+case "${FUZZ_BUILD:-own}" in
+  own)
+    # The profile is this script's, whatever a caller set for its own builds.
+    for v in $(compgen -e | grep -E '^(CARGO_PROFILE_|CARGO_ENCODED_RUSTFLAGS$|CARGO_BUILD_RUSTFLAGS$)' || true); do
+      unset "$v"
+    done
+    profile+=(--config 'profile.release.lto=false' --config 'profile.release.codegen-units=16'
+      --config 'profile.release.opt-level=1' --config 'profile.release.panic="abort"'
+      --config 'profile.release.incremental=false'
+      --config 'profile.release.debug="line-tables-only"')
+    # Every crate instrumented; given with an explicit --target, so build scripts and
+    # proc-macros are not.
+    export RUSTFLAGS="$instrument"
+    export CARGO_TARGET_DIR=${FUZZ_TARGET_DIR:-$PWD/target}
+    triple=$(rustc -vV | sed -n 's/^host: //p')
+    target=(--target "$triple")
+    bin=$CARGO_TARGET_DIR/$triple/release
+    ;;
+  shared)
+    # The same flags and target as the tests' build, so that their dependencies are reused;
+    # the instrumentation goes to the workspace's own crates only.
+    export FUZZ_RUSTFLAGS="$instrument"
+    export RUSTC_WORKSPACE_WRAPPER=$PWD/instrumented-rustc
+    target=()
+    bin=${CARGO_TARGET_DIR:-$PWD/../target}/release
+    ;;
+  *)
+    echo "fuzz/ci.sh: FUZZ_BUILD is own or shared, not ${FUZZ_BUILD}" >&2
+    exit 2
+    ;;
+esac
+say "building ${targets[*]} (${FUZZ_BUILD:-own} build, $(rustc --version))"
+cargo build --release --locked -p tessera-fuzz "${target[@]}" "${profile[@]}" "${bins[@]}"
 say "built"
+[ "$seconds" = 0 ] && exit 0
 
 failed=()
 for t in "${targets[@]}"; do
