@@ -232,7 +232,9 @@ fn run_page(page: &str, heavy: bool, after: &mut dyn FnMut(&Path, &str)) -> Vec<
                 // The texture the examples name, as it lies next to the scenes.
                 std::fs::copy(root().join("scenes/earthmap.jpg"), dir.join("earthmap.jpg"))
                     .unwrap();
+                let started = std::time::Instant::now();
                 let o = run_command(&dir, "tessera render example.toml -q");
+                eprintln!("{at}: {:.1} s: the scene", started.elapsed().as_secs_f64());
                 assert!(o.status.success(), "{at}: the scene fails: {}", stderr(&o));
                 assert!(dir.join("example.png").exists(), "{at}");
             }
@@ -289,7 +291,14 @@ fn run_page(page: &str, heavy: bool, after: &mut dyn FnMut(&Path, &str)) -> Vec<
                         ));
                         continue;
                     }
+                    let started = std::time::Instant::now();
                     let o = run_command(&dir, &command);
+                    // Shown with --nocapture: where a page's time goes.
+                    eprintln!(
+                        "{at}: {:.1} s: {}",
+                        started.elapsed().as_secs_f64(),
+                        command.trim()
+                    );
                     assert!(
                         o.status.success(),
                         "{at}: `{}` failed ({}):\n{}{}",
@@ -324,11 +333,9 @@ fn every_example_of_the_readme_runs_as_written() {
             .split_whitespace()
             .collect();
         if words == ["cargo", "run", "--release", "--", "render"] {
-            let info = run_in_dir(dir, &["info", "--json", "cover.png"]);
-            let recipe: serde_json::Value = serde_json::from_slice(&info.stdout).unwrap();
-            let image = kept_workload_image("cover");
             assert_eq!(
-                recipe["sums"], image,
+                recipe_sums(&dir.join("cover.png")),
+                kept_workload_image("cover"),
                 "the set-up's cover is not the cover workload's image"
             );
             checked += 1;

@@ -22,6 +22,26 @@ pub fn kept_workload_image(name: &str) -> String {
     image.split('"').next().unwrap().to_owned()
 }
 
+/// The hash of the exact sums an image's recipe records (`tessera info --json`): what makes
+/// two renders the same render, whatever their files' other bytes.
+pub fn recipe_sums(image: &Path) -> String {
+    let o = Command::new(env!("CARGO_BIN_EXE_tessera"))
+        .args(["info", "--json"])
+        .arg(image)
+        .output()
+        .unwrap();
+    assert!(
+        o.status.success(),
+        "info {}: {}",
+        image.display(),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let recipe: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let sums = recipe["sums"].as_str();
+    sums.unwrap_or_else(|| panic!("{} has no sums", image.display()))
+        .to_owned()
+}
+
 pub fn scene_path(name: &str) -> PathBuf {
     root().join("scenes").join(name)
 }
