@@ -109,7 +109,7 @@ pub struct Progress<'a> {
 }
 
 /// The tile each worker is rendering, one cache line per worker so that workers never share
-/// a line: a worker writes its slot as it takes a tile and as it finishes it.
+/// a line: a worker writes its slot as it takes a tile and once it has handed it in.
 pub struct ActiveTiles {
     slots: Vec<ActiveSlot>,
 }
@@ -239,9 +239,6 @@ pub fn render_job(
                             active.set(Some(task.index));
                         }
                         let result = render_tile(scene, &task.tile, task.range, options.simd);
-                        if watched {
-                            active.set(None);
-                        }
                         on_samples(task.worth);
                         batch.push(Finished {
                             index: task.index,
@@ -250,6 +247,13 @@ pub fn render_job(
                             worth: task.worth,
                             result,
                         });
+                        // Cleared after the hand-in, not before: the folding thread, woken
+                        // by it, reads the slots at once, and on a busy machine it ran
+                        // before this worker took its next tile, so that a one-thread
+                        // render's viewer showed no tile at all.
+                        if watched {
+                            active.set(None);
+                        }
                     },
                 );
             }
