@@ -28,6 +28,10 @@
 //! size, shard split or interruption. [`math`], [`ray`], [`error`] and [`text`] serve them all;
 //! [`image_diff`] measures the difference of two images.
 //!
+//! [`record`] is what a benchmark records: its result and schema, the build and host it ran
+//! on (what confines the process, from [`confinement`]), the workloads, and, with the
+//! `results` feature, the database that keeps the results.
+//!
 //! [`simd`] picks the instruction set of the hot code when a tile is rendered (portable,
 //! AVX2 or AVX-512, the same bytes on each) and holds the crate's only `unsafe` code; the
 //! rest of the crate denies it.
@@ -37,6 +41,7 @@
 pub mod atomic_file;
 pub mod bvh;
 pub mod camera;
+pub mod confinement;
 pub mod error;
 pub mod exr_header;
 pub mod film;
@@ -52,6 +57,7 @@ pub mod partial;
 pub mod preview;
 pub mod ray;
 pub mod recipe;
+pub mod record;
 pub mod render;
 pub mod sampling;
 pub mod scene;

@@ -1,6 +1,7 @@
 //! Text a stranger wrote (a CPU model in an imported result, a recipe in an image), made safe
 //! to print to a terminal, where an escape sequence could rewrite the screen, or to put in a
-//! web page, where markup or a bidirectional override could change what it shows.
+//! web page, where markup or a bidirectional override could change what it shows; and a
+//! count with its noun (`1 run`, `2 runs`), as every message says one.
 
 /// Whether `c` must not reach a terminal or a page as it is: a control character (Unicode's
 /// Cc), a line or paragraph separator (Zl, Zp), or a format character (Cf), which reorders,
@@ -102,6 +103,16 @@ pub fn html_safe(text: &str) -> String {
         }
     }
     out
+}
+
+/// `n` and the noun, singular for one: `1 thread`, `2 threads`.
+pub fn count(n: impl Into<u64>, noun: &str) -> String {
+    let n = n.into();
+    if n == 1 {
+        format!("1 {noun}")
+    } else {
+        format!("{n} {noun}s")
+    }
 }
 
 #[cfg(test)]

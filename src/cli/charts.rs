@@ -4,9 +4,9 @@
 //! round ticks (1, 2 or 5 times a power of ten) and their units. `bench --chart` writes the
 //! first as a standalone file; `results report` puts both in its page.
 
-use super::record::host::short_commit;
-use super::record::stats::{Pooled, Scaling};
 use std::fmt::Write;
+use tessera::record::host::short_commit;
+use tessera::record::stats::{Pooled, Scaling};
 use tessera::text::html_safe;
 
 /// Series colours, distinguishable and readable on white.
@@ -225,7 +225,7 @@ pub fn history_svg(steps: &[(String, Pooled, bool)]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cli::record::stats::pool_scaling;
+    use tessera::record::stats::pool_scaling;
 
     #[test]
     fn ticks_are_round_and_reach_the_maximum() {

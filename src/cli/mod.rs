@@ -5,11 +5,9 @@
 mod bench;
 mod charts;
 mod compare;
-mod confinement;
 mod flags;
 mod merge;
 mod output;
-mod record;
 mod render;
 mod reproduce;
 #[cfg(feature = "results")]

@@ -95,15 +95,7 @@ pub fn progress_bar(total: u64, quiet: bool) -> ProgressBar {
     bar
 }
 
-/// `n` and the noun, singular for one: `1 thread`, `2 threads`.
-pub fn count(n: impl Into<u64>, noun: &str) -> String {
-    let n = n.into();
-    if n == 1 {
-        format!("1 {noun}")
-    } else {
-        format!("{n} {noun}s")
-    }
-}
+pub use tessera::text::count;
 
 /// `x` with `digits` significant digits, without an exponent for everyday magnitudes:
 /// `0.0001234` rather than `0.000123` or `0.000000` for a small but real difference.

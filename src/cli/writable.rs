@@ -2,11 +2,11 @@
 //! user can act on: a directory that does not exist, a directory this user may not write
 //! (in a container: what to mount and which user to run as).
 
-use super::confinement;
 use anyhow::{Result, anyhow};
 use std::io::ErrorKind;
 use std::path::{Path, PathBuf};
 use tessera::atomic_file::check_writable;
+use tessera::confinement;
 
 /// Checks that `path` can be written whole (`atomic_file::check_writable`), explaining a
 /// failure.

@@ -5,19 +5,17 @@
 //! machine's.
 
 use crate::cli::output::{self, count, note, out};
-#[cfg(feature = "results")]
-use crate::cli::record::db::{self, ResultsDb};
-use crate::cli::record::host::{Build, Busy, CpuTimes, Host, short_commit};
-use crate::cli::record::result::{
-    BenchResult, Method, Row, SCHEMA, Spread, Validation, WorkloadInfo,
-};
-use crate::cli::record::workload::{Workload, hash_text};
 use anyhow::{Context, Result};
 use std::collections::BTreeSet;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use tessera::atomic_file::write_atomically;
 use tessera::film::Film;
+#[cfg(feature = "results")]
+use tessera::record::db::{self, ResultsDb};
+use tessera::record::host::{Build, Busy, CpuTimes, Host, short_commit};
+use tessera::record::result::{BenchResult, Method, Row, SCHEMA, Spread, Validation, WorkloadInfo};
+use tessera::record::workload::{Workload, hash_text};
 use tessera::render::{self, RenderOptions, RenderStats};
 
 /// A measurement, ready to run.

@@ -4,10 +4,10 @@
 
 use super::utc;
 use crate::cli::output::count;
-use crate::cli::record::db::Run;
-use crate::cli::record::host::short_commit;
-use crate::cli::record::stats::{Pooled, pool, sps};
 use std::collections::BTreeMap;
+use tessera::record::db::Run;
+use tessera::record::host::short_commit;
+use tessera::record::stats::{Pooled, pool, sps};
 use tessera::text::terminal_safe;
 
 pub fn build(r: &Run) -> String {

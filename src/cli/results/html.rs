@@ -8,9 +8,9 @@
 use super::analysis::{self, Ranked, Step};
 use super::utc;
 use crate::cli::charts::{self, COLOURS};
-use crate::cli::record::host::short_commit;
-use crate::cli::record::stats::{Pooled, Scaling};
 use std::fmt::Write;
+use tessera::record::host::short_commit;
+use tessera::record::stats::{Pooled, Scaling};
 use tessera::text::html_safe;
 
 /// One line of a ranking, as the page shows it.

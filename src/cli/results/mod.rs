@@ -9,15 +9,15 @@ mod html;
 
 use super::flags::DbArg;
 use super::output::{count, note, out};
-use super::record::db::{self, Added, Filter, ResultsDb, Run};
-use super::record::host::Host;
-use super::record::result::BenchResult;
-use super::record::stats::{self, Scaling};
 use super::writable::check_output;
 use anyhow::{Result, bail};
 use clap::Subcommand;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use tessera::record::db::{self, Added, Filter, ResultsDb, Run};
+use tessera::record::host::Host;
+use tessera::record::result::BenchResult;
+use tessera::record::stats::{self, Scaling};
 use tessera::text::terminal_safe;
 
 /// `tessera results` as typed.

@@ -127,7 +127,7 @@ impl BenchResult {
     /// build reads.
     pub fn read(path: &Path) -> Result<Self> {
         let what = path.display().to_string();
-        let file = tessera::input_file::open_regular(path)
+        let file = crate::input_file::open_regular(path)
             .with_context(|| format!("could not open {what}"))?;
         let mut bytes = Vec::new();
         file.take(MAX_FILE + 1)

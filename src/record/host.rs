@@ -3,10 +3,10 @@
 //! under), read from `/proc`, `/sys` and `/etc` on Linux; what cannot be read is left empty
 //! rather than guessed.
 
-use crate::cli::confinement::{self, read_file};
+use crate::confinement::{self, read_file};
+use crate::simd;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeSet;
-use tessera::simd;
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -232,7 +232,7 @@ impl Busy {
                     reasons.push(format!(
                         "other processes kept {:.2} of its {} busy while it ran",
                         u.others_cpus,
-                        crate::cli::output::count(u.cpus as u64, "CPU")
+                        crate::text::count(u.cpus as u64, "CPU")
                     ));
                 }
                 if u.steal >= BUSY_STEAL {
@@ -250,7 +250,7 @@ impl Busy {
                 {
                     reasons.push(format!(
                         "a load average of {load:.2} on {} when it started",
-                        crate::cli::output::count(host.logical_cpus as u64, "CPU")
+                        crate::text::count(host.logical_cpus as u64, "CPU")
                     ));
                 }
             }

@@ -2,32 +2,29 @@
 //! compiled into the binary, fixed settings, the hash of the image each must produce), or a
 //! custom scene; each identified by a hash of its scene text and settings.
 
+use crate::scene::{Overrides, Scene, TextureSource};
 use anyhow::{Context, Result, bail};
 use serde::Deserialize;
 use std::path::Path;
-use tessera::scene::{Overrides, Scene, TextureSource};
 
 /// The standard workloads and their expected image hashes, as kept in the repository.
-const WORKLOADS: &str = include_str!("../../../benches/workloads.toml");
+const WORKLOADS: &str = include_str!("../../benches/workloads.toml");
 
 /// The scenes a standard workload may name, compiled in so `bench` runs from anywhere.
 const SCENES: &[(&str, &str)] = &[
-    ("cover.toml", include_str!("../../../scenes/cover.toml")),
+    ("cover.toml", include_str!("../../scenes/cover.toml")),
     (
         "img-2.20-cornell-standard.toml",
-        include_str!("../../../scenes/img-2.20-cornell-standard.toml"),
+        include_str!("../../scenes/img-2.20-cornell-standard.toml"),
     ),
     (
         "img-2.22-book2-final.toml",
-        include_str!("../../../scenes/img-2.22-book2-final.toml"),
+        include_str!("../../scenes/img-2.22-book2-final.toml"),
     ),
 ];
 
 /// The image textures those scenes read, compiled in with them.
-const TEXTURES: &[(&str, &[u8])] = &[(
-    "earthmap.jpg",
-    include_bytes!("../../../scenes/earthmap.jpg"),
-)];
+const TEXTURES: &[(&str, &[u8])] = &[("earthmap.jpg", include_bytes!("../../scenes/earthmap.jpg"))];
 
 /// One standard workload as `benches/workloads.toml` lists it.
 #[derive(Clone, Debug, Deserialize)]
@@ -205,6 +202,6 @@ mod tests {
         }
         // The file rewritten with its own hashes is itself.
         let same = with_new_hashes(&mut |w| Ok(w.image.clone())).unwrap();
-        assert_eq!(same, include_str!("../../../benches/workloads.toml"));
+        assert_eq!(same, include_str!("../../benches/workloads.toml"));
     }
 }

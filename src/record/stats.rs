@@ -4,8 +4,8 @@
 //! (`bench --compare`) and on the database's runs (`results compare`, `rank`, `report`).
 
 use super::result::BenchResult;
+use crate::text::terminal_safe;
 use std::collections::BTreeMap;
-use tessera::text::terminal_safe;
 
 /// The median of `values` (not empty).
 fn median(values: &mut [f64]) -> f64 {
@@ -118,12 +118,12 @@ pub fn side_by_side(a_name: &str, a: &Scaling, b_name: &str, b: &Scaling) -> Opt
             format!(
                 "{} ({})",
                 sps(pa),
-                crate::cli::output::count(pa.runs as u64, "run")
+                crate::text::count(pa.runs as u64, "run")
             ),
             format!(
                 "{} ({})",
                 sps(pb),
-                crate::cli::output::count(pb.runs as u64, "run")
+                crate::text::count(pb.runs as u64, "run")
             ),
         ));
     }
