@@ -22,11 +22,19 @@ use tessera::exr_header;
 use tessera::image_file::png_header_of;
 use tessera::partial::{Part, PartReader};
 use tessera::recipe::Recipe;
+use tessera::record::result::BenchResult;
 use tessera::scene::{Overrides, Scene};
 
 /// The targets, in the order ci.sh runs them, each with the directory of its corpus
 /// (fuzz/corpus/NAME) and of its findings (fuzz/findings/NAME).
-pub const TARGETS: &[&str] = &["scene", "png_recipe", "exr_header", "part", "request"];
+pub const TARGETS: &[&str] = &[
+    "scene",
+    "png_recipe",
+    "exr_header",
+    "part",
+    "request",
+    "result",
+];
 
 /// The largest single allocation each target's input may cause, in bytes.
 pub const CEILINGS: &[(&str, usize)] = &[
@@ -40,6 +48,9 @@ pub const CEILINGS: &[(&str, usize)] = &[
     ("part", 16 << 20),
     // Requests of at most a few kilobytes, answered with pages and a 16x9 frame.
     ("request", 16 << 20),
+    // A result is at most 1 MiB of JSON (`record::result::MAX_FILE`), its value tree a few
+    // times that.
+    ("result", 64 << 20),
 ];
 
 /// The largest input each target is run on (libFuzzer's `-max_len`, given by ci.sh), in
@@ -51,6 +62,7 @@ pub const MAX_LEN: &[(&str, usize)] = &[
     ("part", 64 << 10),
     // Past the server's 8 KiB limit on a request's head (answered 431).
     ("request", 12 << 10),
+    ("result", 64 << 10),
 ];
 
 /// A target's check of one input: `Err` says what contract it broke.
@@ -65,6 +77,7 @@ pub fn check_of(name: &str) -> Option<Check> {
         "part" => part,
         #[cfg(feature = "preview")]
         "request" => request::request,
+        "result" => result,
         _ => return None,
     })
 }
@@ -464,4 +477,53 @@ pub mod request {
             Err(format!("the server no longer answers /status: {head:?}"))
         }
     }
+}
+
+/// 6. A benchmark result, as `results import` reads one (JSON): parsed and checked
+///    (`BenchResult::parse`). One it accepts is added to a new results database (with the
+///    `results` feature), where it must land once, as one run, and be given back as the same
+///    JSON, which is accepted again.
+pub fn result(bytes: &[u8]) -> Result<(), String> {
+    match BenchResult::parse(bytes, "fuzz.json") {
+        Ok(accepted) => imported(&accepted),
+        Err(e) => {
+            let message = format!("{e:#}");
+            if message.starts_with("fuzz.json: ") {
+                Ok(())
+            } else {
+                Err(format!("a refusal that does not name fuzz.json: {message}"))
+            }
+        }
+    }
+}
+
+#[cfg(feature = "results")]
+fn imported(accepted: &BenchResult) -> Result<(), String> {
+    use tessera::record::db::{Added, Filter, ResultsDb};
+    let dir = tempfile::tempdir().map_err(|e| format!("no temporary directory: {e}"))?;
+    let mut db = ResultsDb::open(&dir.path().join("results.db"))
+        .map_err(|e| format!("a new database does not open: {e:#}"))?;
+    let added = (db.add_all(std::slice::from_ref(accepted), "fuzz"))
+        .map_err(|e| format!("an accepted result is not added: {e:#}"))?;
+    if !matches!(added[..], [Added::New(_)]) {
+        return Err(format!("one result added to a new database gave {added:?}"));
+    }
+    let runs = (db.runs(&Filter::default())).map_err(|e| format!("runs unread: {e:#}"))?;
+    if runs.len() != 1 {
+        return Err(format!("one result added, {} runs listed", runs.len()));
+    }
+    let kept = (db.results_json()).map_err(|e| format!("results unread: {e:#}"))?;
+    let written = serde_json::to_string(accepted).map_err(|e| e.to_string())?;
+    if kept != [written] {
+        return Err(format!("the database gives back {kept:?}"));
+    }
+    match BenchResult::parse(kept[0].as_bytes(), "kept.json") {
+        Ok(_) => Ok(()),
+        Err(e) => Err(format!("what the database keeps is refused: {e:#}")),
+    }
+}
+
+#[cfg(not(feature = "results"))]
+fn imported(_: &BenchResult) -> Result<(), String> {
+    Ok(())
 }

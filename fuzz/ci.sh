@@ -30,10 +30,10 @@ started=$(date +%s)
 say() { echo "fuzz/ci.sh: $* (at $(($(date +%s) - started)) s)" >&2; }
 
 seconds=${FUZZ_SECONDS:-20}
-all=(scene png_recipe exr_header part request)
+all=(scene png_recipe exr_header part request result)
 if [ $# -gt 0 ]; then targets=("$@"); else targets=("${all[@]}"); fi
 # The largest input of each target (bytes): checks.rs's MAX_LEN.
-declare -A max_len=([scene]=65536 [png_recipe]=65536 [exr_header]=65536 [part]=65536 [request]=12288)
+declare -A max_len=([scene]=65536 [png_recipe]=65536 [exr_header]=65536 [part]=65536 [request]=12288 [result]=65536)
 for t in "${targets[@]}"; do
   [ -n "${max_len[$t]:-}" ] || { echo "fuzz/ci.sh: no target $t (targets: ${all[*]})" >&2; exit 2; }
 done
@@ -80,6 +80,8 @@ case "${FUZZ_BUILD:-own}" in
     triple=$(rustc -vV | sed -n 's/^host: //p')
     target=(--target "$triple")
     bin=$CARGO_TARGET_DIR/$triple/release
+    # The result target imports what it accepts into a results database.
+    features=(--features results)
     ;;
   shared)
     # The same flags and target as the tests' build, so that their dependencies are reused;
@@ -88,6 +90,8 @@ case "${FUZZ_BUILD:-own}" in
     export RUSTC_WORKSPACE_WRAPPER=$PWD/instrumented-rustc
     target=()
     bin=${CARGO_TARGET_DIR:-$PWD/../target}/release
+    # Without the result target's database import (the tests' corpus replay has it).
+    features=()
     ;;
   *)
     echo "fuzz/ci.sh: FUZZ_BUILD is own or shared, not ${FUZZ_BUILD}" >&2
@@ -95,7 +99,8 @@ case "${FUZZ_BUILD:-own}" in
     ;;
 esac
 say "building ${targets[*]} (${FUZZ_BUILD:-own} build, $(rustc --version))"
-cargo build --release --locked -p tessera-fuzz "${target[@]}" "${profile[@]}" "${bins[@]}"
+cargo build --release --locked -p tessera-fuzz "${target[@]}" "${features[@]}" "${profile[@]}" \
+  "${bins[@]}"
 say "built"
 [ "$seconds" = 0 ] && exit 0
 

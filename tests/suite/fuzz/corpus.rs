@@ -81,6 +81,11 @@ fn fuzz_corpus_of_part_files_replays_cleanly() {
 }
 
 #[test]
+fn fuzz_corpus_of_bench_results_replays_cleanly() {
+    replay("result");
+}
+
+#[test]
 fn every_fuzz_target_has_a_check_and_a_corpus() {
     for target in checks::TARGETS {
         let fuzz = Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz");
