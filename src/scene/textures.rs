@@ -103,8 +103,12 @@ pub fn decode(bytes: &[u8]) -> Result<ImageTexture, String> {
     let reader = image::ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()
         .map_err(|e| e.to_string())?;
-    if reader.format().is_none() {
-        return Err("is not an image tessera reads (PNG, JPEG, PPM or EXR)".into());
+    match reader.format() {
+        None => return Err("is not an image tessera reads (PNG, JPEG, PPM or EXR)".into()),
+        Some(image::ImageFormat::Jpeg) if !jpeg_ends(bytes) => {
+            return Err("is a JPEG that ends before its image does (a truncated file?)".into());
+        }
+        Some(_) => {}
     }
     let (width, height) = reader
         .into_dimensions()
@@ -132,9 +136,34 @@ pub fn decode(bytes: &[u8]) -> Result<ImageTexture, String> {
         .ok_or_else(|| "the decoded image has no pixels".to_owned())
 }
 
+/// Whether a JPEG's last scan is followed by its end-of-image marker (FF D9). The JPEG
+/// decoder fills what a truncated file lacks with grey rather than failing, so a cut-off
+/// texture would render as a grey band. Inside a scan's entropy-coded data every FF byte is
+/// followed by 00 or a restart marker (D0 to D7), so an FF D9 after the last start of scan
+/// (FF DA) is the real end, not one of an embedded thumbnail's, which comes before the scans.
+fn jpeg_ends(bytes: &[u8]) -> bool {
+    let last_scan = (bytes.windows(2)).rposition(|w| w == [0xFF, 0xDA]);
+    last_scan.is_some_and(|at| bytes[at + 2..].windows(2).any(|w| w == [0xFF, 0xD9]))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_truncated_jpeg_is_refused_and_the_whole_one_decodes() {
+        let whole = include_bytes!("../../scenes/earthmap.jpg");
+        let texture = decode(whole).unwrap();
+        assert_eq!((texture.width, texture.height), (1024, 512));
+        for cut in [whole.len() - 2, whole.len() / 2, 2000] {
+            let e = decode(&whole[..cut]).err().unwrap();
+            assert!(e.contains("ends before its image does"), "{cut}: {e}");
+        }
+        // Bytes after the end marker (a file with something appended) are not a truncation.
+        let mut appended = whole.to_vec();
+        appended.extend(b"appended");
+        assert!(decode(&appended).is_ok());
+    }
 
     #[test]
     fn names_that_leave_the_scene_directory_are_refused() {
