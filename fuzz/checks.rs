@@ -346,12 +346,13 @@ fn part_as_is(bytes: &[u8]) -> Result<(), String> {
 pub mod request {
     use std::io::{Read, Write};
     use std::net::{Shutdown, SocketAddr, TcpStream};
+    use std::sync::Arc;
     use std::sync::OnceLock;
     use std::time::{Duration, Instant};
     use tessera::job::{Job, JobState, SampleRange};
     use tessera::math::PixelRect;
-    use tessera::preview::server::Server;
-    use tessera::preview::{About, Previewer};
+    use tessera::preview::server::{Server, answer_in_memory};
+    use tessera::preview::{About, Hub, Previewer};
 
     /// How long the server may be silent before an answer counts as complete, and the most
     /// one input may take in all. The server closes the connection once it has answered
@@ -364,10 +365,10 @@ pub mod request {
     #[allow(unexpected_cfgs)]
     const AT_MOST: Duration = Duration::from_millis(if cfg!(fuzzing) { 500 } else { 10_000 });
 
-    /// The server of a small blank job, started once and kept for the process's life.
-    pub fn server() -> SocketAddr {
-        static ADDR: OnceLock<SocketAddr> = OnceLock::new();
-        *ADDR.get_or_init(|| {
+    /// The hub of a small blank job's viewer, made once and kept for the process's life.
+    fn hub() -> Arc<Hub> {
+        static HUB: OnceLock<Arc<Hub>> = OnceLock::new();
+        Arc::clone(HUB.get_or_init(|| {
             let job = Job {
                 region: PixelRect::full(16, 9),
                 samples: SampleRange { start: 0, end: 4 },
@@ -392,12 +393,23 @@ pub mod request {
                 held: false,
             };
             let previewer = Previewer::new(about, &state, 2.0);
-            let listener = std::net::TcpListener::bind("127.0.0.1:0").expect("a loopback port");
-            let server = Server::start(listener, previewer.hub()).expect("the server starts");
-            let addr = server.addr();
-            // Both live as long as the process.
-            std::mem::forget(server);
+            let hub = previewer.hub();
+            // It lives as long as the process.
             std::mem::forget(previewer);
+            hub
+        }))
+    }
+
+    /// The server of that hub on a loopback port, started once and kept for the process's
+    /// life.
+    pub fn server() -> SocketAddr {
+        static ADDR: OnceLock<SocketAddr> = OnceLock::new();
+        *ADDR.get_or_init(|| {
+            let listener = std::net::TcpListener::bind("127.0.0.1:0").expect("a loopback port");
+            let server = Server::start(listener, hub()).expect("the server starts");
+            let addr = server.addr();
+            // It lives as long as the process.
+            std::mem::forget(server);
             addr
         })
     }
@@ -457,9 +469,12 @@ pub mod request {
             .is_some_and(|at| find(&answer[at..], b"\r\n\r\n").is_some())
     }
 
-    /// 5. One input sent as it is: answered (if at all) with an HTTP/1 status line.
+    /// 5. One input sent as it is, on a connection of its own without a socket (an
+    ///    in-memory pipe, served as a socket's connection is): answered (if at all) with an
+    ///    HTTP/1 status line, and serving it never panics.
     pub fn request(bytes: &[u8]) -> Result<(), String> {
-        let answer = exchange(bytes)?;
+        let addr = SocketAddr::from(([127, 0, 0, 1], 8000));
+        let answer = answer_in_memory(hub(), addr, bytes, AT_MOST).map_err(|e| e.to_string())?;
         if !answer.is_empty() && !answer.starts_with(b"HTTP/1.") {
             let head = String::from_utf8_lossy(&answer[..answer.len().min(80)]).into_owned();
             return Err(format!("an answer that is not HTTP/1: {head:?}"));

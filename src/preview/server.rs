@@ -238,7 +238,10 @@ async fn refuse(mut stream: tokio::net::TcpStream) {
     }
 }
 
-async fn serve(stream: tokio::net::TcpStream, shared: Arc<Shared>, client: Client) {
+async fn serve<S>(stream: S, shared: Arc<Shared>, client: Client)
+where
+    S: tokio::io::AsyncRead + tokio::io::AsyncWrite + Unpin + Send + 'static,
+{
     let bucket = Arc::new(Mutex::new(Bucket::new()));
     let service = {
         let shared = Arc::clone(&shared);
@@ -259,6 +262,10 @@ async fn serve(stream: tokio::net::TcpStream, shared: Arc<Shared>, client: Clien
         .max_buf_size(MAX_HEADER_BYTES)
         .max_headers(MAX_HEADERS)
         .keep_alive(true)
+        // A client that closes its side once it has sent its request (`shutdown(SHUT_WR)`)
+        // still gets its answer; without this, hyper drops the connection when it reads the
+        // end before it has answered.
+        .half_close(true)
         .serve_connection(TokioIo::new(stream), service);
     tokio::pin!(connection);
     let mut stopping = shared.stopping.clone();
@@ -276,6 +283,84 @@ async fn serve(stream: tokio::net::TcpStream, shared: Arc<Shared>, client: Clien
         }
     }
     drop(client);
+}
+
+/// What the server answers `request`, the bytes one client sends before it closes its side
+/// of the connection: the connection is served as a socket's is (hyper's parser, the limits,
+/// the routes, the pacing), over an in-memory pipe on a runtime of the caller's thread, for
+/// the fuzzers, which need no socket this way. `addr` is the address the server takes
+/// itself to listen on (the Host header must name it). The answer ends when the server
+/// closes the connection, at the head of an event stream (which never ends by itself), or
+/// after `at_most`. A panic while serving is an error.
+pub fn answer_in_memory(
+    hub: Arc<Hub>,
+    addr: SocketAddr,
+    request: &[u8],
+    at_most: Duration,
+) -> std::io::Result<Vec<u8>> {
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_time()
+        .build()?;
+    let (_shutdown, stopping) = tokio::sync::watch::channel(false);
+    let shared = Arc::new(Shared {
+        hub,
+        addr,
+        stats: Arc::new(ServerStats::default()),
+        png: Mutex::new(None),
+        patch: Mutex::new(None),
+        stopping,
+    });
+    runtime.block_on(async move {
+        let until = tokio::time::Instant::now() + at_most;
+        let (client_side, server_side) = tokio::io::duplex(64 << 10);
+        let client = Client::enter(&shared.stats);
+        let served = tokio::spawn(serve(server_side, Arc::clone(&shared), client));
+        let (mut reader, mut writer) = tokio::io::split(client_side);
+        let mut answer = Vec::new();
+        {
+            // A server that answers before it has read everything (a refusal) stops reading:
+            // sending and receiving go on together.
+            let send = async {
+                if writer.write_all(request).await.is_ok() {
+                    let _ = writer.shutdown().await;
+                }
+            };
+            let receive = async {
+                let mut buf = [0u8; 16 << 10];
+                while !answer_streams(&answer) {
+                    match reader.read(&mut buf).await {
+                        Ok(0) | Err(_) => break,
+                        Ok(n) => answer.extend_from_slice(&buf[..n]),
+                    }
+                }
+            };
+            let _ = tokio::time::timeout_at(until, async { tokio::join!(send, receive) }).await;
+        }
+        drop((reader, writer));
+        // The client is gone: what serving still does (an event stream waiting for its next
+        // status, which would notice only when it sends) is stopped after a moment.
+        let mut served = served;
+        let outcome = match tokio::time::timeout(Duration::from_millis(20), &mut served).await {
+            Ok(outcome) => outcome,
+            Err(_) => {
+                served.abort();
+                served.await
+            }
+        };
+        match outcome {
+            Err(e) if e.is_panic() => Err(std::io::Error::other(format!(
+                "serving the connection panicked: {e}"
+            ))),
+            _ => Ok(answer),
+        }
+    })
+}
+
+/// Whether `answer` has come to the end of an event stream's head.
+fn answer_streams(answer: &[u8]) -> bool {
+    let find = |hay: &[u8], needle: &[u8]| hay.windows(needle.len()).position(|w| w == needle);
+    find(answer, b"content-type: text/event-stream")
+        .is_some_and(|at| find(&answer[at..], b"\r\n\r\n").is_some())
 }
 
 /// A token bucket of requests: `take` says how long to wait before serving the next one.
@@ -555,6 +640,74 @@ mod tests {
             wait > Duration::ZERO && wait <= Duration::from_millis(60),
             "{wait:?}"
         );
+    }
+
+    /// A viewer of a small blank job.
+    fn blank_previewer() -> super::super::Previewer {
+        use crate::job::{Job, JobState, SampleRange};
+        let job = Job {
+            region: crate::math::PixelRect::full(16, 9),
+            samples: SampleRange { start: 0, end: 4 },
+        };
+        let about = super::super::About {
+            scene: "blank".into(),
+            scene_file: "blank.toml".into(),
+            width: 16,
+            height: 9,
+            spp: 4,
+            max_depth: 5,
+            seed: 0,
+            shading: "path".into(),
+            threads: 1,
+            tile: 4,
+            simd: "portable".into(),
+            region: [0, 0, 16, 9],
+            samples: [0, 4],
+            job: "whole image".into(),
+            output: "blank.png".into(),
+            held: false,
+        };
+        super::super::Previewer::new(about, &JobState::new(job, 4), 2.0)
+    }
+
+    #[test]
+    fn a_connection_in_memory_is_answered_as_a_socket_s_is() {
+        let previewer = blank_previewer();
+        let addr = SocketAddr::from(([127, 0, 0, 1], 8000));
+        let ask = |request: &[u8]| {
+            let started = Instant::now();
+            let answer =
+                answer_in_memory(previewer.hub(), addr, request, Duration::from_secs(5)).unwrap();
+            (
+                String::from_utf8_lossy(&answer).into_owned(),
+                started.elapsed(),
+            )
+        };
+        // Answered, and at once: the connection closes when the client's side has.
+        let (status, took) = ask(b"GET /status HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
+        assert!(status.starts_with("HTTP/1.1 200"), "{status}");
+        assert!(took < Duration::from_secs(2), "{took:?}");
+        let (two, _) = ask(b"GET /viewer.css HTTP/1.1\r\nHost: localhost:8000\r\n\r\n\
+              GET /nothing HTTP/1.1\r\nHost: localhost\r\n\r\n");
+        assert!(
+            two.starts_with("HTTP/1.1 200") && two.contains("HTTP/1.1 404"),
+            "{two}"
+        );
+        let (foreign, _) = ask(b"GET / HTTP/1.1\r\nHost: example.com\r\n\r\n");
+        assert!(foreign.starts_with("HTTP/1.1 421"), "{foreign}");
+        let (other_port, _) = ask(b"GET / HTTP/1.1\r\nHost: 127.0.0.1:8001\r\n\r\n");
+        assert!(other_port.starts_with("HTTP/1.1 421"), "{other_port}");
+        let (post, _) = ask(b"POST / HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
+        assert!(post.starts_with("HTTP/1.1 405"), "{post}");
+        let (garbage, _) = ask(b"\x16\x03\x01 not http\r\n\r\n");
+        assert!(
+            garbage.is_empty() || garbage.starts_with("HTTP/1.1 400"),
+            "{garbage}"
+        );
+        // An event stream is cut off after its head, well before `at_most`.
+        let (events, took) = ask(b"GET /events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
+        assert!(events.contains("text/event-stream"), "{events}");
+        assert!(took < Duration::from_secs(2), "{took:?}");
     }
 
     #[test]
