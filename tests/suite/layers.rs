@@ -13,6 +13,7 @@ const LAYERS: &[&str] = &[
     "text",
     "atomic_file",
     "input_file",
+    "confinement",
     "ray",
     "sampling",
     "texture",
@@ -33,6 +34,7 @@ const LAYERS: &[&str] = &[
     "render",
     "partial",
     "preview",
+    "record",
 ];
 
 /// The library source files under `dir`, with the top-level module each belongs to.
