@@ -38,7 +38,7 @@ pub(super) fn build(
     overrides: &Overrides,
     source: &TextureSource,
 ) -> Result<Scene> {
-    let ck = Checker { text, path };
+    let ck = Checker::new(text, path);
     let settings = render_settings(desc, &ck, overrides)?;
     let mut camera = match &desc.camera {
         Some(c) => camera_settings(c.get_ref(), &ck)?,

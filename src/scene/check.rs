@@ -4,6 +4,7 @@
 use super::desc::Vec3Desc;
 use crate::error::{Error, Location, Result};
 use crate::math::{Color, Vec3};
+use std::cell::Cell;
 use std::ops::Range;
 use std::path::Path;
 use toml::Spanned;
@@ -29,13 +30,24 @@ fn plain3([x, y, z]: [f64; 3]) -> String {
     format!("[{}, {}, {}]", plain(x), plain(y), plain(z))
 }
 
-/// Where validation errors point: the source text and its path.
+/// Where validation errors point: the source text and its path; and what the scene's checks
+/// have granted so far, for limits on the whole scene.
 pub(super) struct Checker<'a> {
     pub(super) text: &'a str,
     pub(super) path: &'a Path,
+    /// Draws the scene's generators skip, in all (see `draws::MAX_SKIPPED`).
+    pub(super) skipped: Cell<u64>,
 }
 
-impl Checker<'_> {
+impl<'a> Checker<'a> {
+    pub(super) fn new(text: &'a str, path: &'a Path) -> Self {
+        Self {
+            text,
+            path,
+            skipped: Cell::new(0),
+        }
+    }
+
     pub(super) fn error(
         &self,
         span: Range<usize>,

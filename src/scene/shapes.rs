@@ -601,10 +601,7 @@ mod tests {
     #[test]
     fn placing_rotates_about_y_then_moves() {
         let ck_text = "";
-        let ck = Checker {
-            text: ck_text,
-            path: std::path::Path::new("t.toml"),
-        };
+        let ck = Checker::new(ck_text, std::path::Path::new("t.toml"));
         let place = Placement::check(
             &ck,
             "t",

@@ -388,6 +388,66 @@ fn a_recipe_asking_for_days_of_work_is_refused_unless_asked() {
     );
 }
 
+/// A scene's generators skip draws one at a time: a 2 KB scene (or recipe) of textures each
+/// skipping 2³² draws once took a CPU-minute per four of them. Each skip and their sum are
+/// bounded, and the refusal names the texture that goes over, before its draws are made.
+#[test]
+fn a_scene_of_many_long_skips_is_refused_at_the_one_over_the_limit() {
+    let dir = temp_dir("hostile-skip");
+    let png = std::fs::read(rendered(&dir, "a.png")).unwrap();
+    let base = std::fs::read_to_string(scene_path("img-1.12-metal-fuzz.toml")).unwrap();
+    let noise = |i: usize, skip: u64| {
+        format!(
+            "\n[textures.n{i:02}]\ntype = \"noise\"\nnoise = \"perlin\"\nscale = 4.0\nskip = {skip}\n"
+        )
+    };
+    let one_too_far = format!("{base}{}", noise(0, (1 << 24) + 1));
+    std::fs::write(dir.join("far.toml"), &one_too_far).unwrap();
+    let o = run(
+        &["render", "far.toml", "--width", "8", "-q", "-o", "far.png"],
+        &dir,
+    );
+    refused(
+        &o,
+        "textures.n00.skip`: must be between 0 and 16777216, got 16777217",
+        "one skip",
+    );
+    let many: String = (0..50).map(|i| noise(i, 1 << 23)).collect();
+    let many = format!("{base}{many}");
+    std::fs::write(dir.join("many.toml"), &many).unwrap();
+    let o = run(
+        &[
+            "render",
+            "many.toml",
+            "--width",
+            "8",
+            "-q",
+            "-o",
+            "many.png",
+        ],
+        &dir,
+    );
+    refused(
+        &o,
+        "field `textures.n02.skip`: the scene's generators would skip 25165824 draws in all, \
+         at most 16777216",
+        "fifty skips",
+    );
+    let line = many.lines().position(|l| l == "[textures.n02]").unwrap() + 5;
+    assert!(
+        stderr(&o).contains(&format!("many.toml:{line}:")),
+        "{}",
+        stderr(&o)
+    );
+    // The same scene in a recipe is refused the same way by `reproduce`.
+    let mut recipe = recipe_json(&dir, "a.png");
+    recipe["scene"]["text"] = many.as_str().into();
+    std::fs::write(dir.join("skips.png"), png_with_recipe(&png, &recipe)).unwrap();
+    let o = run(&["reproduce", "skips.png"], &dir);
+    refused(&o, "would skip 25165824 draws in all", "reproduce");
+    assert!(!dir.join("far.png").exists() && !dir.join("many.png").exists());
+}
+
 // --- files that are not files -------------------------------------------------------------
 
 #[test]
