@@ -318,7 +318,19 @@ impl Recipe {
         // The textures the recipe names must be found, each the very file it was made with.
         for t in &self.textures {
             let name = terminal_safe(&t.name, 80);
-            let found = dirs.iter().map(|d| d.join(&t.name)).find(|p| p.exists());
+            let refuse = |message: String| Error::Image {
+                path: image.to_owned(),
+                message,
+            };
+            // As a scene names a texture: nothing but what lies in `dirs` is read.
+            if !crate::scene::is_plain_name(&t.name) {
+                return Err(refuse(format!(
+                    "its recipe names the texture file `{name}`, which is not a relative \
+                     name without `..`: refused"
+                )));
+            }
+            let found = crate::scene::find_texture(dirs, Path::new(&t.name))
+                .map_err(|why| refuse(format!("its scene's {}", terminal_safe(&why, 400))))?;
             let Some(found) = found else {
                 return Err(Error::Image {
                     path: image.to_owned(),

@@ -138,8 +138,8 @@ impl Workload {
     /// A scene file with the given overrides. When it is a standard workload's very scene
     /// and settings (the same id), it is that workload, and validated.
     pub fn custom(path: &Path, overrides: &Overrides) -> Result<Self> {
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("could not read {}", path.display()))?;
+        // As `render` reads it: a regular file, within the size a scene file may have.
+        let text = Scene::read_text(path)?;
         let scene = Scene::parse(&text, path, overrides)?;
         let id = workload_id(&text, &scene);
         // The id hashes the scene's text, so only a workload of this very text can match:

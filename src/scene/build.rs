@@ -314,47 +314,90 @@ impl Textures {
         })
     }
 
-    /// Refuses a checker whose squares lead back to itself.
+    /// Refuses a checker whose squares lead back to itself, naming the first texture of the
+    /// file that lies on a cycle. Linear in the textures (a chain of thousands is a stranger's
+    /// scene too): the cycles are the strongly connected components found by `on_cycles`.
     fn check_cycles(&self, desc: &SceneDesc, ck: &Checker) -> Result<()> {
+        let on_cycle = self.on_cycles();
         for (start, (name, t)) in desc.textures.iter().enumerate() {
-            let mut id = TextureId(start as u32);
-            for _ in 0..=self.table.len() {
-                let Texture::Checker { even, odd, .. } = &self.table[id.0 as usize] else {
-                    break;
-                };
-                // Either square may lead on; follow both, one at a time.
-                for next in [*even, *odd] {
-                    if self.reaches(next, TextureId(start as u32)) {
-                        return Err(ck.error(
-                            t.span(),
-                            &format!("textures.{name}"),
-                            "a checker's squares lead back to itself: textures must not form \
-                             a cycle",
-                        ));
-                    }
-                }
-                id = *even;
+            if on_cycle[start] {
+                return Err(ck.error(
+                    t.span(),
+                    &format!("textures.{name}"),
+                    "a checker's squares lead back to itself: textures must not form a cycle",
+                ));
             }
         }
         Ok(())
     }
 
-    /// Whether texture `from` is, or leads through checkers to, `to`.
-    fn reaches(&self, from: TextureId, to: TextureId) -> bool {
-        let mut todo = vec![from];
-        let mut seen = vec![false; self.table.len()];
-        while let Some(id) = todo.pop() {
-            if id == to {
-                return true;
+    /// The textures a cycle of checkers' squares passes through: Tarjan's strongly connected
+    /// components, iteratively (no recursion however long a chain), where a texture is on a
+    /// cycle when its component has more than one texture or it leads to itself.
+    fn on_cycles(&self) -> Vec<bool> {
+        let n = self.table.len();
+        let next = |id: usize| -> [usize; 2] {
+            match &self.table[id] {
+                Texture::Checker { even, odd, .. } => [even.0 as usize, odd.0 as usize],
+                _ => [usize::MAX; 2],
             }
-            if std::mem::replace(&mut seen[id.0 as usize], true) {
+        };
+        const UNSEEN: usize = usize::MAX;
+        let (mut index, mut low) = (vec![UNSEEN; n], vec![0; n]);
+        let mut on_stack = vec![false; n];
+        let (mut stack, mut on_cycle) = (Vec::new(), vec![false; n]);
+        let mut counter = 0;
+        for root in 0..n {
+            if index[root] != UNSEEN {
                 continue;
             }
-            if let Texture::Checker { even, odd, .. } = &self.table[id.0 as usize] {
-                todo.extend([*even, *odd]);
+            // Each frame: a texture and which of its two squares comes next.
+            let mut frames = vec![(root, 0usize)];
+            index[root] = counter;
+            low[root] = counter;
+            counter += 1;
+            stack.push(root);
+            on_stack[root] = true;
+            while let Some(&mut (id, ref mut edge)) = frames.last_mut() {
+                if *edge < 2 {
+                    let to = next(id)[*edge];
+                    *edge += 1;
+                    if to >= n {
+                        continue;
+                    }
+                    if index[to] == UNSEEN {
+                        index[to] = counter;
+                        low[to] = counter;
+                        counter += 1;
+                        stack.push(to);
+                        on_stack[to] = true;
+                        frames.push((to, 0));
+                    } else if on_stack[to] {
+                        low[id] = low[id].min(index[to]);
+                    }
+                    continue;
+                }
+                frames.pop();
+                if let Some(&(parent, _)) = frames.last() {
+                    low[parent] = low[parent].min(low[id]);
+                }
+                if low[id] == index[id] {
+                    let mut component = Vec::new();
+                    while let Some(member) = stack.pop() {
+                        on_stack[member] = false;
+                        component.push(member);
+                        if member == id {
+                            break;
+                        }
+                    }
+                    let cyclic = component.len() > 1 || next(id).contains(&id);
+                    for member in component {
+                        on_cycle[member] = cyclic;
+                    }
+                }
             }
         }
-        false
+        on_cycle
     }
 
     fn finish(self) -> (Vec<Texture>, Vec<TextureFile>) {

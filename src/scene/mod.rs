@@ -12,7 +12,9 @@ mod textures;
 
 pub use build::{MAX_PIXELS, Overrides};
 pub use check::{MAX_LENGTH, MIN_RADIUS};
-pub use textures::{MAX_TEXTURE_BYTES, MAX_TEXTURE_PIXELS, TextureSource};
+pub use textures::{
+    MAX_TEXTURE_BYTES, MAX_TEXTURE_PIXELS, TextureSource, find_texture, is_plain_name,
+};
 
 /// The longest scene file tessera reads: the cover's is 3 KiB, 20,000 spheres written out
 /// about 2 MiB.
@@ -159,7 +161,8 @@ impl Scene {
             cause,
         };
         let mut bytes = Vec::new();
-        std::fs::File::open(path)
+        // Only a regular file: a FIFO or a device would block or never end.
+        crate::input_file::open_regular(path)
             .and_then(|f| f.take(MAX_SCENE_BYTES + 1).read_to_end(&mut bytes))
             .map_err(io)?;
         if bytes.len() as u64 > MAX_SCENE_BYTES {
@@ -201,13 +204,32 @@ impl Scene {
         overrides: &Overrides,
         source: &TextureSource,
     ) -> Result<Scene> {
-        let desc: desc::SceneDesc = toml::from_str(text).map_err(|e| {
+        let syntax = |e: &toml::de::Error, field: Option<String>| {
             let start = e.span().map_or(0, |s| s.start);
-            Error::SceneSyntax {
-                path: path.to_owned(),
-                at: Location::of_offset(text, start),
-                message: name_the_table(text, start, &plain_types(e.message().trim())),
+            let message = name_the_table(text, start, &plain_types(e.message().trim()));
+            let at = Location::of_offset(text, start);
+            match field {
+                Some(field) => Error::SceneValue {
+                    path: path.to_owned(),
+                    at,
+                    field,
+                    message,
+                },
+                None => Error::SceneSyntax {
+                    path: path.to_owned(),
+                    at,
+                    message,
+                },
             }
+        };
+        let document = toml::Deserializer::parse(text).map_err(|e| syntax(&e, None))?;
+        // The path of keys to a value of the wrong shape names its field, as a value out
+        // of range does; a missing key names its table instead (`name_the_table`).
+        let desc: desc::SceneDesc = serde_path_to_error::deserialize(document).map_err(|e| {
+            let field = key_path(e.path());
+            let missing = e.inner().message().starts_with("missing field");
+            let field = (!field.is_empty() && !missing).then_some(field);
+            syntax(e.inner(), field)
         })?;
         build::build(&desc, text, path, overrides, source)
     }
@@ -613,8 +635,31 @@ impl Scene {
     }
 }
 
+/// The keys to a value as a scene file names them (`spheres[2].center`), without the
+/// wrappers that keep each value's place in the file.
+fn key_path(path: &serde_path_to_error::Path) -> String {
+    use serde_path_to_error::Segment;
+    let mut named = String::new();
+    for segment in path.iter() {
+        match segment {
+            Segment::Seq { index } => named.push_str(&format!("[{index}]")),
+            Segment::Map { key } | Segment::Enum { variant: key } => {
+                if key.starts_with("$__serde_spanned") {
+                    continue;
+                }
+                if !named.is_empty() {
+                    named.push('.');
+                }
+                named.push_str(key);
+            }
+            Segment::Unknown => {}
+        }
+    }
+    named
+}
+
 /// The tables a scene file holds at its top level (`desc::SceneDesc`'s fields).
-const TOP_LEVEL: [&str; 13] = [
+const TOP_LEVEL: [&str; 14] = [
     "image",
     "render",
     "camera",
@@ -628,6 +673,7 @@ const TOP_LEVEL: [&str; 13] = [
     "media",
     "random_spheres",
     "random_boxes",
+    "random_sphere_clouds",
 ];
 
 /// A missing key's message with the table it is missing from: for a whole table, the

@@ -21,6 +21,9 @@ use toml::Spanned;
 /// above the books' (2,400 quads, 1,000 spheres), within a few hundred MiB.
 pub const MAX_QUADS: usize = 1 << 21;
 pub const MAX_CLOUD: i64 = 1 << 20;
+/// The most spheres a scene may hold in all, listed, generated and in clouds (the book's
+/// final scene has about 1,100; each sphere costs about a kilobyte with its tree).
+pub const MAX_SPHERES: usize = 1 << 20;
 
 /// A rotation about the y axis through the origin, then a translation: the book's
 /// `translate(rotate_y(object, angle), offset)`, in `f64`.
@@ -252,6 +255,23 @@ pub(super) fn sphere_clouds(
     file_seed: u64,
     prims: &mut Primitives,
 ) -> Result<()> {
+    // Every cloud's count is weighed before any is drawn: forty clouds of the most each
+    // would take gigabytes.
+    let mut held = prims.spheres.len() + prims.moving_spheres.len();
+    for (i, c) in d.random_sphere_clouds.iter().enumerate() {
+        let count = usize::try_from(*c.get_ref().count.get_ref()).unwrap_or(0);
+        held = held.saturating_add(count);
+        if held > MAX_SPHERES {
+            return Err(ck.error(
+                c.get_ref().count.span(),
+                &format!("random_sphere_clouds[{i}].count"),
+                format!(
+                    "would make the scene's spheres {held}, more than the {MAX_SPHERES} a \
+                     scene may hold"
+                ),
+            ));
+        }
+    }
     for (i, c) in d.random_sphere_clouds.iter().enumerate() {
         let field = format!("random_sphere_clouds[{i}]");
         let spheres = sphere_cloud(ck, &field, c.get_ref(), material, file_seed)?;

@@ -36,11 +36,7 @@ pub(super) struct LoadedImage {
 /// Reads and decodes the texture file `name`; the error says what was wrong, with the file.
 pub(super) fn load(name: &str, source: &TextureSource) -> Result<LoadedImage, String> {
     let relative = Path::new(name);
-    let plain = !name.is_empty()
-        && relative
-            .components()
-            .all(|c| matches!(c, Component::Normal(_) | Component::CurDir));
-    if !plain {
+    if !is_plain_name(name) {
         return Err(format!(
             "`{name}` must be a relative file name without `..` (textures are found next to \
              the scene file)"
@@ -52,7 +48,7 @@ pub(super) fn load(name: &str, source: &TextureSource) -> Result<LoadedImage, St
             None => return Err(format!("no texture `{name}` is compiled in")),
         },
         TextureSource::Dirs(dirs) => {
-            let Some(path) = dirs.iter().map(|d| d.join(relative)).find(|p| p.exists()) else {
+            let Some(path) = find_texture(dirs, relative)? else {
                 let looked: Vec<String> = dirs
                     .iter()
                     .map(|d| {
@@ -78,6 +74,42 @@ pub(super) fn load(name: &str, source: &TextureSource) -> Result<LoadedImage, St
         },
         found,
     })
+}
+
+/// Whether `name` is a texture's name as a scene may give it: relative, without `..`.
+pub fn is_plain_name(name: &str) -> bool {
+    !name.is_empty()
+        && Path::new(name)
+            .components()
+            .all(|c| matches!(c, Component::Normal(_) | Component::CurDir))
+}
+
+/// The texture file `name` (a plain name) in the first of `dirs` that holds it. A file
+/// that a symbolic link leads out of its directory is refused: a scene or recipe from a
+/// stranger reads only what lies in the directories it is given.
+pub fn find_texture(dirs: &[PathBuf], name: &Path) -> Result<Option<PathBuf>, String> {
+    for dir in dirs {
+        let path = dir.join(name);
+        let Ok(real) = path.canonicalize() else {
+            continue;
+        };
+        // A scene file named without a directory has "" for its own.
+        let base = if dir.as_os_str().is_empty() {
+            Path::new(".")
+        } else {
+            dir.as_path()
+        };
+        let inside = base.canonicalize().is_ok_and(|base| real.starts_with(base));
+        if !inside {
+            return Err(format!(
+                "texture file {} leads out of {} (a symbolic link): refused",
+                path.display(),
+                base.display()
+            ));
+        }
+        return Ok(Some(path));
+    }
+    Ok(None)
 }
 
 /// The bytes of the regular file `path`, at most `MAX_TEXTURE_BYTES`.

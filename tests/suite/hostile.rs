@@ -468,6 +468,8 @@ fn pipes_and_devices_named_as_inputs_are_refused_not_waited_on() {
             &["reproduce", name],
             &["merge", name, "-o", "m.png"],
             &["compare", "a.png", name],
+            &["render", name, "-o", "r.png"],
+            &["bench", name, "--no-save"],
         ] {
             // A FIFO with no writer: opened for reading the usual way, it waits forever.
             let mut child = tessera()
@@ -722,7 +724,11 @@ fn texture_files_a_stranger_names_are_refused_with_the_reason_within_bounds() {
         ("huge.jpg", "65535x65535: a texture must have between 1 and"),
         ("text.jpg", "is not an image tessera reads"),
         ("folder.jpg", "folder.jpg"),
-        ("zero.jpg", "is a device"),
+        // A link to a device: it leads out of the scene's directory, refused before it is opened.
+        (
+            "zero.jpg",
+            "zero.jpg leads out of . (a symbolic link): refused",
+        ),
         (
             "../earthmap.jpg",
             "must be a relative file name without `..`",
@@ -746,4 +752,90 @@ fn texture_files_a_stranger_names_are_refused_with_the_reason_within_bounds() {
         );
         assert!(!dir.join("out.png").exists(), "{file}: no output");
     }
+}
+
+#[test]
+fn a_stranger_s_scene_or_recipe_reads_nothing_outside_and_holds_its_size() {
+    let dir = temp_dir("hostile-reach");
+    let png = std::fs::read(rendered(&dir, "a.png")).unwrap();
+    // A recipe naming texture files outside every directory it is given.
+    let mut recipe = recipe_json(&dir, "a.png");
+    for name in ["/etc/passwd", "../../../../etc/hostname"] {
+        recipe["textures"] = serde_json::json!([{
+            "name": name,
+            "hash": "xxh3-128:00000000000000000000000000000000"
+        }]);
+        std::fs::write(dir.join("reach.png"), png_with_recipe(&png, &recipe)).unwrap();
+        refused(
+            &run(&["reproduce", "reach.png"], &dir),
+            "which is not a relative name without `..`: refused",
+            name,
+        );
+    }
+    // A texture that a symbolic link leads out of the scene's directory.
+    let outside = temp_dir("hostile-reach-outside");
+    std::fs::copy(
+        root().join("scenes/earthmap.jpg"),
+        outside.join("earth.jpg"),
+    )
+    .unwrap();
+    std::os::unix::fs::symlink(outside.join("earth.jpg"), dir.join("earth.jpg")).unwrap();
+    std::fs::write(dir.join("linked.toml"), textured_scene("earth.jpg")).unwrap();
+    refused(
+        &run(&["render", "linked.toml", "-o", "linked.png"], &dir),
+        "leads out of",
+        "a linked texture",
+    );
+    assert!(!dir.join("linked.png").exists());
+    // Clouds whose spheres would be more than a scene may hold: refused before any is drawn.
+    let cloud = "[[random_sphere_clouds]]\ncount = 1048576\nmin = [0, 0, 0]\nmax = [1, 1, 1]\n\
+                 radius = 0.01\nmaterial = \"m\"\n";
+    let clouds = format!(
+        "[image]\nwidth = 8\nheight = 8\nsamples_per_pixel = 1\nmax_depth = 1\n\
+         [materials.m]\ntype = \"lambertian\"\nalbedo = [0.5, 0.5, 0.5]\n{}",
+        cloud.repeat(40)
+    );
+    std::fs::write(dir.join("clouds.toml"), &clouds).unwrap();
+    let o = run_capped(&["render", "clouds.toml", "-o", "c.png"], &dir, 1024);
+    refused(
+        &o,
+        "random_sphere_clouds[1].count`: would make the scene's spheres 2097152",
+        "clouds",
+    );
+}
+
+#[test]
+fn a_long_chain_of_checkers_is_checked_in_linear_time_and_a_long_cycle_found() {
+    let dir = temp_dir("hostile-chain");
+    // t0000 -> t0001 -> ... -> t4999; with `cycle`, the last leads back to the first.
+    let chain = |n: usize, cycle: bool| {
+        let mut t = String::from(
+            "[image]\nwidth = 8\nheight = 8\nsamples_per_pixel = 1\nmax_depth = 2\n\
+             [materials.m]\ntype = \"lambertian\"\nalbedo = \"t0000\"\n\
+             [[spheres]]\ncenter = [0, 0, -1]\nradius = 0.5\nmaterial = \"m\"\n",
+        );
+        for i in 0..n {
+            let next = if i + 1 < n {
+                format!("\"t{:04}\"", i + 1)
+            } else if cycle {
+                "\"t0000\"".to_owned()
+            } else {
+                "[1, 1, 1]".to_owned()
+            };
+            t.push_str(&format!(
+                "[textures.t{i:04}]\ntype = \"checker\"\neven = {next}\n\
+                 odd = [0, 0, 0]\n"
+            ));
+        }
+        t
+    };
+    // Cubic before: 5000 textures took hours; now a fraction of a second.
+    std::fs::write(dir.join("chain.toml"), chain(5000, false)).unwrap();
+    ok(&["render", "chain.toml", "-o", "chain.png", "-q"], &dir);
+    std::fs::write(dir.join("cycle.toml"), chain(3000, true)).unwrap();
+    refused(
+        &run(&["render", "cycle.toml", "-o", "cycle.png"], &dir),
+        "field `textures.t0000`: a checker's squares lead back to itself",
+        "a cycle of 3000",
+    );
 }

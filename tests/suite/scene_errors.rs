@@ -49,8 +49,37 @@ fn unknown_key_is_named_with_its_line_and_column() {
     assert_rejected(
         "unknown-key",
         &text,
-        &["scene.toml:6:1", "unknown field `widht`"],
+        &[
+            "scene.toml:6:1",
+            "field `image.widht`: unknown field `widht`",
+        ],
     );
+}
+
+#[test]
+fn a_value_of_the_wrong_shape_names_its_field() {
+    for (name, from, to, expected) in [
+        (
+            "short-center",
+            "center = [0.0, 0.0, -1.0]",
+            "center = [0.0, -1.0]",
+            "scene.toml:12:10: field `spheres[0].center`: invalid length 2",
+        ),
+        (
+            "text-radius",
+            "radius = 0.5",
+            "radius = \"half\"",
+            "scene.toml:13:10: field `spheres[0].radius`: invalid type: string",
+        ),
+        (
+            "float-width",
+            "width = 16",
+            "width = 16.5",
+            "scene.toml:2:9: field `image.width`: invalid type: floating point",
+        ),
+    ] {
+        assert_rejected(name, &GOOD.replace(from, to), &[expected]);
+    }
 }
 
 #[test]
