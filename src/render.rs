@@ -238,7 +238,18 @@ pub fn render_job(
                         if watched {
                             active.set(Some(task.index));
                         }
-                        let result = render_tile(scene, &task.tile, task.range, options.simd);
+                        let Some(result) = render_tile_unless(
+                            scene,
+                            &task.tile,
+                            task.range,
+                            options.simd,
+                            Some(stop),
+                        ) else {
+                            if watched {
+                                active.set(None);
+                            }
+                            return;
+                        };
                         on_samples(task.worth);
                         batch.push(Finished {
                             index: task.index,
@@ -479,12 +490,41 @@ pub fn render_tile(
     range: SampleRange,
     simd: simd::Path,
 ) -> TileResult {
+    render_tile_unless(scene, tile, range, simd, None)
+        .expect("a tile without a stop flag is always finished")
+}
+
+/// `render_tile`, given up (`None`) at the next pixel once `stop` is set: a render at a
+/// million samples per pixel stops within about a pixel's work, not a tile's.
+pub fn render_tile_unless(
+    scene: &Scene,
+    tile: &PixelRect,
+    range: SampleRange,
+    simd: simd::Path,
+    stop: Option<&AtomicBool>,
+) -> Option<TileResult> {
     // Two kernels, each compiled on its own for every path: the first book's scenes run
     // the code they always ran, untouched by The Next Week's.
     if scene.needs_full_paths() {
-        simd::dispatch(simd, TileKernel::<true> { scene, tile, range })
+        simd::dispatch(
+            simd,
+            TileKernel::<true> {
+                scene,
+                tile,
+                range,
+                stop,
+            },
+        )
     } else {
-        simd::dispatch(simd, TileKernel::<false> { scene, tile, range })
+        simd::dispatch(
+            simd,
+            TileKernel::<false> {
+                scene,
+                tile,
+                range,
+                stop,
+            },
+        )
     }
 }
 
@@ -494,14 +534,15 @@ struct TileKernel<'a, const FULL: bool> {
     scene: &'a Scene,
     tile: &'a PixelRect,
     range: SampleRange,
+    stop: Option<&'a AtomicBool>,
 }
 
 impl<const FULL: bool> Kernel for TileKernel<'_, FULL> {
-    type Output = TileResult;
+    type Output = Option<TileResult>;
 
     #[inline(always)]
-    fn run<I: Isa>(self, isa: I) -> TileResult {
-        render_tile_on::<I, FULL>(isa, self.scene, self.tile, self.range)
+    fn run<I: Isa>(self, isa: I) -> Option<TileResult> {
+        render_tile_on::<I, FULL>(isa, self.scene, self.tile, self.range, self.stop)
     }
 }
 
@@ -511,12 +552,16 @@ fn render_tile_on<I: Isa, const FULL: bool>(
     scene: &Scene,
     tile: &PixelRect,
     range: SampleRange,
-) -> TileResult {
+    stop: Option<&AtomicBool>,
+) -> Option<TileResult> {
     let mut pixels = PixelEvaluator::for_tile(isa, scene, tile);
     let mut sums = Vec::with_capacity(tile.area() as usize);
     let mut rays = 0u64;
     for y in tile.y0..tile.y0 + tile.height {
         for x in tile.x0..tile.x0 + tile.width {
+            if stop.is_some_and(|stop| stop.load(Ordering::Relaxed)) {
+                return None;
+            }
             let mut acc = [0u64; 3];
             pixels.evaluate_as::<FULL>(x, y, range, |c: Color, r: u32| {
                 acc[0] += to_fixed(c.x);
@@ -527,5 +572,5 @@ fn render_tile_on<I: Isa, const FULL: bool>(
             sums.push(acc);
         }
     }
-    TileResult { sums, rays }
+    Some(TileResult { sums, rays })
 }
