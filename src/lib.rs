@@ -28,6 +28,8 @@
 //! size, shard split or interruption. [`math`], [`ray`], [`error`] and [`text`] serve them all;
 //! [`image_diff`] measures the difference of two images.
 //!
+//! [`verify`] checks an image against its recipe (`tessera reproduce`), bit for bit.
+//!
 //! [`record`] is what a benchmark records: its result and schema, the build and host it ran
 //! on (what confines the process, from [`confinement`]), the workloads, and, with the
 //! `results` feature, the database that keeps the results.
@@ -66,5 +68,6 @@ pub mod simd;
 pub mod text;
 pub mod texture;
 pub mod tonemap;
+pub mod verify;
 
 pub use error::{Error, Result};

@@ -95,21 +95,7 @@ pub fn progress_bar(total: u64, quiet: bool) -> ProgressBar {
     bar
 }
 
-pub use tessera::text::count;
-
-/// `x` with `digits` significant digits, without an exponent for everyday magnitudes:
-/// `0.0001234` rather than `0.000123` or `0.000000` for a small but real difference.
-pub fn significant(x: f64, digits: usize) -> String {
-    if x == 0.0 || !x.is_finite() {
-        return format!("{x}");
-    }
-    let magnitude = x.abs().log10().floor() as i32;
-    if !(-9..=9).contains(&magnitude) {
-        return format!("{:.*e}", digits.saturating_sub(1), x);
-    }
-    let decimals = (digits as i32 - 1 - magnitude).max(0) as usize;
-    format!("{x:.decimals$}")
-}
+pub use tessera::text::{count, significant};
 
 /// Wall time, samples/s, Mrays/s, rays per sample and threads of a render.
 pub fn render_summary(stats: &RenderStats) -> String {

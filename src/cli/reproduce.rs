@@ -2,18 +2,17 @@
 //! rendered again from it alone and checked bit for bit against the image.
 
 use super::flags::{self, SimdArg};
-use super::output::{self, count, note, out, progress_bar, significant};
+use super::output::{self, count, note, out, progress_bar};
 use super::writable::check_output;
 use anyhow::{Result, bail};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
-use tessera::film::Film;
-use tessera::image_diff::{self, RgbImage};
-use tessera::image_file::{self, ImageHeader, Pixels};
+use tessera::image_file::ImageHeader;
 use tessera::recipe::{self, Recipe, describe};
 use tessera::render::{self, RenderOptions};
 use tessera::text::{terminal_safe, terminal_safe_lines};
+use tessera::verify;
 
 /// `tessera info` as typed.
 #[derive(clap::Args)]
@@ -54,23 +53,9 @@ pub struct Args {
     textures: Option<PathBuf>,
 }
 
-/// The book cover's work: 1200x800 pixels at 500 samples per pixel, up to 50 bounces.
-const COVER_RAYS: f64 = 1200.0 * 800.0 * 500.0 * 50.0;
-/// The most work `reproduce` does unasked, in book covers (a few minutes on two cores).
-const UNASKED_COVERS: f64 = 4.0;
-
 /// The recipe of the image at `path`, read and checked, with the image's header.
 fn recipe_of(path: &Path) -> Result<(ImageHeader, Recipe)> {
-    let header = image_file::read_header(path)?;
-    let Some(text) = &header.recipe else {
-        bail!(
-            "{}: no recipe (the image was written with --no-provenance, by another program, \
-             or its metadata was stripped)",
-            path.display()
-        );
-    };
-    let recipe = Recipe::parse(text, path)?;
-    Ok((header, recipe))
+    Ok(verify::read_recipe(path)?)
 }
 
 /// `tessera info IMAGE`: the recipe, readably, or as JSON.
@@ -165,6 +150,13 @@ pub fn run(args: Args) -> Result<ExitCode> {
         return Ok(ExitCode::SUCCESS);
     }
     if let Some(file) = &args.output {
+        let same = |a: &Path, b: &Path| matches!((a.canonicalize(), b.canonicalize()), (Ok(a), Ok(b)) if a == b);
+        if same(file, image) {
+            bail!(
+                "-o {} names the image being checked: write the render to another file",
+                file.display()
+            );
+        }
         check_output(file)?;
     }
     let options = RenderOptions {
@@ -172,52 +164,21 @@ pub fn run(args: Args) -> Result<ExitCode> {
         tile: render::DEFAULT_TILE,
         simd: args.simd.path()?,
     };
-    // The most rays the recipe can ask for, every path its longest, judged from what it
-    // claims before its scene is even parsed.
-    let claimed = &recipe.image;
-    let samples = u64::from(claimed.window[2])
-        * u64::from(claimed.window[3])
-        * u64::from(claimed.samples_per_pixel);
-    let covers = samples as f64 * f64::from(claimed.max_depth) / COVER_RAYS;
-    let work = format!(
-        "{}x{} pixels at {} per pixel, paths of up to {}: at most {} book covers' work",
-        claimed.window[2],
-        claimed.window[3],
-        count(claimed.samples_per_pixel, "sample"),
-        count(claimed.max_depth, "bounce"),
-        significant(covers, 2)
-    );
-    if covers > UNASKED_COVERS && !args.any_cost {
+    let work = verify::Work::of(&recipe);
+    if work.is_costly() && !args.any_cost {
         bail!(
-            "{}: its recipe asks for {work}, more than the {UNASKED_COVERS} that reproduce \
-             renders unasked; pass --any-cost to render it anyway",
-            image.display()
+            "{}: its recipe asks for {work}, more than the {} that reproduce renders unasked; \
+             pass --any-cost to render it anyway",
+            image.display(),
+            verify::UNASKED_COVERS
         );
     }
     let dirs = recipe::texture_dirs(args.textures.as_deref(), image);
     let scene = recipe.scene(image, &dirs)?;
     let window = recipe.window();
     let differs = ExitCode::from(output::NEGATIVE);
-    if (header.width, header.height) != (window.width, window.height) {
-        out(&format!(
-            "differs: {} is {}x{}, its recipe makes {}x{}\n",
-            image.display(),
-            header.width,
-            header.height,
-            window.width,
-            window.height
-        ))?;
-        return Ok(differs);
-    }
-    if !header.display_changes.is_empty() {
-        let mut t = format!(
-            "differs: {} holds what tessera does not write and what changes how it is shown:\n",
-            image.display()
-        );
-        for change in &header.display_changes {
-            t.push_str(&format!("  {change}\n"));
-        }
-        out(&t)?;
+    if let Some(d) = verify::differs_unrendered(image, &header, &recipe) {
+        out(&differs_text(&d.summary, &d.details))?;
         return Ok(differs);
     }
     let s = &scene.settings;
@@ -229,13 +190,12 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let start = Instant::now();
     let (film, stats) = render::render(&scene, &options, &|n| bar.inc(n))?;
     bar.finish_and_clear();
+    // The image is read before the render is written: `-o` may name the image itself.
+    let verdict = verify::differs_rendered(image, &header, &recipe, &film, s.gamma)?;
     if let Some(out) = &args.output {
         let again = Recipe::new(&recipe.source(), &scene, &film);
         film.save(out, s.gamma, Some(&again))?;
     }
-    let rendered = recipe::sums_hash(&film);
-    let pixels = image_file::read_pixels(image, &header)?;
-    let verdict = check_pixels(&film, s.gamma, &pixels);
     let how = format!(
         "{} in {:.1} s on {}, SIMD path {}",
         describe(&recipe.image),
@@ -243,104 +203,28 @@ pub fn run(args: Args) -> Result<ExitCode> {
         count(stats.threads as u64, "thread"),
         options.simd.name()
     );
-    match (rendered == recipe.sums, verdict) {
-        (true, Ok(())) => {
+    match verdict {
+        None => {
             out(&format!(
-                "identical: {} is bit for bit what its recipe makes ({rendered}; {how})\n",
-                image.display()
+                "identical: {} is bit for bit what its recipe makes ({}; {how})\n",
+                image.display(),
+                recipe.sums
             ))?;
             Ok(ExitCode::SUCCESS)
         }
-        (same_sums, verdict) => {
-            let mut t = format!(
-                "differs: {} is not what its recipe makes ({how})\n",
-                image.display()
-            );
-            if !same_sums {
-                t.push_str(&format!(
-                    "  sums: the recipe says {}, the render gives {rendered}\n",
-                    terminal_safe(&recipe.sums, 64)
-                ));
-            }
-            match verdict {
-                Ok(()) => t.push_str("  pixels: the same as the render's\n"),
-                Err(why) => t.push_str(&format!("  pixels: {why}\n")),
-            }
-            out(&t)?;
+        Some(d) => {
+            out(&differs_text(&format!("{} ({how})", d.summary), &d.details))?;
             Ok(differs)
         }
     }
 }
 
-/// Whether `pixels` are exactly what `film` writes: where and how much they differ if not.
-fn check_pixels(film: &Film, gamma: f32, pixels: &Pixels) -> Result<(), String> {
-    let (w, h) = (film.width, film.height);
-    let expected = film.to_rgb8(gamma);
-    // Both sides as 8-bit values for the difference's figures; equality is checked exactly.
-    let (differing, first, actual) = match pixels {
-        Pixels::Other(layout) => {
-            return Err(format!(
-                "stored as {layout}, not as tessera writes them (re-saved by another program)"
-            ));
-        }
-        Pixels::Rgb8(bytes) => {
-            same_count(bytes.len(), expected.len())?;
-            let wrong = pixel_mismatches(bytes.len(), |i| bytes[i] != expected[i]);
-            (wrong.0, wrong.1, RgbImage::from_rgb8(w, h, bytes))
-        }
-        Pixels::Linear(values) => {
-            let linear = film.linear();
-            same_count(values.len(), linear.len())?;
-            let wrong =
-                pixel_mismatches(values.len(), |i| values[i].to_bits() != linear[i].to_bits());
-            let shown: Vec<u8> = values
-                .iter()
-                .map(|&c| tessera::tonemap::encode_8bit(c, gamma))
-                .collect();
-            (wrong.0, wrong.1, RgbImage::from_rgb8(w, h, &shown))
-        }
-    };
-    let Some((x, y)) = first.map(|i| (i as u32 % w, i as u32 / w)) else {
-        return Ok(());
-    };
-    let figures = image_diff::difference(&RgbImage::from_rgb8(w, h, &expected), &actual)
-        .map(|d| {
-            format!(
-                "RMSE {}, PSNR {:.2} dB, mean abs error {}",
-                significant(d.rmse, 4),
-                d.psnr_db,
-                significant(d.mean_abs, 4)
-            )
-        })
-        .unwrap_or_default();
-    Err(format!(
-        "{differing} of {} pixels differ, the first at ({x}, {y}); {figures}",
-        u64::from(w) * u64::from(h)
-    ))
-}
-
-/// Refuses pixels of another count than the render's (the size was checked: only a
-/// decoder's surprise could make them so).
-fn same_count(values: usize, expected: usize) -> Result<(), String> {
-    if values == expected {
-        Ok(())
-    } else {
-        Err(format!(
-            "{values} values decoded, the render has {expected}"
-        ))
+/// The verdict `differs`: its summary, then each difference indented.
+fn differs_text(summary: &str, details: &[String]) -> String {
+    let mut t = format!("differs: {summary}");
+    t.push_str(if details.is_empty() { "\n" } else { ":\n" });
+    for line in details {
+        t.push_str(&format!("  {line}\n"));
     }
-}
-
-/// The number of pixels among `len` values (3 each) whose values differ, and the first
-/// one's index.
-fn pixel_mismatches(len: usize, differs: impl Fn(usize) -> bool) -> (u64, Option<usize>) {
-    let mut count = 0;
-    let mut first = None;
-    for p in 0..len / 3 {
-        if (3 * p..3 * p + 3).any(&differs) {
-            count += 1;
-            first.get_or_insert(p);
-        }
-    }
-    (count, first)
+    t
 }

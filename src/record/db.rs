@@ -451,6 +451,13 @@ impl ResultsDb {
         Ok(n as usize)
     }
 
+    /// Run `id`'s result JSON, as it was recorded.
+    pub fn result_json(&self, id: i64) -> Result<String> {
+        Ok(self
+            .conn
+            .query_row("SELECT result FROM runs WHERE id = ?1", [id], |r| r.get(0))?)
+    }
+
     /// Every run's result JSON, oldest first.
     pub fn results_json(&self) -> Result<Vec<String>> {
         let mut stmt = self

@@ -802,6 +802,13 @@ fn a_stranger_s_scene_or_recipe_reads_nothing_outside_and_holds_its_size() {
         "random_sphere_clouds[1].count`: would make the scene's spheres 2097152",
         "clouds",
     );
+    // -o naming the image being checked: refused, the image left as it was.
+    refused(
+        &run(&["reproduce", "a.png", "-o", "./a.png"], &dir),
+        "names the image being checked",
+        "reproduce -o itself",
+    );
+    assert_eq!(std::fs::read(dir.join("a.png")).unwrap(), png);
 }
 
 #[test]

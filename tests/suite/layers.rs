@@ -33,6 +33,7 @@ const LAYERS: &[&str] = &[
     "integrator",
     "render",
     "partial",
+    "verify",
     "preview",
     "record",
 ];

@@ -1,22 +1,19 @@
-//! One measurement of `tessera bench`: the warm-up, the renders at each thread count, the
-//! validation of every image, the result as text or JSON, and its record in the results
-//! database. A machine that is busy while it runs (load above its CPUs, stolen time) is said
-//! in the output and recorded in the result: such a run's speed and scaling are not the
-//! machine's.
+//! One measurement of `tessera bench` (`tessera::record::measure` makes it): the result as
+//! text or JSON, and its record in the results database. A machine that was busy while it
+//! ran (load above its CPUs, stolen time) is said in the output: such a run's speed and
+//! scaling are not the machine's.
 
 use crate::cli::output::{self, count, note, out};
 use anyhow::{Context, Result};
-use std::collections::BTreeSet;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use tessera::atomic_file::write_atomically;
-use tessera::film::Film;
 #[cfg(feature = "results")]
 use tessera::record::db::{self, ResultsDb};
-use tessera::record::host::{Build, Busy, CpuTimes, Host, short_commit};
-use tessera::record::result::{BenchResult, Method, Row, SCHEMA, Spread, Validation, WorkloadInfo};
-use tessera::record::workload::{Workload, hash_text};
-use tessera::render::{self, RenderOptions, RenderStats};
+use tessera::record::host::{Host, short_commit};
+use tessera::record::measure;
+use tessera::record::result::BenchResult;
+use tessera::record::workload::Workload;
 
 /// A measurement, ready to run.
 pub struct Measure {
@@ -67,92 +64,21 @@ pub fn save_to(no_save: bool, db: Option<PathBuf>) -> Option<SaveTo> {
     }
 }
 
-/// One render of `workload`: its image and counts.
-fn render_once(
-    workload: &Workload,
-    threads: usize,
-    simd: tessera::simd::Path,
-) -> Result<(Film, RenderStats)> {
-    let options = RenderOptions {
-        threads: Some(threads),
-        tile: render::DEFAULT_TILE,
-        simd,
-    };
-    render::render(&workload.scene, &options, &|_| {}).context("could not start the thread pool")
-}
-
 /// Measures, reports and records; exit 1 when an image is not the workload's.
 pub fn run(m: Measure) -> Result<ExitCode> {
-    let started_unix_s = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_secs());
     // Opened before the renders, so that a database it cannot use stops it at once.
     #[cfg(feature = "results")]
     let mut db = open_results_db(m.save.as_ref())?;
-    // Read before the renders load the machine.
-    let host = Host::this();
-    let cpu_times_at_start = CpuTimes::now();
-    let mut images = BTreeSet::new();
-    let mut render = |threads: usize| -> Result<RenderStats> {
-        let (film, stats) = render_once(&m.workload, threads, m.simd)?;
-        images.insert(hash_text(film.content_hash()));
-        Ok(stats)
-    };
-    for _ in 0..m.warmup {
-        render(m.threads)?;
-    }
-    let mut counts: Vec<usize> = m.scaling.clone();
-    counts.push(m.threads);
-    counts.sort_unstable();
-    counts.dedup();
-    let mut rows = Vec::new();
-    for &threads in &counts {
-        let runs = (0..m.repeat)
-            .map(|_| render(threads))
-            .collect::<Result<Vec<_>>>()?;
-        rows.push(row(threads, &runs));
-    }
-    let base = rows
-        .iter()
-        .find(|r| r.threads == 1)
-        .map(|r| r.samples_per_sec.median);
-    for r in &mut rows {
-        r.speedup = base.map(|b| r.samples_per_sec.median / b);
-        r.efficiency = r.speedup.map(|s| s / r.threads as f64);
-    }
-    let busy = Busy::judge(&host, cpu_times_at_start.as_ref(), CpuTimes::now().as_ref());
-    let validation = validate(&m.workload, images);
-    let s = &m.workload.scene.settings;
-    let result = rows
-        .iter()
-        .find(|r| r.threads == m.threads)
-        .cloned()
-        .context("the headline thread count was not measured")?;
-    let report = BenchResult {
-        schema: SCHEMA.into(),
-        build: Build::this(m.simd, m.simd_chosen),
-        host,
-        workload: WorkloadInfo {
-            name: m.workload.name.clone(),
-            scene: m.workload.scene_name.clone(),
-            id: m.workload.id.clone(),
-            width: s.width,
-            height: s.height,
-            spp: s.samples_per_pixel,
-            max_depth: s.max_depth,
-            seed: s.seed,
-        },
-        method: Method {
-            threads: m.threads,
-            repeat: m.repeat,
-            warmup: m.warmup,
-            started_unix_s,
-        },
-        result,
-        scaling: rows,
-        validation,
-        busy: Some(busy),
-    };
+    let report = measure::measure(&measure::Plan {
+        workload: m.workload,
+        threads: m.threads,
+        scaling: m.scaling,
+        repeat: m.repeat,
+        warmup: m.warmup,
+        simd: m.simd,
+        simd_chosen: m.simd_chosen,
+    })
+    .context("could not start the thread pool")?;
     let json = tessera::text::ascii_json(&serde_json::to_string_pretty(&report)?) + "\n";
     if let Some(out) = &m.out {
         write_atomically(out, json.as_bytes())?;
@@ -204,34 +130,6 @@ fn open_results_db(save: Option<&SaveTo>) -> Result<Option<(ResultsDb, &std::pat
             Ok(None)
         }
         Err(e) => Err(e),
-    }
-}
-
-/// The measurement of `runs` at `threads`.
-fn row(threads: usize, runs: &[RenderStats]) -> Row {
-    let of = |f: fn(&RenderStats) -> f64| Spread::of(&runs.iter().map(f).collect::<Vec<_>>());
-    Row {
-        threads,
-        samples_per_sec: of(RenderStats::samples_per_sec),
-        mrays_per_sec: of(RenderStats::mrays_per_sec),
-        wall_s: of(|r| r.wall.as_secs_f64()),
-        rays_per_sample: runs.first().map_or(0.0, RenderStats::rays_per_sample),
-        speedup: None,
-        efficiency: None,
-        runs: runs.iter().map(RenderStats::samples_per_sec).collect(),
-    }
-}
-
-fn validate(workload: &Workload, images: BTreeSet<String>) -> Validation {
-    let status = match &workload.expected {
-        None => "unvalidated",
-        Some(want) if images.len() == 1 && images.contains(want) => "valid",
-        Some(_) => "invalid",
-    };
-    Validation {
-        status: status.into(),
-        expected: workload.expected.clone(),
-        images: images.into_iter().collect(),
     }
 }
 
@@ -336,26 +234,4 @@ fn text(r: &BenchResult) -> String {
         ),
     });
     t
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn quick_with(expected: Option<&str>) -> Workload {
-        let mut w = Workload::named("quick").unwrap();
-        w.expected = expected.map(str::to_owned);
-        w
-    }
-
-    #[test]
-    fn a_result_is_valid_only_if_every_image_has_the_expected_hash() {
-        let images = |list: &[&str]| list.iter().map(|s| s.to_string()).collect::<BTreeSet<_>>();
-        let status = |w: &Workload, i: &[&str]| validate(w, images(i)).status;
-        assert_eq!(status(&quick_with(Some("a")), &["a"]), "valid");
-        assert_eq!(status(&quick_with(Some("a")), &["b"]), "invalid");
-        assert_eq!(status(&quick_with(Some("a")), &["a", "b"]), "invalid");
-        assert_eq!(status(&quick_with(Some("a")), &[]), "invalid");
-        assert_eq!(status(&quick_with(None), &["b"]), "unvalidated");
-    }
 }

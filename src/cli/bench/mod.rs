@@ -245,11 +245,7 @@ impl BenchMode {
         if let Some(out) = &args.out {
             check_output(out)?;
         }
-        // 1, 2, 4, … below every CPU, then every CPU.
-        let mut scaling: Vec<usize> = std::iter::successors(Some(1usize), |n| n.checked_mul(2))
-            .take_while(|&n| n < cpus)
-            .collect();
-        scaling.push(cpus);
+        let scaling = tessera::record::measure::scaling_counts(cpus);
         Ok(Self::Measure(Box::new(Measure {
             workload,
             threads,
