@@ -105,6 +105,15 @@ enum Way {
 const RUN_ELSEWHERE: &[(&str, &str)] = &[
     ("cargo test --release", "this very test suite"),
     (
+        "pip install ./python",
+        "python/tests (pytest), which .ci/run runs on the wheel it builds and installs into a \
+         fresh virtual environment",
+    ),
+    (
+        "python3 -m venv",
+        "python/tests (pytest), in the virtual environment .ci/run makes",
+    ),
+    (
         "deploy/container/build.sh",
         "container::the_image_is_small_labelled_and_runs_without_privileges (.ci/run builds \
          it with this script)",

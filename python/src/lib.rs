@@ -1,0 +1,655 @@
+//! tessera from Python: the `tessera._native` extension module, a thin layer over the tessera
+//! library. It loads a scene (a file, TOML text or a dict given as JSON), renders it with the
+//! interpreter's lock released, calls back after each progressive pass, stops on Ctrl-C, and
+//! turns every error into a Python exception. The package's Python half (`tessera/`) gives
+//! the arrays and the documented signatures; nothing here decides what an image is.
+
+use pyo3::exceptions::{PyException, PyFileNotFoundError, PyKeyboardInterrupt, PyOSError};
+use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::{PyBytes, PyDict};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use tessera::film::Film;
+use tessera::image_file::Format;
+use tessera::job::{Job, JobState};
+use tessera::recipe::{self, Recipe, Source};
+use tessera::record::{db, measure};
+use tessera::render::{
+    Control, DEFAULT_TILE, Progress, RenderOptions, RenderStats, Watch, render_job,
+};
+use tessera::scene::{Overrides, Scene, TextureSource};
+use tessera::verify;
+
+pyo3::create_exception!(
+    _native,
+    TesseraError,
+    PyException,
+    "An error of tessera's: a file it cannot use, parts that do not merge, a database it cannot open."
+);
+pyo3::create_exception!(
+    _native,
+    SceneError,
+    TesseraError,
+    "A scene that tessera cannot render: its `file`, `line`, `column` and `field` (None where the \
+     error is not at one value) say where, as the command line's message does."
+);
+
+/// A tessera error as the Python exception a user expects, with the command line's message.
+fn to_py(py: Python<'_>, e: tessera::Error) -> PyErr {
+    use tessera::Error;
+    let message = e.to_string();
+    match e {
+        Error::SceneSyntax { path, at, .. } => scene_error(py, message, &path, at, None),
+        Error::SceneValue {
+            path, at, field, ..
+        } => scene_error(py, message, &path, at, Some(field)),
+        Error::Setting { .. } => PyValueError::new_err(message),
+        Error::Io { cause, .. } if cause.kind() == std::io::ErrorKind::NotFound => {
+            PyFileNotFoundError::new_err(message)
+        }
+        Error::Io { .. } => PyOSError::new_err(message),
+        Error::Image { .. } | Error::Merge(_) | Error::Partial { .. } => {
+            TesseraError::new_err(message)
+        }
+    }
+}
+
+/// A `SceneError` carrying where it is as attributes.
+fn scene_error(
+    py: Python<'_>,
+    message: String,
+    path: &Path,
+    at: tessera::error::Location,
+    field: Option<String>,
+) -> PyErr {
+    let err = SceneError::new_err(message);
+    let value = err.value(py);
+    let _ = value.setattr("file", path.display().to_string());
+    let _ = value.setattr("line", at.line);
+    let _ = value.setattr("column", at.column);
+    let _ = value.setattr("field", field);
+    err
+}
+
+/// The scene to render, as the Python side hands it over.
+enum SceneInput {
+    /// A scene file's path.
+    File(PathBuf),
+    /// A scene file's text.
+    Toml(String),
+    /// A dict with the scene file's keys, as JSON.
+    Json(String),
+}
+
+/// The name a scene given as text goes by, in errors and in the recipe.
+const TEXT_ORIGIN: &str = "<string>";
+const DICT_ORIGIN: &str = "<dict>";
+
+impl SceneInput {
+    /// The scene parsed with `overrides`, and the source its recipe records.
+    fn load(&self, overrides: Overrides) -> tessera::Result<(Scene, Source)> {
+        let (origin, text) = match self {
+            SceneInput::File(path) => {
+                let text = Scene::read_text(path)?;
+                let scene = Scene::parse(&text, path, &overrides)?;
+                return Ok((scene, Source::new(path, &text, overrides)));
+            }
+            SceneInput::Toml(text) => (Path::new(TEXT_ORIGIN), text.clone()),
+            SceneInput::Json(json) => (Path::new(DICT_ORIGIN), toml_of_json(json)?),
+        };
+        // Image textures of a scene without a file: beside the working directory, then in
+        // its `scenes/`, as `reproduce` looks for them.
+        let dirs = recipe::texture_dirs(None, Path::new("here"));
+        let scene = Scene::parse_with(&text, origin, &overrides, &TextureSource::Dirs(dirs))?;
+        Ok((scene, Source::new(origin, &text, overrides)))
+    }
+}
+
+/// The TOML text of a scene given as a dict (already JSON): the same dict, the same text.
+fn toml_of_json(json: &str) -> tessera::Result<String> {
+    let setting = |message: String| tessera::Error::Setting {
+        field: "scene".into(),
+        message,
+    };
+    let value: toml::Value = serde_json::from_str(json)
+        .map_err(|e| setting(format!("a dict of the scene file's keys is expected ({e})")))?;
+    if !value.is_table() {
+        return Err(setting(
+            "a dict of the scene file's keys is expected".into(),
+        ));
+    }
+    toml::to_string(&value).map_err(|e| setting(format!("cannot be written as TOML ({e})")))
+}
+
+/// A rendered image: its exact sums, how it is shown, and the recipe it is saved with.
+#[pyclass(frozen, module = "tessera._native")]
+struct NativeImage {
+    film: Film,
+    gamma: f32,
+    recipe: Recipe,
+    stats: Option<RenderStats>,
+    simd: &'static str,
+}
+
+impl NativeImage {
+    fn encode(&self, format: Format) -> std::io::Result<Vec<u8>> {
+        let mut bytes = Vec::new();
+        self.film
+            .write(format, self.gamma, Some(&self.recipe), &mut bytes)?;
+        Ok(bytes)
+    }
+}
+
+#[pymethods]
+impl NativeImage {
+    #[getter]
+    fn width(&self) -> u32 {
+        self.film.width
+    }
+    #[getter]
+    fn height(&self) -> u32 {
+        self.film.height
+    }
+    #[getter]
+    fn samples_per_pixel(&self) -> u32 {
+        self.film.samples_per_pixel
+    }
+    #[getter]
+    fn max_depth(&self) -> u32 {
+        self.recipe.image.max_depth
+    }
+    #[getter]
+    fn seed(&self) -> u64 {
+        self.recipe.image.seed
+    }
+    #[getter]
+    fn gamma(&self) -> f32 {
+        self.gamma
+    }
+    /// XXH3-128 of the exact sums, as recipes and benchmark results write it.
+    #[getter]
+    fn sums(&self) -> String {
+        recipe::sums_hash(&self.film)
+    }
+    #[getter]
+    fn mean_radiance(&self) -> f64 {
+        self.film.mean_radiance()
+    }
+    /// The recipe the image is saved with, as JSON.
+    #[getter]
+    fn recipe(&self) -> String {
+        self.recipe.to_json()
+    }
+
+    /// The means of the exact sums, linear, as native-endian float32, row by row.
+    fn linear_bytes<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyBytes>> {
+        let linear = self.film.linear();
+        PyBytes::new_with(py, linear.len() * 4, |buf| {
+            for (out, v) in buf.chunks_exact_mut(4).zip(&linear) {
+                out.copy_from_slice(&v.to_ne_bytes());
+            }
+            Ok(())
+        })
+    }
+
+    /// The 8-bit sRGB pixels a PNG of the image holds, row by row.
+    fn srgb8_bytes<'py>(&self, py: Python<'py>) -> Bound<'py, PyBytes> {
+        PyBytes::new(py, &self.film.to_rgb8(self.gamma))
+    }
+
+    /// The image file of `format` ("png", "exr" or "ppm"), recipe included where the format
+    /// has metadata: the bytes `save` writes.
+    fn encode_as<'py>(&self, py: Python<'py>, format: &str) -> PyResult<Bound<'py, PyBytes>> {
+        let format = match format {
+            "png" => Format::Png,
+            "exr" => Format::Exr,
+            "ppm" => Format::Ppm,
+            other => {
+                return Err(PyValueError::new_err(format!(
+                    "format must be png, exr or ppm, not {other:?}"
+                )));
+            }
+        };
+        let bytes = py
+            .detach(|| self.encode(format))
+            .map_err(|e| TesseraError::new_err(format!("could not encode the image: {e}")))?;
+        Ok(PyBytes::new(py, &bytes))
+    }
+
+    /// Writes the image to `path` (its format from the extension), whole or not at all: the
+    /// file `tessera render` writes for the same scene and settings.
+    fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        py.detach(|| self.film.save(&path, self.gamma, Some(&self.recipe)))
+            .map_err(|e| to_py(py, e))
+    }
+
+    /// Counts and timing of the render, or None for a pass's image.
+    fn stats<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let Some(s) = self.stats else {
+            return Ok(None);
+        };
+        let d = PyDict::new(py);
+        d.set_item("samples", s.samples)?;
+        d.set_item("rays", s.rays)?;
+        d.set_item("seconds", s.wall.as_secs_f64())?;
+        d.set_item("threads", s.threads)?;
+        d.set_item("simd", self.simd)?;
+        d.set_item("samples_per_second", s.samples_per_sec())?;
+        d.set_item("rays_per_sample", s.rays_per_sample())?;
+        Ok(Some(d))
+    }
+}
+
+/// Calls `on_pass` with the image after each progressive pass, on the thread that folds
+/// finished tiles (the caller's), taking the interpreter's lock for the call only. A pass is
+/// over when its last tile is folded: passes run one after another and a batch of tiles
+/// never spans two, so the state then holds exactly the pass's samples in every pixel.
+struct PassWatcher<'a> {
+    on_pass: &'a Py<PyAny>,
+    scene: &'a Scene,
+    source: &'a Source,
+    simd: &'static str,
+    passes_seen: usize,
+    stop: &'a AtomicBool,
+    /// What the callback raised: the render stops and the caller raises it.
+    raised: Option<PyErr>,
+}
+
+impl Watch for PassWatcher<'_> {
+    fn started(&mut self, _: &JobState, _: &Progress) {}
+
+    fn folded(&mut self, state: &JobState, _: &[usize], progress: &Progress) {
+        if progress.pass <= self.passes_seen || self.raised.is_some() {
+            return;
+        }
+        self.passes_seen = progress.pass;
+        let spp = progress.passes[progress.pass - 1];
+        let region = state.job.region;
+        let film = Film {
+            width: region.width,
+            height: region.height,
+            samples_per_pixel: spp,
+            sums: state.sums.clone(),
+        };
+        let image = pass_image(film, self.scene, self.source, self.simd);
+        let called = Python::attach(|py| {
+            let image = Py::new(py, image)?;
+            self.on_pass.call1(py, (image,)).map(drop)
+        });
+        if let Err(e) = called {
+            self.raised = Some(e);
+            self.stop.store(true, Ordering::Relaxed);
+        }
+    }
+}
+
+/// The image of a pass of `spp` samples: its recipe says `spp`, so that `reproduce` makes
+/// it again (a render of `spp` samples gives these very sums).
+fn pass_image(film: Film, scene: &Scene, source: &Source, simd: &'static str) -> NativeImage {
+    let mut source = source.clone();
+    source.overrides.samples_per_pixel = Some(film.samples_per_pixel);
+    let mut recipe = Recipe::new(&source, scene, &film);
+    recipe.image.samples_per_pixel = film.samples_per_pixel;
+    NativeImage {
+        film,
+        gamma: scene.settings.gamma,
+        recipe,
+        stats: None,
+        simd,
+    }
+}
+
+/// What went wrong on the rendering side, sorted out once the lock is taken again.
+enum Failed {
+    Tessera(tessera::Error),
+    Pool(String),
+    Raised(PyErr),
+    Interrupted,
+    Panicked(String),
+}
+
+/// Loads `scene` and renders it. `kind` says what `scene` is: "file" (a path), "toml" (a
+/// scene file's text) or "json" (a dict of its keys, as JSON). The arguments are checked by
+/// the Python side; `simd` is a path's name or "auto".
+#[pyfunction]
+#[pyo3(signature = (kind, scene, *, width=None, spp=None, depth=None, seed=None, threads=None,
+    simd=None, on_pass=None))]
+#[allow(clippy::too_many_arguments)]
+fn render(
+    py: Python<'_>,
+    kind: &str,
+    scene: String,
+    width: Option<u32>,
+    spp: Option<u32>,
+    depth: Option<u32>,
+    seed: Option<u64>,
+    threads: Option<usize>,
+    simd: Option<String>,
+    on_pass: Option<Py<PyAny>>,
+) -> PyResult<NativeImage> {
+    let input = match kind {
+        "file" => SceneInput::File(PathBuf::from(scene)),
+        "toml" => SceneInput::Toml(scene),
+        "json" => SceneInput::Json(scene),
+        other => {
+            return Err(PyValueError::new_err(format!(
+                "unknown scene kind {other:?}"
+            )));
+        }
+    };
+    let path = tessera::simd::Path::choose(simd.as_deref().unwrap_or("auto"))
+        .map_err(|e| PyValueError::new_err(format!("simd: {e}")))?;
+    let options = RenderOptions {
+        threads,
+        tile: DEFAULT_TILE,
+        simd: path,
+    };
+    let overrides = Overrides {
+        width,
+        samples_per_pixel: spp,
+        max_depth: depth,
+        seed,
+    };
+    interruptible(py, |stop| {
+        let (scene, source) = input.load(overrides).map_err(Failed::Tessera)?;
+        let mut state = JobState::new(Job::whole(&scene), options.tile);
+        let mut watcher = on_pass.as_ref().map(|on_pass| PassWatcher {
+            on_pass,
+            scene: &scene,
+            source: &source,
+            simd: path.name(),
+            passes_seen: 0,
+            stop,
+            raised: None,
+        });
+        let control = Control {
+            stop,
+            on_samples: &|_| {},
+            on_progress: None,
+            progressive: watcher.is_some(),
+            watch: watcher.as_mut().map(|w| w as &mut dyn Watch),
+        };
+        let stats = render_job(&scene, &options, &mut state, control)
+            .map_err(|e| Failed::Pool(e.to_string()))?;
+        if let Some(e) = watcher.and_then(|w| w.raised) {
+            return Err(Failed::Raised(e));
+        }
+        if !state.is_complete() {
+            return Err(Failed::Interrupted);
+        }
+        let film = state.into_film();
+        let recipe = Recipe::new(&source, &scene, &film);
+        Ok(NativeImage {
+            film,
+            gamma: scene.settings.gamma,
+            recipe,
+            stats: Some(stats),
+            simd: path.name(),
+        })
+    })
+}
+
+/// Runs `work` with the interpreter's lock released and Ctrl-C setting the flag it is given
+/// (Python's own handler still sees the signal), and raises what it failed with.
+fn interruptible<T: Send>(
+    py: Python<'_>,
+    work: impl FnOnce(&AtomicBool) -> Result<T, Failed> + Send,
+) -> PyResult<T> {
+    let stop = Arc::new(AtomicBool::new(false));
+    let interrupt = signal_hook::flag::register(signal_hook::consts::SIGINT, Arc::clone(&stop))
+        .map_err(|e| PyRuntimeError::new_err(format!("could not watch for Ctrl-C: {e}")))?;
+    // A panic (a bug of tessera's) becomes an exception here, so that it is caught as any
+    // other TesseraError and never ends the interpreter.
+    let done = py.detach(|| {
+        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| work(&stop)))
+            .unwrap_or_else(|panic| Err(Failed::Panicked(panic_message(&panic))))
+    });
+    signal_hook::low_level::unregister(interrupt);
+    done.map_err(|failed| failed.into_py(py))
+}
+
+/// What a caught panic said.
+fn panic_message(panic: &Box<dyn std::any::Any + Send>) -> String {
+    (panic.downcast_ref::<&str>().map(|s| s.to_string()))
+        .or_else(|| panic.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "a panic".into())
+}
+
+impl Failed {
+    fn into_py(self, py: Python<'_>) -> PyErr {
+        match self {
+            Failed::Tessera(e) => to_py(py, e),
+            Failed::Pool(e) => {
+                TesseraError::new_err(format!("could not start the thread pool: {e}"))
+            }
+            Failed::Raised(e) => e,
+            Failed::Panicked(message) => TesseraError::new_err(format!(
+                "internal error (a bug of tessera's; please report it): {message}"
+            )),
+            // Python's own handler saw the signal too: on the main thread it raises now.
+            Failed::Interrupted => py
+                .check_signals()
+                .err()
+                .unwrap_or_else(|| PyKeyboardInterrupt::new_err("the render was interrupted")),
+        }
+    }
+}
+
+/// The SIMD paths this CPU runs, slowest first, and the one `auto` takes.
+#[pyfunction]
+fn simd_paths() -> (Vec<&'static str>, &'static str) {
+    let supported = tessera::simd::Path::supported();
+    (
+        supported.iter().map(|p| p.name()).collect(),
+        tessera::simd::Path::best().name(),
+    )
+}
+
+/// The build of tessera inside this module (version, commit, rustc, target, profile, SIMD
+/// paths), as JSON of a benchmark result's `build`.
+#[pyfunction]
+fn build() -> String {
+    let build = tessera::record::host::Build::this(tessera::simd::Path::best(), false);
+    serde_json::to_string(&build).unwrap_or_default()
+}
+
+/// Reads the recipe of the image at `image`, renders it again and says whether the image is
+/// bit for bit what it makes: a dict of the verdict ("identical" or "differs"), its summary
+/// and details, the recipe's sums and the work it asked for. A recipe asking for more than
+/// four book covers' work is refused unless `any_cost`.
+#[pyfunction]
+#[pyo3(signature = (image, *, threads=None, simd=None, textures=None, any_cost=false))]
+fn reproduce<'py>(
+    py: Python<'py>,
+    image: PathBuf,
+    threads: Option<usize>,
+    simd: Option<String>,
+    textures: Option<PathBuf>,
+    any_cost: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let path = tessera::simd::Path::choose(simd.as_deref().unwrap_or("auto"))
+        .map_err(|e| PyValueError::new_err(format!("simd: {e}")))?;
+    let options = RenderOptions {
+        threads,
+        tile: DEFAULT_TILE,
+        simd: path,
+    };
+    let (header, recipe) = py
+        .detach(|| verify::read_recipe(&image))
+        .map_err(|e| to_py(py, e))?;
+    let work = verify::Work::of(&recipe);
+    if work.is_costly() && !any_cost {
+        return Err(TesseraError::new_err(format!(
+            "{}: its recipe asks for {work}, more than the {} that reproduce renders unasked; \
+             pass any_cost=True to render it anyway",
+            image.display(),
+            verify::UNASKED_COVERS
+        )));
+    }
+    let d = PyDict::new(py);
+    d.set_item("image", image.display().to_string())?;
+    d.set_item("sums", &recipe.sums)?;
+    d.set_item("work", work.to_string())?;
+    let unrendered = verify::differs_unrendered(&image, &header, &recipe);
+    let differs = match unrendered {
+        Some(differs) => Some(differs),
+        None => {
+            let dirs = recipe::texture_dirs(textures.as_deref(), &image);
+            interruptible(py, |stop| {
+                let scene = recipe.scene(&image, &dirs).map_err(Failed::Tessera)?;
+                let mut state = JobState::new(Job::whole(&scene), options.tile);
+                let control = Control {
+                    stop,
+                    on_samples: &|_| {},
+                    on_progress: None,
+                    progressive: false,
+                    watch: None,
+                };
+                render_job(&scene, &options, &mut state, control)
+                    .map_err(|e| Failed::Pool(e.to_string()))?;
+                if !state.is_complete() {
+                    return Err(Failed::Interrupted);
+                }
+                let film = state.into_film();
+                verify::differs_rendered(&image, &header, &recipe, &film, scene.settings.gamma)
+                    .map_err(Failed::Tessera)
+            })?
+        }
+    };
+    match differs {
+        None => {
+            d.set_item("verdict", "identical")?;
+            d.set_item(
+                "summary",
+                format!("{} is bit for bit what its recipe makes", image.display()),
+            )?;
+            d.set_item("details", Vec::<String>::new())?;
+        }
+        Some(differs) => {
+            d.set_item("verdict", "differs")?;
+            d.set_item("summary", differs.summary)?;
+            d.set_item("details", differs.details)?;
+        }
+    }
+    Ok(d)
+}
+
+/// Measures `workload` ("quick", "cover", "cornell", "next-week") as `tessera bench` does,
+/// without recording it, and returns the result as JSON of the `tessera-bench` schema.
+#[pyfunction(name = "bench")]
+#[pyo3(signature = (workload, *, threads=None, scaling=false, repeat=3, warmup=1, simd=None))]
+fn bench_workload(
+    py: Python<'_>,
+    workload: &str,
+    threads: Option<usize>,
+    scaling: bool,
+    repeat: u32,
+    warmup: u32,
+    simd: Option<String>,
+) -> PyResult<String> {
+    let chosen = simd.as_deref().is_some_and(|s| s != "auto");
+    let path = tessera::simd::Path::choose(simd.as_deref().unwrap_or("auto"))
+        .map_err(|e| PyValueError::new_err(format!("simd: {e}")))?;
+    let workload = tessera::record::workload::Workload::named(workload)
+        .map_err(|e| PyValueError::new_err(format!("workload: {e:#}")))?;
+    let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let plan = measure::Plan {
+        workload,
+        threads: threads.unwrap_or(cpus),
+        scaling: if scaling {
+            measure::scaling_counts(cpus)
+        } else {
+            Vec::new()
+        },
+        repeat,
+        warmup,
+        simd: path,
+        simd_chosen: chosen,
+    };
+    let result = py
+        .detach(|| measure::measure(&plan))
+        .map_err(|e| TesseraError::new_err(format!("could not start the thread pool: {e}")))?;
+    serde_json::to_string(&result)
+        .map_err(|e| TesseraError::new_err(format!("could not write the result: {e}")))
+}
+
+/// The runs the results database at `db` (None: the default one) holds, newest first, as
+/// `tessera results list` shows them, each with its whole result as JSON under "result".
+#[pyfunction]
+#[pyo3(signature = (db=None, *, workload=None, machine=None, commit=None, limit=None))]
+fn results<'py>(
+    py: Python<'py>,
+    db: Option<PathBuf>,
+    workload: Option<String>,
+    machine: Option<String>,
+    commit: Option<String>,
+    limit: Option<u32>,
+) -> PyResult<Vec<Bound<'py, PyDict>>> {
+    let fail = |e: anyhow::Error| TesseraError::new_err(format!("{e:#}"));
+    let filter = db::Filter {
+        workload,
+        machine,
+        commit,
+        limit,
+    };
+    let runs = py
+        .detach(|| -> anyhow::Result<_> {
+            let path = db::resolve(db)?;
+            let db = db::ResultsDb::open_to_read(&path)?;
+            let runs = db.runs(&filter)?;
+            let with_results = (runs.into_iter())
+                .map(|run| db.result_json(run.id).map(|json| (run, json)))
+                .collect::<anyhow::Result<Vec<_>>>()?;
+            Ok(with_results)
+        })
+        .map_err(fail)?;
+    let mut out = Vec::with_capacity(runs.len());
+    for (run, json) in runs {
+        let d = PyDict::new(py);
+        d.set_item("id", run.id)?;
+        d.set_item("started_unix_s", run.started_unix_s)?;
+        d.set_item("machine_id", run.machine_id)?;
+        d.set_item("cpu_model", run.cpu_model)?;
+        d.set_item("logical_cpus", run.logical_cpus)?;
+        d.set_item("version", run.version)?;
+        d.set_item("commit", run.commit)?;
+        d.set_item("simd", run.simd)?;
+        d.set_item("workload", run.workload)?;
+        d.set_item("workload_id", run.workload_id)?;
+        d.set_item("threads", run.threads)?;
+        d.set_item("samples_per_second", run.sps[0])?;
+        d.set_item("samples_per_second_min", run.sps[1])?;
+        d.set_item("samples_per_second_max", run.sps[2])?;
+        d.set_item("validation", run.validation)?;
+        d.set_item("busy", run.busy)?;
+        d.set_item("result", json)?;
+        out.push(d);
+    }
+    Ok(out)
+}
+
+/// Panics in Rust where a render would, for the tests that check a panic becomes an
+/// exception.
+#[pyfunction]
+fn _panic_for_tests(py: Python<'_>) -> PyResult<()> {
+    interruptible(py, |_| -> Result<(), Failed> {
+        panic!("a panic on purpose, from tessera._native._panic_for_tests")
+    })
+}
+
+#[pymodule]
+fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("TesseraError", m.py().get_type::<TesseraError>())?;
+    m.add("SceneError", m.py().get_type::<SceneError>())?;
+    m.add_class::<NativeImage>()?;
+    m.add_function(wrap_pyfunction!(render, m)?)?;
+    m.add_function(wrap_pyfunction!(simd_paths, m)?)?;
+    m.add_function(wrap_pyfunction!(build, m)?)?;
+    m.add_function(wrap_pyfunction!(reproduce, m)?)?;
+    m.add_function(wrap_pyfunction!(bench_workload, m)?)?;
+    m.add_function(wrap_pyfunction!(results, m)?)?;
+    m.add_function(wrap_pyfunction!(_panic_for_tests, m)?)?;
+    Ok(())
+}

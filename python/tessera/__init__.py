@@ -1,0 +1,386 @@
+"""tessera from Python: the deterministic path tracer of *Ray Tracing in One Weekend* and
+*The Next Week*, rendering into NumPy arrays with the same bytes as the command line.
+
+    >>> import tessera
+    >>> image = tessera.render("scenes/cover.toml", width=300, spp=16)
+    >>> image.srgb8.shape            # the PNG's pixels, height x width x RGB
+    (200, 300, 3)
+    >>> image.save("cover.png")      # the file `tessera render` writes, recipe included
+
+The same scene, settings and seed give the same pixels whatever the thread count or SIMD
+path. Rendering releases the interpreter's lock; Ctrl-C stops a render within about a
+second and raises KeyboardInterrupt.
+"""
+
+from __future__ import annotations
+
+import json
+import numbers
+import operator
+import os
+from typing import Any, Callable, Dict, List, Mapping, Optional, Union
+
+import numpy as np
+
+from . import _native
+from ._native import SceneError, TesseraError
+
+__all__ = [
+    "Image",
+    "SceneError",
+    "TesseraError",
+    "render",
+    "reproduce",
+    "bench",
+    "results",
+    "results_frame",
+    "simd_paths",
+    "build",
+]
+
+__version__ = "0.1.0"
+
+#: What `render` takes as a scene: a scene file's path, a scene file's text, or a dict of
+#: its keys (as `docs/scene-format.md` gives them).
+SceneLike = Union[str, "os.PathLike[str]", Mapping[str, Any]]
+
+_U32_MAX = 2**32 - 1
+_U64_MAX = 2**64 - 1
+
+
+class Image:
+    """A rendered image.
+
+    ``linear`` and ``srgb8`` are read-only NumPy arrays, height x width x 3 (copy one to
+    change it). ``save(path)`` writes the file `tessera render` writes for the same scene
+    and settings; a notebook shows the image itself.
+    """
+
+    __slots__ = ("_native", "_linear", "_srgb8")
+
+    def __init__(self, native: "_native.NativeImage") -> None:
+        self._native = native
+        self._linear: Optional[np.ndarray] = None
+        self._srgb8: Optional[np.ndarray] = None
+
+    @property
+    def width(self) -> int:
+        return self._native.width
+
+    @property
+    def height(self) -> int:
+        return self._native.height
+
+    @property
+    def samples_per_pixel(self) -> int:
+        """The samples each pixel holds (a pass's count, for an image given to ``on_pass``)."""
+        return self._native.samples_per_pixel
+
+    @property
+    def max_depth(self) -> int:
+        return self._native.max_depth
+
+    @property
+    def seed(self) -> int:
+        return self._native.seed
+
+    @property
+    def sums(self) -> str:
+        """The hash of the exact sums (``xxh3-128:…``), as recipes and benchmarks write it."""
+        return self._native.sums
+
+    @property
+    def mean_radiance(self) -> float:
+        """The mean linear radiance over every pixel and channel."""
+        return self._native.mean_radiance
+
+    @property
+    def recipe(self) -> Dict[str, Any]:
+        """The recipe the image is saved with: the scene's text, the settings, the build."""
+        return json.loads(self._native.recipe)
+
+    @property
+    def stats(self) -> Optional[Dict[str, Any]]:
+        """Samples, rays, seconds, threads and SIMD path of the render; None for a pass."""
+        return self._native.stats()
+
+    @property
+    def linear(self) -> np.ndarray:
+        """Linear radiance, float32, height x width x 3: each pixel's exact sums' mean."""
+        if self._linear is None:
+            flat = np.frombuffer(self._native.linear_bytes(), dtype=np.float32)
+            self._linear = flat.reshape(self.height, self.width, 3)
+        return self._linear
+
+    @property
+    def srgb8(self) -> np.ndarray:
+        """The PNG's pixels, uint8, height x width x 3 (the scene's gamma applied)."""
+        if self._srgb8 is None:
+            flat = np.frombuffer(self._native.srgb8_bytes(), dtype=np.uint8)
+            self._srgb8 = flat.reshape(self.height, self.width, 3)
+        return self._srgb8
+
+    def png(self) -> bytes:
+        """The PNG file's bytes, recipe included: what ``save("x.png")`` writes."""
+        return self._native.encode_as("png")
+
+    def save(self, path: Union[str, "os.PathLike[str]"]) -> None:
+        """Writes the image to ``path``, as PNG, EXR or PPM by its extension, whole or not
+        at all, with its recipe (PNG and EXR): byte for byte the file `tessera render`
+        writes for the same scene and settings."""
+        self._native.save(os.fspath(path))
+
+    def _repr_png_(self) -> bytes:
+        return self.png()
+
+    def __repr__(self) -> str:
+        return (
+            f"<tessera.Image {self.width}x{self.height}, {self.samples_per_pixel} spp, "
+            f"{self.sums}>"
+        )
+
+
+def _whole(name: str, value: Any, low: int, high: int) -> Optional[int]:
+    """``value`` as an int in ``low..=high``, or None; a ValueError says the range."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise ValueError(f"{name} must be a whole number from {low} to {high}, not {value!r}")
+    n = operator.index(value)
+    if not low <= n <= high:
+        raise ValueError(f"{name} must be a whole number from {low} to {high}, got {n}")
+    return n
+
+
+def _json_value(value: Any) -> Any:
+    """A NumPy scalar or array in a scene dict, as JSON takes it."""
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    raise ValueError(
+        f"a scene dict holds numbers, strings, booleans, lists and dicts; "
+        f"{type(value).__name__} is none of them"
+    )
+
+
+def _string_keys(scene: Mapping) -> None:
+    """Refuses a dict, at any depth, with a key that is not a string (JSON would turn `1`
+    into `"1"` without a word)."""
+    pending: list = [scene]
+    while pending:
+        value = pending.pop()
+        if isinstance(value, Mapping):
+            for key, item in value.items():
+                if not isinstance(key, str):
+                    raise ValueError(f"scene: a dict's keys must be strings, not {key!r}")
+                pending.append(item)
+        elif isinstance(value, (list, tuple)):
+            pending.extend(value)
+
+
+def _scene_input(scene: SceneLike) -> "tuple[str, str]":
+    """What the native side is handed: ("file", path), ("toml", text) or ("json", dict)."""
+    if isinstance(scene, Mapping):
+        _string_keys(scene)
+        try:
+            text = json.dumps(scene, allow_nan=False, default=_json_value)
+        except ValueError as e:
+            raise ValueError(f"scene: {e}") from None
+        except TypeError as e:
+            raise ValueError(f"scene: a dict's keys must be strings ({e})") from None
+        return ("json", text)
+    if isinstance(scene, os.PathLike):
+        path = os.fspath(scene)
+        if isinstance(path, bytes):
+            path = os.fsdecode(path)
+        return ("file", _existing(path))
+    if isinstance(scene, str):
+        # A scene file's text has a key (`=`) or a table (`[`); a path has neither.
+        if "\n" in scene or "=" in scene or scene.lstrip().startswith("["):
+            return ("toml", scene)
+        return ("file", _existing(scene))
+    raise TypeError(
+        "scene must be a path, a scene file's text or a dict, "
+        f"not {type(scene).__name__}"
+    )
+
+
+def _existing(path: str) -> str:
+    if "\0" in path:
+        raise ValueError("scene: a path cannot hold a NUL character")
+    if not os.path.exists(path):
+        raise FileNotFoundError(f"{path}: no such scene file")
+    return path
+
+
+def render(
+    scene: SceneLike,
+    *,
+    width: Optional[int] = None,
+    spp: Optional[int] = None,
+    depth: Optional[int] = None,
+    seed: Optional[int] = None,
+    threads: Optional[int] = None,
+    simd: Optional[str] = None,
+    on_pass: Optional[Callable[[Image], Any]] = None,
+) -> Image:
+    """Renders ``scene`` and returns the Image.
+
+    scene: a scene file's path (``str`` or ``pathlib.Path``), a scene file's text (a ``str``
+        holding ``=`` or a newline), or a dict of the scene file's keys. Image textures of a
+        scene given as text or a dict are looked for in the working directory, then in its
+        ``scenes/``.
+    width, spp, depth, seed: replace the scene's ``width`` (the height follows its aspect
+        ratio), ``samples_per_pixel``, ``max_depth`` and ``seed``, as the command line's
+        ``--width``, ``--spp``, ``--depth`` and ``--seed`` do.
+    threads: worker threads (1 to 4096); None uses one per CPU. The image is the same.
+    simd: "portable", "avx2", "avx512" or "auto" (None); the image is the same on each.
+    on_pass: called with the Image after each progressive pass (1, 4, 16, … samples per
+        pixel, then all of them); the final image is the same as without it. What it
+        raises stops the render and is raised here.
+
+    Raises SceneError (with ``file``, ``line``, ``column`` and ``field``) for a scene
+    tessera cannot render, ValueError for a bad argument, FileNotFoundError for a missing
+    scene file, TesseraError for what else tessera refuses, and KeyboardInterrupt when
+    Ctrl-C stops the render.
+    """
+    kind, text = _scene_input(scene)
+    if simd is not None and not isinstance(simd, str):
+        raise ValueError(f"simd must be a SIMD path's name, not {simd!r}")
+    if on_pass is not None and not callable(on_pass):
+        raise TypeError("on_pass must be callable")
+    callback = None if on_pass is None else (lambda native: on_pass(Image(native)))
+    native = _native.render(
+        kind,
+        text,
+        width=_whole("width", width, 1, _U32_MAX),
+        spp=_whole("spp", spp, 1, _U32_MAX),
+        depth=_whole("depth", depth, 1, _U32_MAX),
+        seed=_whole("seed", seed, 0, _U64_MAX),
+        threads=_whole("threads", threads, 1, 4096),
+        simd=simd,
+        on_pass=callback,
+    )
+    return Image(native)
+
+
+def simd_paths() -> "tuple[List[str], str]":
+    """The SIMD paths this CPU runs, slowest first, and the one ``auto`` takes."""
+    paths, best = _native.simd_paths()
+    return list(paths), best
+
+
+def build() -> Dict[str, Any]:
+    """The build of tessera in this package: version, commit, rustc, target, profile."""
+    return json.loads(_native.build())
+
+
+def reproduce(
+    image: Union[str, "os.PathLike[str]"],
+    *,
+    threads: Optional[int] = None,
+    simd: Optional[str] = None,
+    textures: Optional[Union[str, "os.PathLike[str]"]] = None,
+    any_cost: bool = False,
+) -> Dict[str, Any]:
+    """Renders again the recipe a PNG or EXR image carries and says whether the image is bit
+    for bit what it makes, as `tessera reproduce` does.
+
+    Returns a dict: ``verdict`` ("identical" or "differs"), ``summary``, ``details`` (a
+    line per difference), ``sums`` (the recipe's) and ``work`` (what the recipe asks for).
+    A recipe asking for more than four book covers' work raises TesseraError unless
+    ``any_cost``. Texture files are looked for in ``textures`` first, then beside the image,
+    then in ``scenes/``. An image without a recipe, or one tessera cannot read, raises
+    TesseraError.
+    """
+    if simd is not None and not isinstance(simd, str):
+        raise ValueError(f"simd must be a SIMD path's name, not {simd!r}")
+    return _native.reproduce(
+        os.fspath(image),
+        threads=_whole("threads", threads, 1, 4096),
+        simd=simd,
+        textures=None if textures is None else os.fspath(textures),
+        any_cost=bool(any_cost),
+    )
+
+
+def bench(
+    workload: str = "quick",
+    threads: Optional[int] = None,
+    *,
+    scaling: bool = False,
+    repeat: int = 3,
+    warmup: int = 1,
+    simd: Optional[str] = None,
+) -> Dict[str, Any]:
+    """Measures a standard workload as `tessera bench` does and returns the result, a dict
+    of the `tessera-bench` JSON schema (docs/benchmark-json.md); it is not recorded in the
+    results database (`tessera results import` takes it, saved as JSON).
+
+    workload: "quick", "cover", "cornell" or "next-week".
+    threads: of the headline result (default: every CPU). scaling: also measure 1, 2, 4, …
+    threads. repeat: measured renders per thread count (the median is reported). warmup:
+    renders before measuring.
+    """
+    if not isinstance(workload, str):
+        raise ValueError(f"workload must be a workload's name, not {workload!r}")
+    if simd is not None and not isinstance(simd, str):
+        raise ValueError(f"simd must be a SIMD path's name, not {simd!r}")
+    text = _native.bench(
+        workload,
+        threads=_whole("threads", threads, 1, 4096),
+        scaling=bool(scaling),
+        repeat=_whole("repeat", repeat, 1, 1000),
+        warmup=_whole("warmup", warmup, 0, 1000),
+        simd=simd,
+    )
+    return json.loads(text)
+
+
+def results(
+    db: Optional[Union[str, "os.PathLike[str]"]] = None,
+    *,
+    workload: Optional[str] = None,
+    machine: Optional[str] = None,
+    commit: Optional[str] = None,
+    limit: Optional[int] = None,
+) -> List[Dict[str, Any]]:
+    """The runs a results database holds, newest first, as `tessera results list` shows
+    them: a dict per run (``id``, ``started_unix_s``, ``machine_id``, ``cpu_model``,
+    ``workload``, ``threads``, ``samples_per_second`` and its min and max, ``validation``,
+    ``busy``, …) with its whole result (the JSON schema's dict) under ``result``.
+
+    db: the database's path; None takes $TESSERA_DB, else the default one
+    ($XDG_DATA_HOME/tessera/results.db or ~/.local/share/tessera/results.db).
+    workload, machine (a machine id's prefix or part of a CPU model), commit (a prefix) and
+    limit select runs as `results list`'s flags do.
+    """
+    if db is None:
+        db = os.environ.get("TESSERA_DB") or None
+    runs = _native.results(
+        None if db is None else os.fspath(db),
+        workload=workload,
+        machine=machine,
+        commit=commit,
+        limit=_whole("limit", limit, 0, _U32_MAX),
+    )
+    for run in runs:
+        run["result"] = json.loads(run["result"])
+    return runs
+
+
+def results_frame(db: Optional[Union[str, "os.PathLike[str]"]] = None, **select: Any) -> Any:
+    """``results(db, ...)`` as a pandas DataFrame, a row per run (pandas must be installed:
+    ``pip install pandas``); ``started`` is the start as a UTC timestamp."""
+    try:
+        import pandas
+    except ImportError:
+        raise ImportError(
+            "tessera.results_frame needs pandas: pip install pandas "
+            "(tessera.results gives the same runs as dicts)"
+        ) from None
+    frame = pandas.DataFrame(results(db, **select))
+    if "started_unix_s" in frame:
+        frame.insert(1, "started", pandas.to_datetime(frame["started_unix_s"], unit="s", utc=True))
+    return frame

@@ -1,0 +1,144 @@
+"""What a user (or a stranger's file) can get wrong: each is an exception with the command
+line's message, and the interpreter goes on; a panic in Rust is an exception too."""
+
+import os
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+import tessera
+from conftest import ROOT
+
+
+def test_a_scene_error_says_file_line_column_and_field(tmp_path):
+    scene = tmp_path / "bad.toml"
+    scene.write_text("[image]\nwidth = 40\nheight = 20\nsamples_per_pixel = 0\nmax_depth = 2\n")
+    with pytest.raises(tessera.SceneError) as e:
+        tessera.render(scene)
+    err = e.value
+    assert isinstance(err, tessera.TesseraError) and isinstance(err, Exception)
+    assert (err.file, err.line, err.column) == (str(scene), 4, 21)
+    assert err.field == "image.samples_per_pixel"
+    assert str(err).startswith(f"{scene}:4:21: field `image.samples_per_pixel`")
+
+
+def test_a_syntax_error_in_text_names_the_string():
+    with pytest.raises(tessera.SceneError) as e:
+        tessera.render("[image]\nwidth = = 3\n")
+    assert e.value.file == "<string>" and e.value.line == 2 and e.value.field is None
+    with pytest.raises(tessera.SceneError, match=r"<string>:2:1: field `camera.foo`: unknown") as e:
+        tessera.render("[camera]\nfoo = 1\n")
+    assert e.value.field == "camera.foo"
+
+
+@pytest.mark.parametrize(
+    "kwargs, says",
+    [
+        ({"spp": -5}, "spp must be a whole number from 1 to 4294967295, got -5"),
+        ({"spp": 0}, "spp must be a whole number from 1 to"),
+        ({"width": 2**40}, "width must be a whole number from 1 to 4294967295"),
+        ({"seed": -1}, "seed must be a whole number from 0 to 18446744073709551615"),
+        ({"seed": 2**64}, "seed must be a whole number from 0 to"),
+        ({"threads": 0}, "threads must be a whole number from 1 to 4096"),
+        ({"threads": 5000}, "threads must be a whole number from 1 to 4096"),
+        ({"depth": 1.5}, "depth must be a whole number"),
+        ({"spp": True}, "spp must be a whole number"),
+        ({"spp": "16"}, "spp must be a whole number"),
+        ({"simd": "neon"}, "simd: unknown SIMD path `neon`"),
+        ({"simd": 3}, "simd must be a SIMD path's name"),
+        ({"width": 1_000_000}, "pixels"),
+    ],
+)
+def test_a_bad_argument_is_a_value_error(kwargs, says):
+    with pytest.raises(ValueError, match=None) as e:
+        tessera.render("scenes/cover.toml", **{"spp": 1, "width": 8, **kwargs})
+    assert says in str(e.value), str(e.value)
+
+
+def test_a_missing_or_odd_scene_is_refused(tmp_path):
+    with pytest.raises(FileNotFoundError, match="scenes/covr.toml: no such scene file"):
+        tessera.render("scenes/covr.toml")
+    with pytest.raises(TypeError, match="scene must be a path"):
+        tessera.render(b"scenes/cover.toml")
+    with pytest.raises(TypeError, match="scene must be a path"):
+        tessera.render(42)
+    with pytest.raises(ValueError, match="NUL"):
+        tessera.render("scenes/cover\0.toml")
+    with pytest.raises(OSError):
+        tessera.render(tmp_path)
+    fifo = tmp_path / "scene.toml"
+    os.mkfifo(fifo)
+    with pytest.raises(tessera.TesseraError if False else OSError, match="not a regular file"):
+        tessera.render(fifo)
+    with pytest.raises(TypeError, match="on_pass must be callable"):
+        tessera.render("scenes/cover.toml", on_pass=3)
+
+
+@pytest.mark.parametrize(
+    "scene, says",
+    [
+        ({"image": None}, "invalid setting `scene`"),
+        ({"image": {"width": float("nan")}}, "Out of range float"),
+        ({"image": {"width": 1e400}}, "Out of range float"),
+        ({1: 2}, "a dict's keys must be strings"),
+        ({"image": {"width": object()}}, "object is none of them"),
+        ({"spheres": "many"}, "spheres"),
+        ({"image": {"width": 10**30, "height": 2}}, "image.width"),
+    ],
+)
+def test_a_bad_dict_is_refused(scene, says):
+    with pytest.raises((ValueError, tessera.SceneError)) as e:
+        tessera.render(scene)
+    assert says in str(e.value), str(e.value)
+
+
+HOSTILE_TEXTS = [
+    # Tall: the width of 8 asked for below keeps the aspect, 8 x 799999992 pixels.
+    "[image]\nwidth = 1\nheight = 99999999\nsamples_per_pixel = 1\nmax_depth = 1\n",
+    "[image]\nwidth = 8\nheight = 8\nsamples_per_pixel = 4294967295\nmax_depth = 4294967295\n"
+    "[[spheres]]\ncenter = [0, 0, -1]\nradius = 1e39\nmaterial = \"x\"\n",
+    "a = [" * 10_000,
+    "[image]\nwidth = 8\n" + "\u202e\x1b[2J" * 100,
+    "[materials.m]\ntype = \"lambertian\"\nalbedo = { texture = \"../../../../etc/passwd\" }\n",
+    "\x00\xff" * 1000,
+]
+
+
+@pytest.mark.parametrize("text", HOSTILE_TEXTS)
+def test_hostile_scene_text_raises_and_the_interpreter_goes_on(text):
+    with pytest.raises((tessera.TesseraError, ValueError, OSError)):
+        tessera.render(text, width=8, spp=1)
+    assert tessera.render("scenes/cover.toml", width=8, spp=1).width == 8
+
+
+def test_a_panic_is_an_exception_and_the_interpreter_survives():
+    with pytest.raises(tessera.TesseraError, match="internal error .* a panic on purpose"):
+        tessera._native._panic_for_tests()
+    assert tessera.render("scenes/cover.toml", width=8, spp=1).width == 8
+
+
+def test_a_crash_would_show_here():
+    # Each hostile case again, in a fresh interpreter: it must end by raising, not by a
+    # signal (an abort or a segmentation fault would be a negative return code).
+    code = textwrap.dedent(
+        f"""
+        import tessera
+        texts = {HOSTILE_TEXTS!r}
+        for t in texts:
+            try:
+                tessera.render(t, width=8, spp=1)
+            except (tessera.TesseraError, ValueError, OSError):
+                pass
+        try:
+            tessera._native._panic_for_tests()
+        except tessera.TesseraError:
+            pass
+        print("survived")
+        """
+    )
+    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True,
+                          text=True, timeout=120)
+    assert done.returncode == 0, (done.returncode, done.stderr[-2000:])
+    assert done.stdout.strip() == "survived"

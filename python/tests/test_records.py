@@ -1,0 +1,123 @@
+"""tessera.reproduce, tessera.bench and tessera.results against what the command line says
+of the same files and databases."""
+
+import json
+
+import pytest
+
+import tessera
+
+
+def test_reproduce_says_identical_for_its_own_image_and_the_cli_agrees(cli, tmp_path):
+    image = tessera.render("scenes/img-2.16-rect-light.toml", width=40, spp=4)
+    image.save(tmp_path / "light.png")
+    verdict = tessera.reproduce(tmp_path / "light.png", threads=1, simd="portable")
+    assert verdict["verdict"] == "identical", verdict
+    assert verdict["sums"] == image.sums and verdict["details"] == []
+    assert "40x" in verdict["work"]
+    said = cli("reproduce", tmp_path / "light.png", "-q").stdout
+    assert said.startswith("identical: "), said
+
+
+def test_reproduce_finds_a_texture_and_says_differs_for_another_image(cli, tmp_path):
+    earth = tessera.render("scenes/img-2.15-earth-sphere.toml", width=40, spp=2)
+    earth.save(tmp_path / "earth.png")
+    # Next to the image, not in scenes/: the recipe's texture is looked for there too.
+    assert tessera.reproduce(tmp_path / "earth.png")["verdict"] == "identical"
+    # The same file with another image's pixels (same size) in it: its recipe makes another.
+    a = tessera.render("scenes/cover.toml", width=40, spp=1, seed=1)
+    b = tessera.render("scenes/cover.toml", width=40, spp=1, seed=2)
+    recipe_a = a.png()
+    b.save(tmp_path / "b.png")
+    # Swap b's recipe for a's by writing a's PNG over with b's pixels: the CLI's own check.
+    (tmp_path / "a.png").write_bytes(recipe_a)
+    mixed = _png_with_pixels_of(tmp_path / "a.png", tmp_path / "b.png")
+    (tmp_path / "mixed.png").write_bytes(mixed)
+    verdict = tessera.reproduce(tmp_path / "mixed.png")
+    assert verdict["verdict"] == "differs", verdict
+    assert any(line.startswith("pixels: ") for line in verdict["details"]), verdict
+    cli_said = cli("reproduce", tmp_path / "mixed.png", "-q", check=False)
+    assert cli_said.returncode == 1 and cli_said.stdout.startswith("differs: ")
+
+
+def _png_with_pixels_of(recipe_from, pixels_from):
+    """A's chunks with B's image data: both are tessera's PNGs of one size."""
+    def chunks(data):
+        at, out = 8, []
+        while at < len(data):
+            length = int.from_bytes(data[at:at + 4], "big")
+            out.append((data[at + 4:at + 8], data[at:at + 12 + length]))
+            at += 12 + length
+        return out
+    a = chunks(recipe_from.read_bytes())
+    b_data = [raw for kind, raw in chunks(pixels_from.read_bytes()) if kind == b"IDAT"]
+    out = bytearray(b"\x89PNG\r\n\x1a\n")
+    placed = False
+    for kind, raw in a:
+        if kind == b"IDAT":
+            if not placed:
+                out += b"".join(b_data)
+                placed = True
+            continue
+        out += raw
+    return bytes(out)
+
+
+def test_reproduce_refuses_what_has_no_recipe(cli, tmp_path):
+    cli("render", "scenes/cover.toml", "--width", 16, "--spp", 1, "--no-provenance", "-q",
+        "-o", tmp_path / "bare.png")
+    with pytest.raises(tessera.TesseraError, match="no recipe"):
+        tessera.reproduce(tmp_path / "bare.png")
+    (tmp_path / "junk.png").write_bytes(b"\x89PNG\r\n\x1a\n" + b"\xff" * 64)
+    with pytest.raises(tessera.TesseraError):
+        tessera.reproduce(tmp_path / "junk.png")
+    with pytest.raises(FileNotFoundError):
+        tessera.reproduce(tmp_path / "none.png")
+
+
+def test_bench_gives_a_valid_result_the_cli_imports(cli, tmp_path):
+    result = tessera.bench("quick", threads=1, repeat=1, warmup=0)
+    assert result["schema"].startswith("tessera-bench/")
+    assert result["workload"]["name"] == "quick"
+    assert result["validation"]["status"] == "valid", result["validation"]
+    assert result["result"]["threads"] == 1 and result["result"]["samples_per_sec"]["median"] > 0
+    with pytest.raises(ValueError, match="workload"):
+        tessera.bench("no-such-workload")
+    with pytest.raises(ValueError, match="repeat must be a whole number from 1"):
+        tessera.bench("quick", repeat=0)
+    # Saved as JSON, the command line imports it, and results() reads it back.
+    (tmp_path / "quick.json").write_text(json.dumps(result))
+    db = tmp_path / "results.db"
+    cli("results", "import", tmp_path / "quick.json", "--db", db)
+    runs = tessera.results(db)
+    assert len(runs) == 1
+    run = runs[0]
+    assert run["workload"] == "quick" and run["threads"] == 1 and run["validation"] == "valid"
+    assert run["result"] == result
+    assert run["samples_per_second"] == result["result"]["samples_per_sec"]["median"]
+    assert tessera.results(db, workload="cover") == []
+    listed = cli("results", "list", "--db", db).stdout
+    assert str(run["id"]) in listed
+
+
+def test_results_of_a_missing_or_foreign_database_raise(tmp_path, monkeypatch):
+    with pytest.raises(tessera.TesseraError, match="no results database yet"):
+        tessera.results(tmp_path / "none.db")
+    (tmp_path / "other.db").write_bytes(b"not a database at all" * 100)
+    with pytest.raises(tessera.TesseraError):
+        tessera.results(tmp_path / "other.db")
+    monkeypatch.setenv("TESSERA_DB", str(tmp_path / "env.db"))
+    with pytest.raises(tessera.TesseraError, match="env.db"):
+        tessera.results()
+
+
+def test_results_frame_is_a_table_of_the_runs(cli, tmp_path):
+    pandas = pytest.importorskip("pandas")
+    result = tessera.bench("quick", threads=1, repeat=1, warmup=0)
+    (tmp_path / "quick.json").write_text(json.dumps(result))
+    db = tmp_path / "results.db"
+    cli("results", "import", tmp_path / "quick.json", "--db", db)
+    frame = tessera.results_frame(db)
+    assert isinstance(frame, pandas.DataFrame) and len(frame) == 1
+    assert frame.loc[0, "workload"] == "quick"
+    assert str(frame["started"].dt.tz) == "UTC"

@@ -1,0 +1,231 @@
+"""tessera.render against the command line: the same pixels and the same files for the cover
+and every figure scene, whatever the threads or SIMD path; progressive passes; Ctrl-C; and
+what the renders return."""
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import threading
+import time
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import tessera
+from conftest import ROOT, read_ppm
+
+SCENES = sorted(p.name for p in (ROOT / "scenes").glob("*.toml"))
+# Small enough that every scene renders in a fraction of a second.
+WIDTH, SPP = 40, 2
+
+
+def test_every_scene_is_tested():
+    assert "cover.toml" in SCENES and "img-2.22-book2-final.toml" in SCENES
+    assert len(SCENES) >= 40, SCENES
+
+
+@pytest.mark.parametrize("name", SCENES)
+def test_pixels_and_file_are_the_command_lines(name, cli, tmp_path):
+    scene = f"scenes/{name}"
+    image = tessera.render(scene, width=WIDTH, spp=SPP)
+    cli("render", scene, "--width", WIDTH, "--spp", SPP, "-q", "-o", tmp_path / "cli.ppm")
+    width, height, values = read_ppm(tmp_path / "cli.ppm")
+    assert (image.width, image.height) == (width, height)
+    assert image.srgb8.shape == (height, width, 3) and image.srgb8.dtype == np.uint8
+    assert image.srgb8.tobytes() == values
+    # The file, recipe included, byte for byte.
+    cli("render", scene, "--width", WIDTH, "--spp", SPP, "-q", "-o", tmp_path / "cli.png")
+    image.save(tmp_path / "py.png")
+    assert (tmp_path / "py.png").read_bytes() == (tmp_path / "cli.png").read_bytes()
+    assert image.png() == (tmp_path / "cli.png").read_bytes()
+
+
+def test_exr_and_ppm_files_are_the_command_lines(cli, tmp_path):
+    image = tessera.render("scenes/cover.toml", width=60, spp=3, seed=7, depth=9)
+    for ext in ("exr", "ppm"):
+        cli("render", "scenes/cover.toml", "--width", 60, "--spp", 3, "--seed", 7, "--depth", 9,
+            "-q", "-o", tmp_path / f"cli.{ext}")
+        image.save(tmp_path / f"py.{ext}")
+        assert (tmp_path / f"py.{ext}").read_bytes() == (tmp_path / f"cli.{ext}").read_bytes()
+
+
+def test_linear_is_the_exr_the_command_line_writes(cli, tmp_path):
+    image = tessera.render("scenes/img-2.20-cornell-standard.toml", width=30, spp=4)
+    linear = image.linear
+    assert linear.shape == (image.height, image.width, 3) and linear.dtype == np.float32
+    assert not linear.flags.writeable
+    assert np.isfinite(linear).all() and linear.min() >= 0
+    assert abs(float(linear.mean(dtype=np.float64)) - image.mean_radiance) < 1e-5
+    # The PNG's pixels are the linear values tone-mapped.
+    shown = np.clip(np.sqrt(linear), 0, 0.999) * 256
+    assert np.abs(shown.astype(np.int32) - image.srgb8.astype(np.int32)).max() <= 1
+
+
+def test_threads_and_simd_paths_give_the_same_arrays():
+    paths, best = tessera.simd_paths()
+    assert paths[0] == "portable" and best in paths
+    base = tessera.render("scenes/cover.toml", width=64, spp=3, threads=1, simd="portable")
+    for threads in (1, 2, 3):
+        for path in paths + ["auto"]:
+            other = tessera.render("scenes/cover.toml", width=64, spp=3, threads=threads, simd=path)
+            assert np.array_equal(other.linear, base.linear), (threads, path)
+            assert np.array_equal(other.srgb8, base.srgb8)
+            assert other.sums == base.sums
+            assert other.stats["threads"] == threads
+            assert other.stats["simd"] == (best if path == "auto" else path)
+
+
+def test_a_scene_as_text_or_dict_renders_as_its_file():
+    path = ROOT / "scenes" / "cover.toml"
+    from_file = tessera.render(path, width=48, spp=2)
+    from_text = tessera.render(path.read_text(), width=48, spp=2)
+    with open(path, "rb") as f:
+        from_dict = tessera.render(tomllib.load(f), width=48, spp=2)
+    assert from_file.sums == from_text.sums == from_dict.sums
+    assert from_file.recipe["scene"]["name"] == "cover.toml"
+    assert from_text.recipe["scene"]["name"] == "<string>"
+    assert from_dict.recipe["scene"]["name"] == "<dict>"
+    # NumPy numbers in a dict are numbers.
+    scene = {
+        "image": {"width": np.int64(40), "height": 20, "samples_per_pixel": 2,
+                  "max_depth": 4, "seed": np.uint64(3)},
+        "materials": {"grey": {"type": "lambertian", "albedo": [0.5, 0.5, 0.5]}},
+        "spheres": [
+            {"center": np.array([0.0, 0.0, -1.0]), "radius": np.float32(0.5),
+             "material": "grey"},
+            {"center": (0, -100.5, -1), "radius": 100, "material": "grey"},
+        ],
+    }
+    assert tessera.render(scene).width == 40
+
+
+def test_overrides_are_the_command_lines_flags():
+    image = tessera.render("scenes/cover.toml", width=30, spp=3, depth=5, seed=11)
+    assert (image.width, image.samples_per_pixel, image.max_depth, image.seed) == (30, 3, 5, 11)
+    assert image.recipe["overrides"] == {
+        "width": 30, "samples_per_pixel": 3, "max_depth": 5, "seed": 11,
+    }
+    other_seed = tessera.render("scenes/cover.toml", width=30, spp=3, depth=5, seed=12)
+    assert other_seed.sums != image.sums
+
+
+def test_on_pass_sees_each_pass_and_the_same_final_image():
+    seen = []
+
+    def on_pass(image):
+        seen.append((image.samples_per_pixel, image.sums, image.srgb8.copy()))
+
+    final = tessera.render("scenes/cover.toml", width=48, spp=20, on_pass=on_pass)
+    plain = tessera.render("scenes/cover.toml", width=48, spp=20)
+    assert [s for s, _, _ in seen] == [1, 4, 16, 20]
+    assert final.sums == plain.sums == seen[-1][1]
+    assert np.array_equal(seen[-1][2], plain.srgb8)
+    # A pass's image is the render of that many samples, and says so in its recipe.
+    four = tessera.render("scenes/cover.toml", width=48, spp=4)
+    assert seen[1][1] == four.sums
+    assert final.stats is not None
+
+
+def test_a_pass_image_saved_reproduces(tmp_path):
+    kept = []
+    tessera.render("scenes/cover.toml", width=32, spp=8, on_pass=kept.append)
+    kept[1].save(tmp_path / "pass.png")
+    assert kept[1].stats is None
+    verdict = tessera.reproduce(tmp_path / "pass.png")
+    assert verdict["verdict"] == "identical", verdict
+
+
+def test_what_on_pass_raises_stops_the_render_and_is_raised():
+    calls = []
+
+    def on_pass(image):
+        calls.append(image.samples_per_pixel)
+        raise LookupError("enough")
+
+    with pytest.raises(LookupError, match="enough"):
+        tessera.render("scenes/cover.toml", width=48, spp=64, on_pass=on_pass)
+    assert calls == [1]
+
+
+def test_other_threads_run_while_it_renders():
+    ticks = []
+    running = threading.Event()
+
+    def tick():
+        while not running.is_set():
+            ticks.append(time.monotonic())
+            time.sleep(0.01)
+
+    thread = threading.Thread(target=tick)
+    thread.start()
+    try:
+        started = time.monotonic()
+        tessera.render("scenes/cover.toml", width=200, spp=16, threads=1)
+        took = time.monotonic() - started
+    finally:
+        running.set()
+        thread.join()
+    during = [t for t in ticks if started <= t <= started + took]
+    # Ticks every 10 ms while the lock is free: at least a third of them.
+    assert len(during) >= took / 0.01 / 3, (len(during), took)
+
+
+INTERRUPTED = textwrap.dedent(
+    """
+    import sys, time, tessera
+    print("rendering", flush=True)
+    started = time.monotonic()
+    try:
+        tessera.render("scenes/cover.toml", spp=1_000_000)
+    except KeyboardInterrupt:
+        print("interrupted", flush=True)
+        sys.exit(0)
+    sys.exit(3)
+    """
+)
+
+
+def test_ctrl_c_stops_a_long_render_within_a_second():
+    child = subprocess.Popen(
+        [sys.executable, "-c", INTERRUPTED], cwd=ROOT, stdout=subprocess.PIPE, text=True
+    )
+    try:
+        assert child.stdout.readline().strip() == "rendering"
+        time.sleep(1.5)
+        sent = time.monotonic()
+        child.send_signal(signal.SIGINT)
+        rest, _ = child.communicate(timeout=30)
+        took = time.monotonic() - sent
+    finally:
+        child.kill()
+    assert child.returncode == 0, child.returncode
+    assert rest.strip() == "interrupted"
+    assert took < 1.0, took
+
+
+def test_an_image_shows_in_a_notebook():
+    image = tessera.render("scenes/cover.toml", width=24, spp=1)
+    png = image._repr_png_()
+    assert png.startswith(b"\x89PNG\r\n\x1a\n") and b"tessera-recipe" in png
+    assert "24x16" in repr(image)
+
+
+def test_help_says_what_to_pass():
+    doc = tessera.render.__doc__
+    for word in ("scene", "width", "spp", "depth", "seed", "threads", "simd", "on_pass",
+                 "SceneError", "KeyboardInterrupt"):
+        assert word in doc, word
+    stubs = Path(tessera.__file__).with_name("_native.pyi")
+    assert stubs.exists() and "def render(" in stubs.read_text()
+    assert Path(tessera.__file__).with_name("py.typed").exists()
+
+
+def test_the_build_is_this_checkout():
+    build = tessera.build()
+    assert build["version"] == tessera.__version__
+    assert len(build["commit"].split("-")[0]) == 40 or build["commit"] == "unknown"
+    assert os.path.basename(tessera.__file__) == "__init__.py"
