@@ -2,13 +2,15 @@
 //! benchmark result recorded or imported, each as its full JSON and the columns queries
 //! need. It is opened carefully: before SQLite touches a file, its header says whose it is
 //! (tessera's `application_id`, or a schema 1 or 2 database with exactly tessera's tables),
-//! and anything else (not SQLite, another program's, a newer tessera's, damaged) is refused
-//! with the file and its directory left as they were. A new database is made whole under a
+//! its schema must be tessera's statement for statement, and anything else (not SQLite,
+//! another program's, a newer tessera's, damaged, SQL of its own) is refused with the file
+//! and its directory left as they were. A new database is made whole under a
 //! temporary name and published with a hard link, so no process ever sees one half-made; it
 //! is readable by its owner alone. Writers wait for each other (WAL, a busy timeout), and
 //! each run or import is one transaction, so a crash never loses rows already there.
 
 use super::result::BenchResult;
+use crate::text::terminal_safe;
 use anyhow::{Context, Result, anyhow, bail};
 use rusqlite::{Connection, OpenFlags, OptionalExtension, TransactionBehavior, params};
 use std::fmt::Write as _;
@@ -65,16 +67,6 @@ const MIGRATIONS: &[&str] = &[
     "ALTER TABLE runs ADD COLUMN busy INTEGER NOT NULL DEFAULT 0;",
     // 3: tessera's application_id (APPLICATION_ID, "TSRA"), which says whose the file is.
     "PRAGMA application_id = 1414746689;",
-];
-
-/// The schema objects (type, name, table) of schema versions 1 and 2, sorted: how a
-/// database made before `APPLICATION_ID` is recognised as tessera's.
-const LEGACY_OBJECTS: &[(&str, &str, &str)] = &[
-    ("index", "runs_by_machine", "runs"),
-    ("index", "sqlite_autoindex_runs_1", "runs"),
-    ("index", "sqlite_autoindex_scaling_1", "scaling"),
-    ("table", "runs", "runs"),
-    ("table", "scaling", "scaling"),
 ];
 
 /// The schema version this build makes and reads.
@@ -262,6 +254,8 @@ impl ResultsDb {
         let conn = Connection::open_with_flags(path, flags | OpenFlags::SQLITE_OPEN_NO_MUTEX)
             .with_context(|| format!("{}: could not open the results database", path.display()))?;
         conn.busy_timeout(BUSY_TIMEOUT)?;
+        // Nothing of the file's schema runs a function with side effects, whoever made it.
+        conn.pragma_update(None, "trusted_schema", false)?;
         Ok(Self {
             conn,
             path: path.to_owned(),
@@ -324,8 +318,9 @@ impl ResultsDb {
         // SQLite returns the header's 32 bits as a signed number.
         let application_id = pragma("application_id")? as u32;
         let user_version = pragma("user_version")?;
-        whose(&self.path, application_id, user_version, || {
-            legacy_tables(&self.conn).map_err(|e| self.error(e, "could not read it", started))
+        whose(&self.path, application_id, user_version, |version| {
+            schema_difference(&self.conn, version)
+                .map_err(|e| self.error(e, "could not read it", started))
         })
     }
 
@@ -558,14 +553,16 @@ fn explain(path: &Path, e: rusqlite::Error, doing: &str, started: Instant) -> an
 }
 
 /// Whose a database of `application_id` and `user_version` is: its schema version where it
-/// is a tessera results database this build can use, else why not. `legacy_tables` says
-/// whether it holds exactly tessera's tables (asked only of schemas 1 and 2, which carry no
-/// application_id).
+/// is a tessera results database this build can use, else why not. `schema_difference`
+/// says how its schema differs from tessera's of a version, if it does: schemas 1 and 2,
+/// which carry no application_id, are recognised by it, and one with tessera's
+/// application_id must hold it too, so that a crafted file's views, triggers or columns
+/// (a recursive view that never ends, a trigger on every insert) are never run.
 fn whose(
     path: &Path,
     application_id: u32,
     user_version: i64,
-    legacy_tables: impl FnOnce() -> Result<bool>,
+    schema_difference: impl FnOnce(i64) -> Result<Option<String>>,
 ) -> Result<i64> {
     let shown = path.display();
     match application_id {
@@ -575,14 +572,18 @@ fn whose(
         APPLICATION_ID if user_version < APPLICATION_ID_SINCE => bail!(
             "{shown}: not a tessera results database (tessera's application_id, but schema {user_version}); left as it is"
         ),
-        APPLICATION_ID => Ok(user_version),
+        APPLICATION_ID => match schema_difference(user_version)? {
+            None => Ok(user_version),
+            Some(difference) => bail!(
+                "{shown}: not a tessera results database (tessera's application_id, but not its schema {user_version}: {difference}); left as it is"
+            ),
+        },
         0 if (1..APPLICATION_ID_SINCE).contains(&user_version) => {
-            if legacy_tables()? {
-                Ok(user_version)
-            } else {
-                bail!(
-                    "{shown}: an SQLite database of another program (user_version {user_version} but not tessera's tables), not tessera's results; left as it is"
-                )
+            match schema_difference(user_version)? {
+                None => Ok(user_version),
+                Some(difference) => bail!(
+                    "{shown}: an SQLite database of another program (user_version {user_version} but not tessera's tables: {difference}), not tessera's results; left as it is"
+                ),
             }
         }
         0 => bail!(
@@ -625,31 +626,104 @@ fn recognise(path: &Path) -> Result<()> {
             user_version,
         } => (application_id, user_version),
     };
-    whose(path, application_id, user_version, || {
+    whose(path, application_id, user_version, |version| {
+        // One with tessera's header may be in use, and a file others write cannot be read
+        // as immutable: its schema is checked through SQLite, with its locks (`check`),
+        // still before anything of it runs.
+        if application_id == APPLICATION_ID {
+            return Ok(None);
+        }
         let started = Instant::now();
         open_immutable(path)
-            .and_then(|conn| legacy_tables(&conn))
+            .and_then(|conn| schema_difference(&conn, version))
             .map_err(|e| explain(path, e, "could not read it", started))
     })
     .map(drop)
 }
 
-/// Whether the schema of `conn` is exactly that of tessera's schemas 1 and 2.
-fn legacy_tables(conn: &Connection) -> rusqlite::Result<bool> {
-    let mut stmt =
-        conn.prepare("SELECT type, name, tbl_name FROM sqlite_schema ORDER BY type, name")?;
-    let objects = stmt
-        .query_map([], |r| {
-            Ok((
-                r.get::<_, String>(0)?,
-                r.get::<_, String>(1)?,
-                r.get::<_, String>(2)?,
-            ))
-        })?
-        .collect::<rusqlite::Result<Vec<_>>>()?;
-    Ok(objects.len() == LEGACY_OBJECTS.len()
-        && (objects.iter().zip(LEGACY_OBJECTS))
-            .all(|((t, n, tb), (et, en, etb))| t == et && n == en && tb == etb))
+/// One object of a database's schema: its type, name, table and SQL (spacing normalised).
+type SchemaObject = (String, String, String, String);
+
+/// How the schema of `conn` differs from tessera's schema `version` (what the migrations up
+/// to it make), or `None` where it is the same, object for object and statement for
+/// statement but for spacing. Only SQLite's schema table is read, a bounded part of it: no
+/// view, trigger or table of the file is run.
+fn schema_difference(conn: &Connection, version: i64) -> rusqlite::Result<Option<String>> {
+    let expected = tessera_schema(version)?;
+    // More than one object beyond tessera's is already a difference: the rest is not read.
+    let found = schema_objects(conn, expected.len() + 1)?;
+    let shown = |(kind, name, ..): &SchemaObject| format!("{kind} `{}`", terminal_safe(name, 80));
+    for object in &found {
+        match expected
+            .iter()
+            .find(|e| (&e.0, &e.1) == (&object.0, &object.1))
+        {
+            None => {
+                return Ok(Some(format!(
+                    "{}, which tessera does not make",
+                    shown(object)
+                )));
+            }
+            Some(e) if e != object => {
+                return Ok(Some(format!("its {} is not tessera's", shown(object))));
+            }
+            Some(_) => {}
+        }
+    }
+    Ok(expected
+        .iter()
+        .find(|e| !found.contains(e))
+        .map(|e| format!("no {}", shown(e))))
+}
+
+/// tessera's schema `version`, as its migrations make it in a database in memory.
+fn tessera_schema(version: i64) -> rusqlite::Result<Vec<SchemaObject>> {
+    let conn = Connection::open_in_memory()?;
+    let upto = usize::try_from(version).unwrap_or(0).min(MIGRATIONS.len());
+    for migration in &MIGRATIONS[..upto] {
+        conn.execute_batch(migration)?;
+    }
+    schema_objects(&conn, usize::MAX)
+}
+
+/// Up to `limit` objects of the schema of `conn`, sorted, each name and statement cut at a
+/// length that no object of tessera's reaches.
+fn schema_objects(conn: &Connection, limit: usize) -> rusqlite::Result<Vec<SchemaObject>> {
+    let mut stmt = conn.prepare(
+        "SELECT substr(type, 1, 16), substr(name, 1, 256), substr(tbl_name, 1, 256),
+                substr(coalesce(sql, ''), 1, 4096)
+         FROM sqlite_schema ORDER BY type, name LIMIT ?1",
+    )?;
+    let limit = i64::try_from(limit).unwrap_or(i64::MAX);
+    stmt.query_map([limit], |r| {
+        Ok((
+            r.get(0)?,
+            r.get(1)?,
+            r.get(2)?,
+            normalise_sql(&r.get::<_, String>(3)?),
+        ))
+    })?
+    .collect()
+}
+
+/// `sql` with each run of spacing made one space, and none beside `(`, `)`, `,` or `;`: a
+/// statement as tessera wrote it, however it was laid out.
+fn normalise_sql(sql: &str) -> String {
+    let tight = |c: char| matches!(c, '(' | ')' | ',' | ';');
+    let mut out = String::with_capacity(sql.len());
+    let mut spaced = false;
+    for c in sql.chars() {
+        if c.is_whitespace() {
+            spaced = true;
+            continue;
+        }
+        if spaced && !out.is_empty() && !tight(c) && !out.ends_with(tight) {
+            out.push(' ');
+        }
+        spaced = false;
+        out.push(c);
+    }
+    out
 }
 
 /// A read-only connection to `path` as an immutable file: SQLite takes no locks, ignores any
@@ -658,7 +732,9 @@ fn open_immutable(path: &Path) -> rusqlite::Result<Connection> {
     let flags = OpenFlags::SQLITE_OPEN_READ_ONLY
         | OpenFlags::SQLITE_OPEN_URI
         | OpenFlags::SQLITE_OPEN_NO_MUTEX;
-    Connection::open_with_flags(immutable_uri(path), flags)
+    let conn = Connection::open_with_flags(immutable_uri(path), flags)?;
+    conn.pragma_update(None, "trusted_schema", false)?;
+    Ok(conn)
 }
 
 /// The SQLite URI of `path` opened as immutable: each byte but the unreserved ones and `/`
@@ -838,11 +914,19 @@ mod tests {
             }
         );
         let path = Path::new("r.db");
-        let never =
-            || -> Result<bool> { panic!("tables read for a database recognised by its header") };
+        let never = |_| -> Result<Option<String>> {
+            panic!("schema read for a database refused by its header")
+        };
+        let same = |_| Ok(None);
+        let differs = |_| Ok(Some("trigger `t`, which tessera does not make".to_owned()));
         assert_eq!(
-            whose(path, APPLICATION_ID, SCHEMA_VERSION, never).unwrap(),
+            whose(path, APPLICATION_ID, SCHEMA_VERSION, same).unwrap(),
             SCHEMA_VERSION
+        );
+        let err = (whose(path, APPLICATION_ID, SCHEMA_VERSION, differs).unwrap_err()).to_string();
+        assert!(
+            err.contains("tessera's application_id, but not its schema 3: trigger `t`"),
+            "{err}"
         );
         for (id, version, reason) in [
             (APPLICATION_ID, SCHEMA_VERSION + 1, "newer tessera"),
@@ -855,12 +939,40 @@ mod tests {
             let err = whose(path, id, version, never).unwrap_err().to_string();
             assert!(err.contains(reason), "{id:#x} {version}: {err}");
         }
-        assert_eq!(whose(path, 0, 2, || Ok(true)).unwrap(), 2);
-        let err = whose(path, 0, 1, || Ok(false)).unwrap_err().to_string();
+        assert_eq!(whose(path, 0, 2, same).unwrap(), 2);
+        let err = whose(path, 0, 1, differs).unwrap_err().to_string();
         assert!(
-            err.contains("user_version 1 but not tessera's tables"),
+            err.contains("user_version 1 but not tessera's tables: trigger `t`"),
             "{err}"
         );
+    }
+
+    #[test]
+    fn a_schema_is_tessera_s_statement_for_statement_whatever_its_layout() {
+        assert_eq!(
+            normalise_sql("CREATE TABLE t (\n    a INTEGER ,\n\tb  TEXT\n) STRICT ;"),
+            "CREATE TABLE t(a INTEGER,b TEXT)STRICT;"
+        );
+        let conn = Connection::open_in_memory().unwrap();
+        // Schema 1 laid out otherwise: one line, other spacing.
+        let one_line = MIGRATIONS[0]
+            .split_whitespace()
+            .collect::<Vec<_>>()
+            .join(" ");
+        conn.execute_batch(&one_line).unwrap();
+        assert_eq!(schema_difference(&conn, 1).unwrap(), None);
+        let missing = schema_difference(&conn, 2).unwrap().unwrap();
+        assert_eq!(missing, "its table `runs` is not tessera's");
+        conn.execute_batch(MIGRATIONS[1]).unwrap();
+        assert_eq!(schema_difference(&conn, 2).unwrap(), None);
+        assert_eq!(schema_difference(&conn, SCHEMA_VERSION).unwrap(), None);
+        conn.execute_batch("CREATE TABLE scaling2 (x)").unwrap();
+        let extra = schema_difference(&conn, 2).unwrap().unwrap();
+        assert_eq!(extra, "table `scaling2`, which tessera does not make");
+        conn.execute_batch("DROP TABLE scaling2; DROP INDEX runs_by_machine")
+            .unwrap();
+        let gone = schema_difference(&conn, 2).unwrap().unwrap();
+        assert_eq!(gone, "no index `runs_by_machine`");
     }
 
     #[test]

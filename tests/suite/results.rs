@@ -375,6 +375,53 @@ fn databases_it_cannot_use_are_refused_and_left_as_they_were() {
     refuse("damaged.db", "damaged");
 }
 
+/// A file with tessera's header but SQL of its own (a trigger on its inserts, a view in
+/// place of a table, a computed column) is refused before any of it runs: its schema must
+/// be tessera's, statement for statement. Each is left as it was.
+#[test]
+fn a_database_with_tessera_s_header_but_sql_of_its_own_is_refused() {
+    let dir = temp_dir("results-crafted-schema");
+    let (a, _) = two_results(&dir);
+    let a = a.to_str().unwrap();
+    let good = dir.join("good.db");
+    assert!(results(&dir, &good, &["import", a]).status.success());
+    let craft = |name: &str, sql: &str| {
+        let path = dir.join(name);
+        std::fs::copy(&good, &path).unwrap();
+        let conn = rusqlite::Connection::open(&path).unwrap();
+        conn.execute_batch(sql).unwrap();
+        conn.close().unwrap();
+        path
+    };
+    let cases = [
+        (
+            "trigger.db",
+            "CREATE TRIGGER forget AFTER INSERT ON runs BEGIN DELETE FROM scaling; END;",
+            "trigger `forget`, which tessera does not make",
+        ),
+        (
+            "view.db",
+            "ALTER TABLE runs RENAME TO kept;
+             CREATE VIEW runs AS WITH RECURSIVE c(x) AS
+                 (SELECT 1 UNION ALL SELECT x + 1 FROM c WHERE x < 3)
+             SELECT kept.* FROM kept, c;",
+            "tessera's application_id, but not its schema 3",
+        ),
+        (
+            "column.db",
+            "ALTER TABLE runs ADD COLUMN extra TEXT AS (hex(zeroblob(1000)));",
+            "its table `runs` is not tessera's",
+        ),
+    ];
+    for (name, sql, reason) in cases {
+        let path = craft(name, sql);
+        assert_refused(&dir, &path, a, reason);
+    }
+    // The database they were made from still opens, and a schema 1 one laid out otherwise
+    // (a_database_of_the_first_schema_still_opens_with_its_runs) too.
+    assert_eq!(listed(&dir, &good, &[]).len(), 1);
+}
+
 /// The first schema (user_version 1) as tessera 0.1.0 made it: never edit this copy.
 const FIRST_SCHEMA: &str = "CREATE TABLE runs (
     id INTEGER PRIMARY KEY, digest TEXT NOT NULL UNIQUE, added_unix_s INTEGER NOT NULL,
