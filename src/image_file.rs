@@ -301,6 +301,23 @@ fn png_header<R: Read + Seek>(r: R, len: u64) -> std::result::Result<ImageHeader
                 String::from_utf8_lossy(&kind).escape_debug()
             ));
         }
+        // One IHDR chunk, first, of 13 bytes, as a PNG has: a second one would be another
+        // image's size, which a decoder ignores but a header reader might report.
+        let is_ihdr = &kind == b"IHDR";
+        if chunks == 0 && !is_ihdr {
+            return Err(format!(
+                "does not begin with its IHDR chunk (a {} chunk at byte 8), as a PNG must",
+                String::from_utf8_lossy(&kind).escape_debug()
+            ));
+        }
+        if is_ihdr && chunks > 0 {
+            return Err(format!("has a second IHDR chunk at byte {at}"));
+        }
+        if is_ihdr && length != 13 {
+            return Err(format!(
+                "has an IHDR chunk of {length} bytes, not the 13 of a PNG"
+            ));
+        }
         if let Some((_, how)) = DISPLAY_CHUNKS.iter().find(|(k, _)| **k == kind) {
             let said = format!(
                 "a {} chunk, which tessera does not write: {how}",
@@ -311,7 +328,7 @@ fn png_header<R: Read + Seek>(r: R, len: u64) -> std::result::Result<ImageHeader
             }
         }
         match &kind {
-            b"IHDR" if length == 13 => {
+            b"IHDR" => {
                 let mut data = [0u8; 13];
                 r.read_exact(&mut data).map_err(|e| e.to_string())?;
                 skip(&mut r, 4)?;

@@ -15,6 +15,10 @@ use std::path::Path;
 pub const COVER_RAYS: f64 = 1200.0 * 800.0 * 500.0 * 50.0;
 /// The most work a recipe gets rendered unasked, in book covers (a few minutes on two cores).
 pub const UNASKED_COVERS: f64 = 4.0;
+/// The most pixels a recipe gets rendered unasked, whatever its samples: 8192x4096, whose
+/// film alone (three 64-bit sums a pixel) is 800 MB. A recipe may claim 2^28 pixels, a
+/// 6.4 GB film, at one sample each: little work, but more memory than many machines have.
+pub const UNASKED_PIXELS: u64 = 1 << 25;
 
 /// The recipe of the image at `path`, read and checked, with the image's header.
 pub fn read_recipe(path: &Path) -> Result<(ImageHeader, Recipe)> {
@@ -37,23 +41,31 @@ pub struct Work {
     pub claimed: Effective,
     /// In book covers' rays.
     pub covers: f64,
+    /// The pixels it renders (its window's).
+    pub pixels: u64,
 }
 
 impl Work {
     pub fn of(recipe: &Recipe) -> Self {
         let claimed = recipe.image;
-        let samples = u64::from(claimed.window[2])
-            * u64::from(claimed.window[3])
-            * u64::from(claimed.samples_per_pixel);
+        let pixels = u64::from(claimed.window[2]) * u64::from(claimed.window[3]);
+        let samples = pixels * u64::from(claimed.samples_per_pixel);
         Work {
             claimed,
             covers: samples as f64 * f64::from(claimed.max_depth) / COVER_RAYS,
+            pixels,
         }
     }
 
-    /// Whether it is more than is rendered unasked.
-    pub fn is_costly(&self) -> bool {
-        self.covers > UNASKED_COVERS
+    /// What it asks for beyond what is rendered unasked (`more than the …`), if anything.
+    pub fn beyond_unasked(&self) -> Option<String> {
+        if self.covers > UNASKED_COVERS {
+            Some(format!("more than the {UNASKED_COVERS} book covers' work"))
+        } else if self.pixels > UNASKED_PIXELS {
+            Some(format!("more than the {UNASKED_PIXELS} pixels"))
+        } else {
+            None
+        }
     }
 }
 

@@ -480,12 +480,13 @@ fn reproduce<'py>(
         .detach(|| verify::read_recipe(&image))
         .map_err(|e| to_py(py, e))?;
     let work = verify::Work::of(&recipe);
-    if work.is_costly() && !any_cost {
+    if let Some(beyond) = work.beyond_unasked()
+        && !any_cost
+    {
         return Err(TesseraError::new_err(format!(
-            "{}: its recipe asks for {work}, more than the {} that reproduce renders unasked; \
-             pass any_cost=True to render it anyway",
+            "{}: its recipe asks for {work}, {beyond} that reproduce renders unasked; pass \
+             any_cost=True to render it anyway",
             image.display(),
-            verify::UNASKED_COVERS
         )));
     }
     let d = PyDict::new(py);

@@ -165,12 +165,13 @@ pub fn run(args: Args) -> Result<ExitCode> {
         simd: args.simd.path()?,
     };
     let work = verify::Work::of(&recipe);
-    if work.is_costly() && !args.any_cost {
+    if let Some(beyond) = work.beyond_unasked()
+        && !args.any_cost
+    {
         bail!(
-            "{}: its recipe asks for {work}, more than the {} that reproduce renders unasked; \
-             pass --any-cost to render it anyway",
+            "{}: its recipe asks for {work}, {beyond} that reproduce renders unasked; pass \
+             --any-cost to render it anyway",
             image.display(),
-            verify::UNASKED_COVERS
         );
     }
     let dirs = recipe::texture_dirs(args.textures.as_deref(), image);

@@ -271,6 +271,45 @@ fn a_png_whose_chunks_change_its_display_differs_naming_the_chunk() {
     assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
 }
 
+/// A PNG has one IHDR chunk, first, of 13 bytes: another layout would let the size a header
+/// reader reports be another than the pixels' (a decoder takes the first).
+#[test]
+fn a_png_s_size_comes_from_its_one_first_ihdr_chunk() {
+    let dir = temp_dir("hostile-png-ihdr");
+    let png = std::fs::read(rendered(&dir, "a.png")).unwrap();
+    let ihdr = &png[8..8 + 12 + 13];
+    let huge = png_chunk(b"IHDR", &[0, 0, 0x40, 0, 0, 0, 0x40, 0, 8, 2, 0, 0, 0]);
+    let long = png_chunk(b"IHDR", &[0; 14]);
+    let cases = [
+        (
+            "second",
+            png_with_chunks(&png, &huge),
+            "has a second IHDR chunk at byte 33",
+        ),
+        (
+            "late",
+            [&png[..8], &png_chunk(b"tEXt", b"a\0b"), &png[8..]].concat(),
+            "does not begin with its IHDR chunk (a tEXt chunk at byte 8)",
+        ),
+        (
+            "long",
+            [&png[..8], &long[..], &png[8 + ihdr.len()..]].concat(),
+            "has an IHDR chunk of 14 bytes",
+        ),
+    ];
+    for (name, bytes, why) in cases {
+        let file = format!("{name}.png");
+        std::fs::write(dir.join(&file), bytes).unwrap();
+        for command in ["info", "reproduce"] {
+            refused(
+                &run(&[command, &file], &dir),
+                why,
+                &format!("{name} {command}"),
+            );
+        }
+    }
+}
+
 #[test]
 fn a_png_of_a_million_chunks_is_refused_within_bounds() {
     let dir = temp_dir("hostile-png-chunks");
@@ -375,8 +414,22 @@ fn a_recipe_asking_for_days_of_work_is_refused_unless_asked() {
     refused(&o, "pass --any-cost to render it anyway", "reproduce");
     let err = stderr(&o);
     assert!(
-        err.contains("8192x8192 pixels at 1000000 samples per pixel"),
+        err.contains("8192x8192 pixels at 1000000 samples per pixel")
+            && err.contains("more than the 4 book covers' work that reproduce renders"),
         "{err}"
+    );
+    // Little work, but a film of 6.4 GB: the most pixels a recipe may claim, at one sample.
+    recipe["image"]["width"] = 16384.into();
+    recipe["image"]["height"] = 16384.into();
+    recipe["image"]["window"] = serde_json::json!([0, 0, 16384, 16384]);
+    recipe["image"]["samples_per_pixel"] = 1.into();
+    recipe["image"]["max_depth"] = 1.into();
+    std::fs::write(dir.join("large.png"), png_with_recipe(&png, &recipe)).unwrap();
+    let o = run_capped(&["reproduce", "large.png"], &dir, 256);
+    refused(
+        &o,
+        "more than the 33554432 pixels that reproduce renders unasked",
+        "large",
     );
     // Asked for, the work is allowed; here the recipe's scene then does not give what it
     // claims, which stops it before anything is rendered.
