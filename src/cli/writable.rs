@@ -99,7 +99,7 @@ fn directory_of(path: &Path) -> PathBuf {
 fn run_example(dir: &Path) -> String {
     let mount = mount_point(dir);
     format!(
-        "mkdir -p out && podman run --rm --userns=keep-id --user \"$(id -u):$(id -g)\" -v \
+        "mkdir -p out && podman run --rm --network none --userns=keep-id --user \"$(id -u):$(id -g)\" -v \
          \"$PWD/out:{mount}\" IMAGE render -o {mount}/NAME.png (Docker, or Podman as root: \
          the same without --userns=keep-id)"
     )
