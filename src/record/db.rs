@@ -535,6 +535,10 @@ fn explain(path: &Path, e: rusqlite::Error, doing: &str, started: Instant) -> an
             anyhow!("{shown}: {doing}: the database or its directory is read-only ({e})")
         }
         Some(rusqlite::ErrorCode::DiskFull) => anyhow!("{shown}: {doing}: the disk is full"),
+        // SQLite reports a full disk as an I/O error where it maps its -shm file.
+        Some(rusqlite::ErrorCode::SystemIoFailure) => {
+            anyhow!("{shown}: {doing}: {e} (is the disk full?)")
+        }
         Some(rusqlite::ErrorCode::DatabaseBusy) | Some(rusqlite::ErrorCode::DatabaseLocked) => {
             // SQLite waits up to BUSY_TIMEOUT for most locks but returns some at once: say
             // how long it waited.
@@ -804,17 +808,17 @@ fn create(path: &Path) -> Result<()> {
         .with_context(|| format!("{shown}: could not create the results database"))?;
     // Removed when dropped, unless published by a rename.
     let made = made.into_temp_path();
-    let mut db = ResultsDb::connect(&made, OpenFlags::SQLITE_OPEN_READ_WRITE)?;
-    // Messages name the database being made, not its temporary name.
-    db.path = path.to_owned();
-    let started = Instant::now();
-    db.conn
-        .pragma_update(None, "journal_mode", "wal")
-        .map_err(|e| db.error(e, "could not create it", started))?;
-    db.migrate(0)?;
-    db.conn
-        .close()
-        .map_err(|(_, e)| explain(path, e, "could not create it", started))?;
+    let built = build_new(&made, path);
+    if built.is_err() {
+        // What SQLite could not finish (on a full disk) leaves its -wal and -shm files
+        // behind: they go with the temporary file.
+        for suffix in ["-wal", "-shm"] {
+            let mut side = made.as_os_str().to_owned();
+            side.push(suffix);
+            let _ = std::fs::remove_file(side);
+        }
+    }
+    built?;
     match std::fs::hard_link(&made, path) {
         // Ours, or another process's made first: either is whole.
         Ok(()) => Ok(()),
@@ -834,6 +838,46 @@ fn create(path: &Path) -> Result<()> {
         Err(e) => Err(e),
     }
     .with_context(|| format!("{shown}: could not create the results database"))
+}
+
+/// Makes a whole database of the latest schema, in WAL mode, at `made` (named `path` in
+/// messages), and closes it.
+fn build_new(made: &Path, path: &Path) -> Result<()> {
+    let mut db = ResultsDb::connect(made, OpenFlags::SQLITE_OPEN_READ_WRITE)?;
+    // Messages name the database being made, not its temporary name.
+    db.path = path.to_owned();
+    let started = Instant::now();
+    db.conn
+        .pragma_update(None, "journal_mode", "wal")
+        .map_err(|e| db.error(e, "could not create it", started))?;
+    db.migrate(0)?;
+    // Everything written back from the WAL into the file itself before it is published under
+    // `path`: its -wal file is `made`'s, which `path` never reads. A close does this too, but
+    // says nothing when it cannot (a full disk), and the published file would be empty.
+    let (busy, frames, written): (i64, i64, i64) = db
+        .conn
+        .query_row("PRAGMA wal_checkpoint(TRUNCATE)", [], |r| {
+            Ok((r.get(0)?, r.get(1)?, r.get(2)?))
+        })
+        .map_err(|e| db.error(e, "could not create it", started))?;
+    if busy != 0 || frames != written {
+        bail!(
+            "{}: could not create it: its journal was not written back ({written} of {frames} pages; is the disk full?)",
+            path.display()
+        );
+    }
+    db.conn
+        .close()
+        .map_err(|(_, e)| explain(path, e, "could not create it", started))?;
+    let mut wal = made.as_os_str().to_owned();
+    wal.push("-wal");
+    if std::fs::metadata(&wal).is_ok_and(|m| m.len() > 0) {
+        bail!(
+            "{}: could not create it: its journal was not written back (is the disk full?)",
+            path.display()
+        );
+    }
+    Ok(())
 }
 
 /// Whether `e` is a file system refusing hard links.

@@ -963,6 +963,56 @@ fn a_result_of_the_first_schema_imports_on_the_same_machine() {
     assert_eq!(listed(&dir, &db, &["--machine", machine]).len(), 2);
 }
 
+/// A new database on a disk with too little room for it: at every amount of room, the import
+/// either lands or fails with exit 2, and a failure leaves nothing behind (no temporary name,
+/// no -wal or -shm file, no published file without its schema).
+#[test]
+fn a_new_database_on_a_nearly_full_disk_is_made_whole_or_not_at_all() {
+    let test = "a_new_database_on_a_nearly_full_disk_is_made_whole_or_not_at_all";
+    let dir = temp_dir("results-nearly-full");
+    let (a, _) = two_results(&dir);
+    let tessera = env!("CARGO_BIN_EXE_tessera");
+    // The same 256 KiB file system, refilled for each amount of room left, 0 to 120 KiB.
+    let script = format!(
+        "for free in 0 8 16 24 32 40 48 56 64 72 80 88 96 104 112 120; do \
+           rm -rf small/* small/.[!.]*; head -c $((256 - free))K /dev/zero > small/filler 2>/dev/null; \
+           TESSERA_DB=small/r.db {tessera} results import '{a}' >/dev/null 2>small.err; rc=$?; \
+           left=$(ls -A small | tr '\\n' ' '); \
+           [ $rc = 0 ] && TESSERA_DB=small/r.db {tessera} results list >/dev/null 2>>small.err; \
+           echo \"$free $rc $? $left| $(head -c 200 small.err)\"; \
+         done",
+        a = a.display()
+    );
+    let Some(o) = in_a_small_filesystem(&dir, 256, &script) else {
+        return skip(
+            test,
+            "this machine cannot make a private filesystem (unshare -rm)",
+        );
+    };
+    let out = stdout(&o);
+    let (mut landed, mut failed) = (0, 0);
+    for line in out.lines() {
+        let fields: Vec<&str> = line.split_whitespace().collect();
+        let (rc, listed) = (fields[1], fields[2]);
+        let left = line.split_once("| ").map_or("", |(l, _)| l);
+        let files: Vec<&str> = left.split_whitespace().skip(3).collect();
+        match rc {
+            "0" => {
+                landed += 1;
+                assert_eq!(listed, "0", "{line}: the new database does not list");
+                assert_eq!(files, ["filler", "r.db"], "{line}");
+            }
+            "2" => {
+                failed += 1;
+                assert_eq!(files, ["filler"], "{line}: something was left behind");
+                assert!(line.contains("disk"), "{line}: the reason is not the disk");
+            }
+            _ => panic!("{line}: neither landed nor refused"),
+        }
+    }
+    assert!(landed > 0 && failed > 0, "{out}{}", stderr(&o));
+}
+
 #[test]
 fn a_full_or_read_only_disk_is_an_error_that_keeps_what_was_there() {
     let test = "a_full_or_read_only_disk_is_an_error_that_keeps_what_was_there";
