@@ -204,6 +204,7 @@ impl ResultsDb {
     /// so it reads on a read-only disk too. One that needs a migration is opened to write
     /// where it can be, and read as it is where it cannot.
     pub fn open_to_read(path: &Path) -> Result<Self> {
+        refuse_dangling_link(path)?;
         if !path.exists() {
             bail!(
                 "{}: no results database yet (`tessera bench` records its runs there, `tessera results import` adds others')",
@@ -217,6 +218,7 @@ impl ResultsDb {
         let missing = matches!(std::fs::metadata(path),
             Err(e) if e.kind() == std::io::ErrorKind::NotFound);
         if missing && access == Access::Write {
+            refuse_dangling_link(path)?;
             create(path)?;
         }
         // Whose the file is, from what it holds, before SQLite opens it to use it: a file
@@ -838,6 +840,23 @@ fn create(path: &Path) -> Result<()> {
         Err(e) => Err(e),
     }
     .with_context(|| format!("{shown}: could not create the results database"))
+}
+
+/// Refuses a `path` that is a symbolic link to nothing: a database is not made through a
+/// link (the hard link that publishes a new one would not follow it), and "no such file"
+/// would not say which of the two is missing.
+fn refuse_dangling_link(path: &Path) -> Result<()> {
+    let dangling = std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink())
+        && std::fs::metadata(path).is_err_and(|e| e.kind() == std::io::ErrorKind::NotFound);
+    if dangling {
+        let target = std::fs::read_link(path).unwrap_or_default();
+        bail!(
+            "{}: a symbolic link to {}, which does not exist: no database is made through a link; left as it is",
+            path.display(),
+            terminal_safe(&target.display().to_string(), 400)
+        );
+    }
+    Ok(())
 }
 
 /// Makes a whole database of the latest schema, in WAL mode, at `made` (named `path` in

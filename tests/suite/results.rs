@@ -375,6 +375,30 @@ fn databases_it_cannot_use_are_refused_and_left_as_they_were() {
     refuse("damaged.db", "damaged");
 }
 
+/// A database path that is a symbolic link to nothing is refused, saying so, by every command
+/// that opens it; nothing is made at either end.
+#[test]
+fn a_link_to_a_missing_database_is_refused_saying_so() {
+    let dir = temp_dir("results-dangling");
+    let (a, _) = two_results(&dir);
+    let link = dir.join("link.db");
+    std::os::unix::fs::symlink("elsewhere/r.db", &link).unwrap();
+    for args in [&["list"][..], &["import", a.to_str().unwrap()], &["rank"]] {
+        let o = results(&dir, &link, args);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains("link.db: a symbolic link to elsewhere/r.db, which does not exist"),
+            "{args:?}: {err}"
+        );
+    }
+    assert!(!dir.join("elsewhere").exists(), "made through the link");
+    assert_eq!(
+        std::fs::read_link(&link).unwrap(),
+        Path::new("elsewhere/r.db")
+    );
+}
+
 /// A file with tessera's header but SQL of its own (a trigger on its inserts, a view in
 /// place of a table, a computed column) is refused before any of it runs: its schema must
 /// be tessera's, statement for statement. Each is left as it was.
