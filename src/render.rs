@@ -63,7 +63,8 @@ pub type ProgressSaver<'a> = &'a mut dyn FnMut(&JobState);
 
 /// What a running job reports to and hears from its caller.
 pub struct Control<'a> {
-    /// Set (e.g. by a signal handler) to stop taking new tiles; the job returns early.
+    /// Set (e.g. by a signal handler) to stop: no new tile is taken and the busy ones are
+    /// given up at their next pixel; the job returns early.
     pub stop: &'a AtomicBool,
     /// Called as each tile finishes, with its worth in samples of the job's estimated work:
     /// the calls add up to the samples left, but a costly tile counts for more than its own

@@ -57,15 +57,22 @@ impl Work {
         }
     }
 
-    /// What it asks for beyond what is rendered unasked (`more than the …`), if anything.
-    pub fn beyond_unasked(&self) -> Option<String> {
-        if self.covers > UNASKED_COVERS {
-            Some(format!("more than the {UNASKED_COVERS} book covers' work"))
+    /// Why the recipe of `image` is not rendered unasked, if it is more than that: the
+    /// message, ending with `allow`, what renders it anyway (`--any-cost` on the command
+    /// line).
+    pub fn refusal(&self, image: &Path, allow: &str) -> Option<String> {
+        let beyond = if self.covers > UNASKED_COVERS {
+            format!("more than the {UNASKED_COVERS} book covers' work")
         } else if self.pixels > UNASKED_PIXELS {
-            Some(format!("more than the {UNASKED_PIXELS} pixels"))
+            format!("more than the {UNASKED_PIXELS} pixels")
         } else {
-            None
-        }
+            return None;
+        };
+        Some(format!(
+            "{}: its recipe asks for {self}, {beyond} that reproduce renders unasked; pass \
+             {allow} to render it anyway",
+            image.display()
+        ))
     }
 }
 

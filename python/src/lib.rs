@@ -339,8 +339,7 @@ fn render(
             )));
         }
     };
-    let path = tessera::simd::Path::choose(simd.as_deref().unwrap_or("auto"))
-        .map_err(|e| PyValueError::new_err(format!("simd: {e}")))?;
+    let path = simd_path(simd.as_deref())?;
     let options = RenderOptions {
         threads,
         tile: DEFAULT_TILE,
@@ -354,7 +353,6 @@ fn render(
     };
     interruptible(py, |stop| {
         let (scene, source) = input.load(overrides).map_err(Failed::Tessera)?;
-        let mut state = JobState::new(Job::whole(&scene), options.tile);
         let mut watcher = on_pass.as_ref().map(|on_pass| PassWatcher {
             on_pass,
             scene: &scene,
@@ -364,22 +362,13 @@ fn render(
             stop,
             raised: None,
         });
-        let control = Control {
-            stop,
-            on_samples: &|_| {},
-            on_progress: None,
-            progressive: watcher.is_some(),
-            watch: watcher.as_mut().map(|w| w as &mut dyn Watch),
-        };
-        let stats = render_job(&scene, &options, &mut state, control)
-            .map_err(|e| Failed::Pool(e.to_string()))?;
+        let watch = watcher.as_mut().map(|w| w as &mut dyn Watch);
+        let rendered = render_whole(&scene, &options, stop, watch);
+        // What the callback raised stopped the render: it is what the caller sees.
         if let Some(e) = watcher.and_then(|w| w.raised) {
             return Err(Failed::Raised(e));
         }
-        if !state.is_complete() {
-            return Err(Failed::Interrupted);
-        }
-        let film = state.into_film();
+        let (film, stats) = rendered?;
         let recipe = Recipe::new(&source, &scene, &film);
         Ok(NativeImage {
             film,
@@ -389,6 +378,36 @@ fn render(
             simd: path.name(),
         })
     })
+}
+
+/// The SIMD path named `simd` (None: `auto`).
+fn simd_path(simd: Option<&str>) -> PyResult<tessera::simd::Path> {
+    tessera::simd::Path::choose(simd.unwrap_or("auto"))
+        .map_err(|e| PyValueError::new_err(format!("simd: {e}")))
+}
+
+/// Renders the whole of `scene` until it is complete or `stop` is set (then `Interrupted`),
+/// in progressive passes when `watch` sees them.
+fn render_whole<'a>(
+    scene: &Scene,
+    options: &RenderOptions,
+    stop: &'a AtomicBool,
+    watch: Option<&'a mut dyn Watch>,
+) -> Result<(Film, RenderStats), Failed> {
+    let mut state = JobState::new(Job::whole(scene), options.tile);
+    let control = Control {
+        stop,
+        on_samples: &|_| {},
+        on_progress: None,
+        progressive: watch.is_some(),
+        watch,
+    };
+    let stats =
+        render_job(scene, options, &mut state, control).map_err(|e| Failed::Pool(e.to_string()))?;
+    if !state.is_complete() {
+        return Err(Failed::Interrupted);
+    }
+    Ok((state.into_film(), stats))
 }
 
 /// Runs `work` with the interpreter's lock released and Ctrl-C setting the flag it is given
@@ -458,7 +477,7 @@ fn build() -> String {
 /// Reads the recipe of the image at `image`, renders it again and says whether the image is
 /// bit for bit what it makes: a dict of the verdict ("identical" or "differs"), its summary
 /// and details, the recipe's sums and the work it asked for. A recipe asking for more than
-/// four book covers' work is refused unless `any_cost`.
+/// four book covers' work, or more than 8192x4096 pixels, is refused unless `any_cost`.
 #[pyfunction]
 #[pyo3(signature = (image, *, threads=None, simd=None, textures=None, any_cost=false))]
 fn reproduce<'py>(
@@ -469,8 +488,7 @@ fn reproduce<'py>(
     textures: Option<PathBuf>,
     any_cost: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let path = tessera::simd::Path::choose(simd.as_deref().unwrap_or("auto"))
-        .map_err(|e| PyValueError::new_err(format!("simd: {e}")))?;
+    let path = simd_path(simd.as_deref())?;
     let options = RenderOptions {
         threads,
         tile: DEFAULT_TILE,
@@ -480,14 +498,10 @@ fn reproduce<'py>(
         .detach(|| verify::read_recipe(&image))
         .map_err(|e| to_py(py, e))?;
     let work = verify::Work::of(&recipe);
-    if let Some(beyond) = work.beyond_unasked()
+    if let Some(refusal) = work.refusal(&image, "any_cost=True")
         && !any_cost
     {
-        return Err(TesseraError::new_err(format!(
-            "{}: its recipe asks for {work}, {beyond} that reproduce renders unasked; pass \
-             any_cost=True to render it anyway",
-            image.display(),
-        )));
+        return Err(TesseraError::new_err(refusal));
     }
     let d = PyDict::new(py);
     d.set_item("image", image.display().to_string())?;
@@ -500,20 +514,7 @@ fn reproduce<'py>(
             let dirs = recipe::texture_dirs(textures.as_deref(), &image);
             interruptible(py, |stop| {
                 let scene = recipe.scene(&image, &dirs).map_err(Failed::Tessera)?;
-                let mut state = JobState::new(Job::whole(&scene), options.tile);
-                let control = Control {
-                    stop,
-                    on_samples: &|_| {},
-                    on_progress: None,
-                    progressive: false,
-                    watch: None,
-                };
-                render_job(&scene, &options, &mut state, control)
-                    .map_err(|e| Failed::Pool(e.to_string()))?;
-                if !state.is_complete() {
-                    return Err(Failed::Interrupted);
-                }
-                let film = state.into_film();
+                let (film, _) = render_whole(&scene, &options, stop, None)?;
                 verify::differs_rendered(&image, &header, &recipe, &film, scene.settings.gamma)
                     .map_err(Failed::Tessera)
             })?
@@ -551,8 +552,7 @@ fn bench_workload(
     simd: Option<String>,
 ) -> PyResult<String> {
     let chosen = simd.as_deref().is_some_and(|s| s != "auto");
-    let path = tessera::simd::Path::choose(simd.as_deref().unwrap_or("auto"))
-        .map_err(|e| PyValueError::new_err(format!("simd: {e}")))?;
+    let path = simd_path(simd.as_deref())?;
     let workload = tessera::record::workload::Workload::named(workload)
         .map_err(|e| PyValueError::new_err(format!("workload: {e:#}")))?;
     let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());

@@ -289,8 +289,8 @@ def reproduce(
 
     Returns a dict: ``verdict`` ("identical" or "differs"), ``summary``, ``details`` (a
     line per difference), ``sums`` (the recipe's) and ``work`` (what the recipe asks for).
-    A recipe asking for more than four book covers' work raises TesseraError unless
-    ``any_cost``. Texture files are looked for in ``textures`` first, then beside the image,
+    A recipe asking for more than four book covers' work, or more than 8192x4096 pixels,
+    raises TesseraError unless ``any_cost``. Texture files are looked for in ``textures`` first, then beside the image,
     then in ``scenes/``. An image without a recipe, or one tessera cannot read, raises
     TesseraError.
     """

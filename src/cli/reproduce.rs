@@ -165,14 +165,10 @@ pub fn run(args: Args) -> Result<ExitCode> {
         simd: args.simd.path()?,
     };
     let work = verify::Work::of(&recipe);
-    if let Some(beyond) = work.beyond_unasked()
+    if let Some(refusal) = work.refusal(image, "--any-cost")
         && !args.any_cost
     {
-        bail!(
-            "{}: its recipe asks for {work}, {beyond} that reproduce renders unasked; pass \
-             --any-cost to render it anyway",
-            image.display(),
-        );
+        bail!("{refusal}");
     }
     let dirs = recipe::texture_dirs(args.textures.as_deref(), image);
     let scene = recipe.scene(image, &dirs)?;
