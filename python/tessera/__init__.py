@@ -8,7 +8,7 @@
     >>> image.save("cover.png")      # the file `tessera render` writes, recipe included
 
 The same scene, settings and seed give the same pixels whatever the thread count or SIMD
-path. Rendering releases the interpreter's lock; Ctrl-C stops a render within about a
+path. Rendering releases the interpreter's lock; Ctrl-C stops a render within a tenth of a
 second and raises KeyboardInterrupt.
 """
 
@@ -187,8 +187,6 @@ def _scene_input(scene: SceneLike) -> "tuple[str, str]":
             text = json.dumps(scene, allow_nan=False, default=_json_value)
         except ValueError as e:
             raise ValueError(f"scene: {e}") from None
-        except TypeError as e:
-            raise ValueError(f"scene: a dict's keys must be strings ({e})") from None
         return ("json", text)
     if isinstance(scene, os.PathLike):
         path = os.fspath(scene)
@@ -290,8 +288,8 @@ def reproduce(
     Returns a dict: ``verdict`` ("identical" or "differs"), ``summary``, ``details`` (a
     line per difference), ``sums`` (the recipe's) and ``work`` (what the recipe asks for).
     A recipe asking for more than four book covers' work, or more than 8192x4096 pixels,
-    raises TesseraError unless ``any_cost``. Texture files are looked for in ``textures`` first, then beside the image,
-    then in ``scenes/``. An image without a recipe, or one tessera cannot read, raises
+    raises TesseraError unless ``any_cost``. Texture files are looked for in ``textures``
+    first, then beside the image, then in ``scenes/``. An image without a recipe, or one tessera cannot read, raises
     TesseraError.
     """
     if simd is not None and not isinstance(simd, str):
