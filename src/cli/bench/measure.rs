@@ -13,24 +13,13 @@ use tessera::record::db::{self, ResultsDb};
 use tessera::record::host::{Host, short_commit};
 use tessera::record::measure;
 use tessera::record::result::BenchResult;
-use tessera::record::workload::Workload;
 
 /// A measurement, ready to run.
 pub struct Measure {
-    pub workload: Workload,
-    /// Threads of the headline result.
-    pub threads: usize,
-    /// The thread counts of the scaling table: 1, 2, 4, … and every CPU; empty for none.
-    pub scaling: Vec<usize>,
-    /// Measured renders per thread count.
-    pub repeat: u32,
-    pub warmup: u32,
+    /// What is rendered, how often and on which threads and SIMD path.
+    pub plan: measure::Plan,
     pub json: bool,
     pub out: Option<PathBuf>,
-    /// The SIMD path of every render.
-    pub simd: tessera::simd::Path,
-    /// Whether `--simd` (or `TESSERA_SIMD`) named it, rather than `auto`.
-    pub simd_chosen: bool,
     /// The results database to record the result in; `None`: not recorded.
     #[cfg_attr(not(feature = "results"), allow(dead_code))]
     pub save: Option<SaveTo>,
@@ -69,16 +58,7 @@ pub fn run(m: Measure) -> Result<ExitCode> {
     // Opened before the renders, so that a database it cannot use stops it at once.
     #[cfg(feature = "results")]
     let mut db = open_results_db(m.save.as_ref())?;
-    let report = measure::measure(&measure::Plan {
-        workload: m.workload,
-        threads: m.threads,
-        scaling: m.scaling,
-        repeat: m.repeat,
-        warmup: m.warmup,
-        simd: m.simd,
-        simd_chosen: m.simd_chosen,
-    })
-    .context("could not start the thread pool")?;
+    let report = measure::measure(&m.plan).context("could not start the thread pool")?;
     let json = tessera::text::ascii_json(&serde_json::to_string_pretty(&report)?) + "\n";
     if let Some(out) = &m.out {
         write_atomically(out, json.as_bytes())?;

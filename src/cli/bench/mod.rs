@@ -247,15 +247,17 @@ impl BenchMode {
         }
         let scaling = tessera::record::measure::scaling_counts(cpus);
         Ok(Self::Measure(Box::new(Measure {
-            workload,
-            threads,
-            scaling: if args.no_scaling { Vec::new() } else { scaling },
-            repeat: args.repeat,
-            warmup: args.warmup,
+            plan: tessera::record::measure::Plan {
+                workload,
+                threads,
+                scaling: if args.no_scaling { Vec::new() } else { scaling },
+                repeat: args.repeat,
+                warmup: args.warmup,
+                simd,
+                simd_chosen: args.simd.is_chosen(),
+            },
             json: args.json,
             out: args.out,
-            simd,
-            simd_chosen: args.simd.is_chosen(),
             save: measure::save_to(args.no_save, args.db.db),
         })))
     }
