@@ -73,10 +73,19 @@ impl Viewer {
         format!("Host: {}\r\nConnection: close\r\n\r\n", self.addr)
     }
 
+    /// The status as JSON. A 503 ("too many viewers") is waited out, within `PATIENCE`: a
+    /// test's own closed connections hold their places until the server sees them close.
     fn status(&self) -> serde_json::Value {
-        let a = self.get("/status");
-        assert_eq!(a.code, 200, "{}", a.text());
-        serde_json::from_slice(&a.body).expect("status is JSON")
+        let start = Instant::now();
+        loop {
+            let a = self.get("/status");
+            if a.code == 503 && start.elapsed() < PATIENCE {
+                std::thread::sleep(Duration::from_millis(30));
+                continue;
+            }
+            assert_eq!(a.code, 200, "{}", a.text());
+            return serde_json::from_slice(&a.body).expect("status is JSON");
+        }
     }
 
     /// Polls the status until `done` says so.
