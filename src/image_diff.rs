@@ -3,6 +3,11 @@
 use crate::error::{Error, Result};
 use std::path::Path;
 
+/// The most pixels an image may have to be compared: 8192x4096, as many as `reproduce`
+/// renders unasked. Each is held as three floats, so two such images take 800 MB; the
+/// size a file claims is checked against it before anything is decoded.
+pub const MAX_COMPARED_PIXELS: u64 = 1 << 25;
+
 /// Difference statistics of two images, over all pixels and RGB channels, values in [0, 1].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Difference {
@@ -24,8 +29,32 @@ pub struct RgbImage {
 
 impl RgbImage {
     /// Decodes the image at `path` (any format the `image` crate reads, by its extension or
-    /// else its content), within the `image` crate's default limits on size and memory.
+    /// else its content), once the size its header claims is found within
+    /// `MAX_COMPARED_PIXELS`.
     pub fn load(path: &Path) -> Result<Self> {
+        let decoder = Self::decoder(path)?;
+        let img = image::DynamicImage::from_decoder(decoder).map_err(|e| Error::Image {
+            path: path.to_owned(),
+            message: e.to_string(),
+        })?;
+        let rgb = img.to_rgb32f();
+        Ok(Self {
+            width: rgb.width(),
+            height: rgb.height(),
+            data: rgb.into_raw().into_iter().map(unit).collect(),
+        })
+    }
+
+    /// The width and height the header of the image at `path` claims, checked against
+    /// `MAX_COMPARED_PIXELS`; nothing else is decoded.
+    pub fn size(path: &Path) -> Result<(u32, u32)> {
+        use image::ImageDecoder;
+        Ok(Self::decoder(path)?.dimensions())
+    }
+
+    /// A decoder of the image at `path` with its header read and its size checked.
+    fn decoder(path: &Path) -> Result<impl image::ImageDecoder> {
+        use image::ImageDecoder;
         let fail = |message: String| Error::Image {
             path: path.to_owned(),
             message,
@@ -43,13 +72,19 @@ impl RgbImage {
                     .map_err(|e| fail(e.to_string()))?
             }
         }
-        let img = reader.decode().map_err(|e| fail(e.to_string()))?;
-        let rgb = img.to_rgb32f();
-        Ok(Self {
-            width: rgb.width(),
-            height: rgb.height(),
-            data: rgb.into_raw().into_iter().map(unit).collect(),
-        })
+        // The decoder's own buffer, at most four 32-bit floats a pixel (an EXR with alpha).
+        let mut limits = image::Limits::default();
+        limits.max_alloc = Some(MAX_COMPARED_PIXELS * 16 + (1 << 20));
+        reader.limits(limits);
+        let decoder = reader.into_decoder().map_err(|e| fail(e.to_string()))?;
+        let (width, height) = decoder.dimensions();
+        if u64::from(width) * u64::from(height) > MAX_COMPARED_PIXELS {
+            return Err(fail(format!(
+                "{width}x{height} is more than the {MAX_COMPARED_PIXELS} pixels (8192x4096) \
+                 an image may have to be compared"
+            )));
+        }
+        Ok(decoder)
     }
 
     /// Wraps 8-bit RGB values.
@@ -94,8 +129,19 @@ pub fn difference(a: &RgbImage, b: &RgbImage) -> std::result::Result<Difference,
     })
 }
 
-/// Loads two image files and gives their difference.
+/// Loads two image files and gives their difference; their sizes are compared, and checked,
+/// before either is decoded.
 pub fn difference_of_files(a: &Path, b: &Path) -> Result<Difference> {
+    let (size_a, size_b) = (RgbImage::size(a)?, RgbImage::size(b)?);
+    if size_a != size_b {
+        return Err(Error::Image {
+            path: b.to_owned(),
+            message: format!(
+                "images differ in size: {}x{} and {}x{}",
+                size_a.0, size_a.1, size_b.0, size_b.1
+            ),
+        });
+    }
     let (ia, ib) = (RgbImage::load(a)?, RgbImage::load(b)?);
     difference(&ia, &ib).map_err(|message| Error::Image {
         path: b.to_owned(),

@@ -223,6 +223,38 @@ fn png_with_chunks(png: &[u8], chunks: &[u8]) -> Vec<u8> {
     [&png[..after_ihdr], chunks, &png[after_ihdr..]].concat()
 }
 
+/// `png` with the size its IHDR claims replaced (its pixel data left as it is).
+fn png_claiming(png: &[u8], width: u32, height: u32) -> Vec<u8> {
+    let mut ihdr = png[16..29].to_vec();
+    ihdr[..4].copy_from_slice(&width.to_be_bytes());
+    ihdr[4..8].copy_from_slice(&height.to_be_bytes());
+    [&png[..8], &png_chunk(b"IHDR", &ihdr)[..], &png[33..]].concat()
+}
+
+/// `compare` of two images that claim 16000x16000 pixels once took 6.3 GB (three floats a
+/// pixel, twice, and the decoder's own buffers): the size each header claims is checked
+/// before anything is decoded, and two sizes that differ are an error before either is.
+#[test]
+fn compare_checks_the_sizes_images_claim_before_decoding_them() {
+    let dir = temp_dir("hostile-compare-size");
+    let png = std::fs::read(rendered(&dir, "a.png")).unwrap();
+    std::fs::write(dir.join("huge.png"), png_claiming(&png, 16000, 16000)).unwrap();
+    let o = run_capped(&["compare", "huge.png", "huge.png"], &dir, 256);
+    refused(
+        &o,
+        "huge.png: 16000x16000 is more than the 33554432 pixels (8192x4096) an image may have",
+        "huge",
+    );
+    // Within the bound but of another size than the other image: refused by the headers
+    // alone (the claimed image's pixel data is not there to decode).
+    std::fs::write(dir.join("wide.png"), png_claiming(&png, 8192, 4096)).unwrap();
+    let o = run_capped(&["compare", "a.png", "wide.png"], &dir, 256);
+    refused(&o, "images differ in size: 32x18 and 8192x4096", "wide");
+    let o = run(&["compare", "a.png", "a.png"], &dir);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("inf dB (identical)"), "{}", stdout(&o));
+}
+
 #[test]
 fn a_png_whose_chunks_change_its_display_differs_naming_the_chunk() {
     let dir = temp_dir("hostile-png-display");
