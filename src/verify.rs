@@ -7,14 +7,22 @@ use crate::error::{Error, Result};
 use crate::film::Film;
 use crate::image_diff::{self, RgbImage};
 use crate::image_file::{self, ImageHeader, Pixels};
+use crate::job::SampleRange;
+use crate::math::PixelRect;
 use crate::recipe::{self, Effective, Recipe};
+use crate::render::render_tile;
+use crate::scene::Scene;
+use crate::simd;
 use crate::text::{count, significant, terminal_safe};
 use std::path::Path;
+use std::time::{Duration, Instant};
 
 /// The book cover's work: 1200x800 pixels at 500 samples per pixel, up to 50 bounces.
 pub const COVER_RAYS: f64 = 1200.0 * 800.0 * 500.0 * 50.0;
 /// The most work a recipe gets rendered unasked, in book covers (a few minutes on two cores).
 pub const UNASKED_COVERS: f64 = 4.0;
+/// The book cover's samples: 1200x800 pixels at 500 per pixel.
+pub const COVER_SAMPLES: f64 = 1200.0 * 800.0 * 500.0;
 /// The most pixels a recipe gets rendered unasked, whatever its samples: 8192x4096, whose
 /// film alone (three 64-bit sums a pixel) is 800 MB. A recipe may claim 2^28 pixels, a
 /// 6.4 GB film, at one sample each: little work, but more memory than many machines have.
@@ -39,10 +47,14 @@ pub fn read_recipe(path: &Path) -> Result<(ImageHeader, Recipe)> {
 /// path its longest.
 pub struct Work {
     pub claimed: Effective,
-    /// In book covers' rays.
+    /// In book covers' rays, every path its longest, each ray costing what one of the
+    /// cover's does.
     pub covers: f64,
     /// The pixels it renders (its window's).
     pub pixels: u64,
+    /// Once its scene is built and a few of its paths traced (`measured`): one path's cost
+    /// as a multiple of one of the cover's, and the work in book covers that makes.
+    pub measured: Option<(f64, f64)>,
 }
 
 impl Work {
@@ -54,14 +66,28 @@ impl Work {
             claimed,
             covers: samples as f64 * f64::from(claimed.max_depth) / COVER_RAYS,
             pixels,
+            measured: None,
         }
+    }
+
+    /// The work, its paths' cost measured on `scene` (the recipe's, built) against the book
+    /// cover's scene `cover` (at any size): what the claim alone cannot tell, such as a ray
+    /// that meets a million overlapping spheres.
+    pub fn measured(mut self, scene: &Scene, cover: &Scene) -> Self {
+        let cost = path_cost(scene, cover);
+        let samples = self.pixels as f64 * f64::from(self.claimed.samples_per_pixel);
+        self.measured = Some((cost, samples * cost / COVER_SAMPLES));
+        self
     }
 
     /// Why the recipe of `image` is not rendered unasked, if it is more than that: the
     /// message, ending with `allow`, what renders it anyway (`--any-cost` on the command
     /// line).
     pub fn refusal(&self, image: &Path, allow: &str) -> Option<String> {
-        let beyond = if self.covers > UNASKED_COVERS {
+        let measured_beyond = self
+            .measured
+            .is_some_and(|(_, covers)| covers > UNASKED_COVERS);
+        let beyond = if self.covers > UNASKED_COVERS || measured_beyond {
             format!("more than the {UNASKED_COVERS} book covers' work")
         } else if self.pixels > UNASKED_PIXELS {
             format!("more than the {UNASKED_PIXELS} pixels")
@@ -81,14 +107,74 @@ impl std::fmt::Display for Work {
         let c = &self.claimed;
         write!(
             f,
-            "{}x{} pixels at {} per pixel, paths of up to {}: at most {} book covers' work",
+            "{}x{} pixels at {} per pixel, paths of up to {}: ",
             c.window[2],
             c.window[3],
             count(c.samples_per_pixel, "sample"),
             count(c.max_depth, "bounce"),
-            significant(self.covers, 2)
-        )
+        )?;
+        match self.measured {
+            Some((cost, covers)) => write!(
+                f,
+                "about {} book covers' work (its paths, traced, cost {} times the cover's)",
+                significant(covers, 2),
+                significant(cost, 2)
+            ),
+            None => write!(
+                f,
+                "at most {} book covers' work",
+                significant(self.covers, 2)
+            ),
+        }
     }
+}
+
+/// Paths traced for a measure of their cost: one sample at each pixel of a grid of small
+/// tiles spread over the window (8x8 tiles of 4x4 pixels).
+const PROBE_GRID: u32 = 8;
+const PROBE_TILE: u32 = 4;
+/// How long the paths of a scene are traced at most for the measure (at least one tile's).
+const PROBE_TIME: Duration = Duration::from_millis(300);
+
+/// What one path of `scene` costs as a multiple of one path of the book's cover, `cover`:
+/// the same pattern of pixels traced in both, one sample each, on this machine's best SIMD
+/// path. A measure in time, so only about right: the order of magnitude is what matters.
+pub fn path_cost(scene: &Scene, cover: &Scene) -> f64 {
+    // The cover twice: the first warms the caches and the clock.
+    probe(cover, Duration::MAX);
+    let per_cover_path = probe(cover, Duration::MAX);
+    let per_path = probe(scene, PROBE_TIME);
+    per_path / per_cover_path.max(1e-9)
+}
+
+/// The time one path of `scene` takes on the probe's pixels, in seconds, tracing for no
+/// longer than about `limit`.
+fn probe(scene: &Scene, limit: Duration) -> f64 {
+    let window = scene.settings.window;
+    let simd = simd::Path::best();
+    // The k-th of PROBE_GRID places along a side, centred in its share of it.
+    let place = |origin: u32, size: u32, k: u32| {
+        let span = u64::from(size.saturating_sub(PROBE_TILE));
+        origin + (span * u64::from(2 * k + 1) / u64::from(2 * PROBE_GRID)) as u32
+    };
+    let start = Instant::now();
+    let mut paths = 0u64;
+    'grid: for j in 0..PROBE_GRID {
+        for i in 0..PROBE_GRID {
+            let tile = PixelRect {
+                x0: place(window.x0, window.width, i),
+                y0: place(window.y0, window.height, j),
+                width: PROBE_TILE.min(window.width),
+                height: PROBE_TILE.min(window.height),
+            };
+            render_tile(scene, &tile, SampleRange { start: 0, end: 1 }, simd);
+            paths += tile.area();
+            if start.elapsed() > limit {
+                break 'grid;
+            }
+        }
+    }
+    start.elapsed().as_secs_f64() / paths.max(1) as f64
 }
 
 /// How an image differs from what its recipe makes.

@@ -308,6 +308,8 @@ enum Failed {
     Raised(PyErr),
     Interrupted,
     Panicked(String),
+    /// What else stops the work, in words: a refusal of its cost.
+    Other(String),
 }
 
 /// Loads `scene` and renders it. `kind` says what `scene` is: "file" (a path), "toml" (a
@@ -444,6 +446,7 @@ impl Failed {
                 TesseraError::new_err(format!("could not start the thread pool: {e}"))
             }
             Failed::Raised(e) => e,
+            Failed::Other(message) => TesseraError::new_err(message),
             Failed::Panicked(message) => TesseraError::new_err(format!(
                 "internal error (a bug of tessera's; please report it): {message}"
             )),
@@ -477,7 +480,8 @@ fn build() -> String {
 /// Reads the recipe of the image at `image`, renders it again and says whether the image is
 /// bit for bit what it makes: a dict of the verdict ("identical" or "differs"), its summary
 /// and details, the recipe's sums and the work it asked for. A recipe asking for more than
-/// four book covers' work, or more than 8192x4096 pixels, is refused unless `any_cost`.
+/// four book covers' work (as it claims, and again at what its paths cost, a few traced),
+/// or more than 8192x4096 pixels, is refused unless `any_cost`.
 #[pyfunction]
 #[pyo3(signature = (image, *, threads=None, simd=None, textures=None, any_cost=false))]
 fn reproduce<'py>(
@@ -506,20 +510,31 @@ fn reproduce<'py>(
     let d = PyDict::new(py);
     d.set_item("image", image.display().to_string())?;
     d.set_item("sums", &recipe.sums)?;
-    d.set_item("work", work.to_string())?;
     let unrendered = verify::differs_unrendered(&image, &header, &recipe);
-    let differs = match unrendered {
-        Some(differs) => Some(differs),
+    let (differs, work) = match unrendered {
+        Some(differs) => (Some(differs), work),
         None => {
             let dirs = recipe::texture_dirs(textures.as_deref(), &image);
             interruptible(py, |stop| {
                 let scene = recipe.scene(&image, &dirs).map_err(Failed::Tessera)?;
+                // What the recipe's paths cost, traced: only the built scene can say.
+                let cover = tessera::record::workload::Workload::named("quick")
+                    .map_err(|e| Failed::Other(format!("{e:#}")))?;
+                let work = work.measured(&scene, &cover.scene);
+                if let Some(refusal) = work.refusal(&image, "any_cost=True")
+                    && !any_cost
+                {
+                    return Err(Failed::Other(refusal));
+                }
                 let (film, _) = render_whole(&scene, &options, stop, None)?;
-                verify::differs_rendered(&image, &header, &recipe, &film, scene.settings.gamma)
-                    .map_err(Failed::Tessera)
+                let g = scene.settings.gamma;
+                let differs = verify::differs_rendered(&image, &header, &recipe, &film, g)
+                    .map_err(Failed::Tessera)?;
+                Ok((differs, work))
             })?
         }
     };
+    d.set_item("work", work.to_string())?;
     match differs {
         None => {
             d.set_item("verdict", "identical")?;

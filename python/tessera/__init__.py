@@ -287,10 +287,11 @@ def reproduce(
 
     Returns a dict: ``verdict`` ("identical" or "differs"), ``summary``, ``details`` (a
     line per difference), ``sums`` (the recipe's) and ``work`` (what the recipe asks for).
-    A recipe asking for more than four book covers' work, or more than 8192x4096 pixels,
-    raises TesseraError unless ``any_cost``. Texture files are looked for in ``textures``
-    first, then beside the image, then in ``scenes/``. An image without a recipe, or one tessera cannot read, raises
-    TesseraError.
+    A recipe asking for more than four book covers' work (as it claims, and again at what
+    its paths cost, a few of them traced), or more than 8192x4096 pixels, raises
+    TesseraError unless ``any_cost``. Texture files are looked for in ``textures`` first,
+    then beside the image, then in ``scenes/``. An image without a recipe, or one tessera
+    cannot read, raises TesseraError.
     """
     if simd is not None and not isinstance(simd, str):
         raise ValueError(f"simd must be a SIMD path's name, not {simd!r}")

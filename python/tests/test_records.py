@@ -63,6 +63,44 @@ def _png_with_pixels_of(recipe_from, pixels_from):
     return bytes(out)
 
 
+def _png_with_recipe(png, recipe):
+    """`png` (tessera's) with its recipe chunk replaced by `recipe`, uncompressed."""
+    import zlib
+    at, out = 8, bytearray(png[:8])
+    while at < len(png):
+        length = int.from_bytes(png[at:at + 4], "big")
+        kind = png[at + 4:at + 8]
+        if kind == b"IEND":
+            data = b"tessera-recipe\0\0\0\0\0" + json.dumps(recipe).encode()
+            crc = zlib.crc32(b"iTXt" + data)
+            out += len(data).to_bytes(4, "big") + b"iTXt" + data + crc.to_bytes(4, "big")
+        if kind != b"iTXt":
+            out += png[at:at + 12 + length]
+        at += 12 + length
+    return bytes(out)
+
+
+def test_reproduce_judges_the_work_by_its_paths_traced_and_refuses_more_unless_asked(tmp_path):
+    # 4,000 nested glass shells: a ray meets each, so a path costs tens of the cover's.
+    scene = ("[image]\nwidth = 320\nheight = 180\nsamples_per_pixel = 20000\nmax_depth = 50\n"
+             "[render]\nshading = \"path\"\n"
+             "[materials.glass]\ntype = \"dielectric\"\nir = 1.5\n")
+    scene += "".join(
+        f"[[spheres]]\ncenter = [0.0, 0.0, -1.0]\nradius = {0.3 + 0.2 * i / 4000:.6f}\n"
+        f"material = \"glass\"\n" for i in range(4000))
+    one = tessera.render(scene, spp=1, width=320)
+    one.save(tmp_path / "one.png")
+    verdict = tessera.reproduce(tmp_path / "one.png")
+    assert verdict["verdict"] == "identical", verdict
+    assert "times the cover's" in verdict["work"], verdict["work"]
+    recipe = one.recipe
+    recipe["overrides"] = {"width": 320}
+    recipe["image"]["samples_per_pixel"] = 20000
+    (tmp_path / "shells.png").write_bytes(_png_with_recipe(one.png(), recipe))
+    with pytest.raises(tessera.TesseraError, match="pass any_cost=True to render it anyway"):
+        tessera.reproduce(tmp_path / "shells.png")
+
+
 def test_reproduce_refuses_what_has_no_recipe(cli, tmp_path):
     cli("render", "scenes/cover.toml", "--width", 16, "--spp", 1, "--no-provenance", "-q",
         "-o", tmp_path / "bare.png")

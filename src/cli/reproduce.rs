@@ -178,6 +178,14 @@ pub fn run(args: Args) -> Result<ExitCode> {
         out(&differs_text(&d.summary, &d.details))?;
         return Ok(differs);
     }
+    // What the recipe's paths cost, traced: only the built scene can say.
+    let cover = tessera::record::workload::Workload::named("quick")?;
+    let work = work.measured(&scene, &cover.scene);
+    if let Some(refusal) = work.refusal(image, "--any-cost")
+        && !args.any_cost
+    {
+        bail!("{refusal}");
+    }
     let s = &scene.settings;
     let total = u64::from(window.width) * u64::from(window.height) * u64::from(s.samples_per_pixel);
     if !args.quiet {

@@ -473,6 +473,50 @@ fn a_recipe_asking_for_days_of_work_is_refused_unless_asked() {
     );
 }
 
+/// What a recipe claims (pixels, samples, depth) cannot say what one of its rays costs: a
+/// ray into 4,000 nested glass shells meets every one of them. `reproduce` traces a few of
+/// the scene's paths against as many of the cover's and judges the work by what they cost.
+#[test]
+fn a_recipe_whose_paths_cost_more_than_it_claims_is_refused_once_they_are_traced() {
+    let dir = temp_dir("hostile-path-cost");
+    let mut scene = String::from(
+        "[image]\nwidth = 320\nheight = 180\nsamples_per_pixel = 20000\nmax_depth = 50\n\
+         seed = 1\n\n[render]\nshading = \"path\"\ndiffuse = \"lambertian\"\n\n\
+         [materials.glass]\ntype = \"dielectric\"\nir = 1.5\n",
+    );
+    for i in 0..4000 {
+        let radius = 0.3 + 0.2 * f64::from(i) / 4000.0;
+        scene += &format!(
+            "\n[[spheres]]\ncenter = [0.0, 0.0, -1.0]\nradius = {radius:.6}\nmaterial = \"glass\"\n"
+        );
+    }
+    std::fs::write(dir.join("shells.toml"), scene).unwrap();
+    // A real image of the scene at one sample; its recipe then claims the scene's own 20,000.
+    ok(
+        &["render", "shells.toml", "--spp", "1", "-q", "-o", "one.png"],
+        &dir,
+    );
+    let png = std::fs::read(dir.join("one.png")).unwrap();
+    let mut recipe = recipe_json(&dir, "one.png");
+    recipe["overrides"] = serde_json::json!({});
+    recipe["image"]["samples_per_pixel"] = 20_000.into();
+    std::fs::write(dir.join("shells.png"), png_with_recipe(&png, &recipe)).unwrap();
+    let o = run(&["reproduce", "shells.png"], &dir);
+    refused(&o, "pass --any-cost to render it anyway", "shells");
+    let err = stderr(&o);
+    // Claimed, it is under the limit (every ray a cover's: 2.4 covers); traced, the paths
+    // cost some tens of times the cover's (26 to 28 on an AMD Zen 5).
+    assert!(
+        err.contains("320x180 pixels at 20000 samples per pixel, paths of up to 50 bounces: about")
+            && err.contains("times the cover's), more than the 4 book covers' work"),
+        "{err}"
+    );
+    // The image at one sample, as rendered, is reproduced: its work is a small part of one.
+    let o = run(&["reproduce", "one.png"], &dir);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).starts_with("identical:"), "{}", stdout(&o));
+}
+
 /// A scene's generators skip draws one at a time: a 2 KB scene (or recipe) of textures each
 /// skipping 2³² draws once took a CPU-minute per four of them. Each skip and their sum are
 /// bounded, and the refusal names the texture that goes over, before its draws are made.
