@@ -9,6 +9,7 @@ mod draws;
 mod settings;
 mod shapes;
 mod textures;
+mod values;
 
 pub use build::{MAX_PIXELS, Overrides};
 pub use check::{MAX_LENGTH, MIN_RADIUS};
@@ -222,6 +223,18 @@ impl Scene {
                 },
             }
         };
+        if let Some(offset) = values::past_the_bound(text) {
+            return Err(Error::SceneSyntax {
+                path: path.to_owned(),
+                at: Location::of_offset(text, offset),
+                message: format!(
+                    "more than {} values, tables and arrays (commas, equals signs, \
+                     brackets and braces) in one scene file; a scene of more spheres draws \
+                     them with a generator",
+                    values::MAX_SCENE_VALUES
+                ),
+            });
+        }
         let document = toml::Deserializer::parse(text).map_err(|e| syntax(&e, None))?;
         // The path of keys to a value of the wrong shape names its field, as a value out
         // of range does; a missing key names its table instead (`name_the_table`).

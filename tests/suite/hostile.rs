@@ -940,6 +940,39 @@ fn a_stranger_s_scene_or_recipe_reads_nothing_outside_and_holds_its_size() {
     assert_eq!(std::fs::read(dir.join("a.png")).unwrap(), png);
 }
 
+/// The TOML parser keeps 150 to 500 bytes for each value, table and array with its place:
+/// a 12 MB array of numbers took 900 MB, 3 MB of inline tables 700 MB, before any check of
+/// ours. Their count is bounded before the parser sees the text (a recipe's scene, at most
+/// 1 MiB, is within it), and the refusal points at where the count goes over.
+#[test]
+fn a_scene_of_millions_of_small_values_is_refused_before_it_is_parsed() {
+    let dir = temp_dir("hostile-values");
+    let head = "[image]\nwidth = 8\nheight = 8\nsamples_per_pixel = 1\nmax_depth = 1\n\
+                [materials.m]\ntype = \"lambertian\"\nalbedo = [0.5, 0.5, 0.5]\n";
+    let numbers = format!("{head}junk = [{}]\n", vec!["1"; 6_000_000].join(","));
+    std::fs::write(dir.join("numbers.toml"), &numbers).unwrap();
+    let o = run_capped(&["render", "numbers.toml", "-o", "n.png"], &dir, 200);
+    refused(
+        &o,
+        "numbers.toml:9:2097136: more than 1048576 values, tables and arrays",
+        "numbers",
+    );
+    let tables = format!("{head}junk = [{}]\n", vec!["{a=1}"; 600_000].join(","));
+    std::fs::write(dir.join("tables.toml"), &tables).unwrap();
+    let o = run_capped(&["render", "tables.toml", "-o", "t.png"], &dir, 200);
+    refused(&o, "tables.toml:9:", "inline tables");
+    assert!(
+        stderr(&o).contains("more than 1048576 values"),
+        "{}",
+        stderr(&o)
+    );
+    // Commas in a string are not values: a long string is only its bytes.
+    let string = format!("# {}\n{head}", ",".repeat(3_000_000));
+    std::fs::write(dir.join("string.toml"), &string).unwrap();
+    ok(&["render", "string.toml", "-q", "-o", "s.png"], &dir);
+    assert!(!dir.join("n.png").exists() && !dir.join("t.png").exists());
+}
+
 #[test]
 fn a_long_chain_of_checkers_is_checked_in_linear_time_and_a_long_cycle_found() {
     let dir = temp_dir("hostile-chain");
