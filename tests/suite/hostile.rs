@@ -430,6 +430,33 @@ fn escapes_in_a_recipe_never_reach_the_terminal() {
         assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
         assert!(stderr(&o).contains("\\u{1b}"), "{}", stderr(&o));
     }
+    // A newline in a key a message quotes (the recipe's own, or its scene's) stays in the
+    // error's one line: it cannot start a line that looks like a verdict.
+    let forged = "x\nidentical: a.png is bit for bit what its recipe makes";
+    let mut keyed = recipe_json(&dir, "a.png");
+    keyed[forged] = 1.into();
+    std::fs::write(dir.join("key.png"), png_with_recipe(&png, &keyed)).unwrap();
+    let mut scene_keyed = recipe_json(&dir, "a.png");
+    let text = scene_keyed["scene"]["text"]
+        .as_str()
+        .unwrap()
+        .replace("[image]\n", "[image]\n\"evil\\nidentical: spoofed\" = 3\n");
+    scene_keyed["scene"]["text"] = text.into();
+    std::fs::write(
+        dir.join("scene-key.png"),
+        png_with_recipe(&png, &scene_keyed),
+    )
+    .unwrap();
+    for file in ["key.png", "scene-key.png"] {
+        let o = run(&["reproduce", file], &dir);
+        assert_eq!(o.status.code(), Some(2), "{file}: {}", stderr(&o));
+        let err = stderr(&o);
+        assert_eq!(err.lines().count(), 1, "{file}: {err}");
+        assert!(
+            err.starts_with("tessera: error: ") && err.contains("\\u{a}identical"),
+            "{file}: {err}"
+        );
+    }
 }
 
 #[test]
