@@ -133,6 +133,16 @@ pub(super) fn build(
                 }
             },
         };
+        // The grid's spheres are weighed before any is drawn (a grid of 1000 would be four
+        // million, each with a material of its own).
+        let side = 2 * random.grid.get_ref().unsigned_abs();
+        let grid_spheres = usize::try_from(side * side).unwrap_or(usize::MAX);
+        shapes::check_held(
+            &ck,
+            shapes::held(&primitives).saturating_add(grid_spheres),
+            random.grid.span(),
+            "random_spheres.grid",
+        )?;
         let generated = generator.generate(&mut materials, camera.shutter);
         material_textures.resize(materials.len(), None);
         primitives.spheres.splice(at..at, generated.still);

@@ -17,13 +17,17 @@ use crate::math::{Vec3, cross, sin};
 use std::ops::Range;
 use toml::Spanned;
 
-/// The most quads a scene may hold (a box is six), and the most spheres a cloud may: far
-/// above the books' (2,400 quads, 1,000 spheres), within a few hundred MiB.
-pub const MAX_QUADS: usize = 1 << 21;
+/// The most spheres a cloud may hold.
 pub const MAX_CLOUD: i64 = 1 << 20;
-/// The most spheres a scene may hold in all, listed, generated and in clouds (the book's
-/// final scene has about 1,100; each sphere costs about a kilobyte with its tree).
-pub const MAX_SPHERES: usize = 1 << 20;
+/// The most primitives a scene may hold in all, spheres (listed, generated, in clouds,
+/// still or moving) and quads (a box is six): far above the books' (the final scene has
+/// about 2,400 quads and 1,100 spheres), and within about 300 MB with their tree.
+pub const MAX_PRIMITIVES: usize = 1 << 20;
+
+/// The primitives `prims` holds so far.
+pub(super) fn held(prims: &Primitives) -> usize {
+    prims.spheres.len() + prims.moving_spheres.len() + prims.quads.len()
+}
 
 /// A rotation about the y axis through the origin, then a translation: the book's
 /// `translate(rotate_y(object, angle), offset)`, in `f64`.
@@ -257,20 +261,16 @@ pub(super) fn sphere_clouds(
 ) -> Result<()> {
     // Every cloud's count is weighed before any is drawn: forty clouds of the most each
     // would take gigabytes.
-    let mut held = prims.spheres.len() + prims.moving_spheres.len();
+    let mut held = held(prims);
     for (i, c) in d.random_sphere_clouds.iter().enumerate() {
         let count = usize::try_from(*c.get_ref().count.get_ref()).unwrap_or(0);
         held = held.saturating_add(count);
-        if held > MAX_SPHERES {
-            return Err(ck.error(
-                c.get_ref().count.span(),
-                &format!("random_sphere_clouds[{i}].count"),
-                format!(
-                    "would make the scene's spheres {held}, more than the {MAX_SPHERES} a \
-                     scene may hold"
-                ),
-            ));
-        }
+        check_held(
+            ck,
+            held,
+            c.get_ref().count.span(),
+            &format!("random_sphere_clouds[{i}].count"),
+        )?;
     }
     for (i, c) in d.random_sphere_clouds.iter().enumerate() {
         let field = format!("random_sphere_clouds[{i}]");
@@ -281,11 +281,19 @@ pub(super) fn sphere_clouds(
 }
 
 fn check_quads(ck: &Checker, prims: &Primitives, span: Range<usize>, field: &str) -> Result<()> {
-    if prims.quads.len() > MAX_QUADS {
+    check_held(ck, held(prims), span, field)
+}
+
+/// Refuses `held` primitives beyond `MAX_PRIMITIVES`, at the value that asks for them.
+pub(super) fn check_held(ck: &Checker, held: usize, span: Range<usize>, field: &str) -> Result<()> {
+    if held > MAX_PRIMITIVES {
         return Err(ck.error(
             span,
             field,
-            format!("makes more than the {MAX_QUADS} quads a scene may hold (a box is six)"),
+            format!(
+                "would make the scene's primitives (spheres and quads; a box is six) {held}, \
+                 more than the {MAX_PRIMITIVES} a scene may hold"
+            ),
         ));
     }
     Ok(())

@@ -955,9 +955,35 @@ fn a_stranger_s_scene_or_recipe_reads_nothing_outside_and_holds_its_size() {
     let o = run_capped(&["render", "clouds.toml", "-o", "c.png"], &dir, 1024);
     refused(
         &o,
-        "random_sphere_clouds[1].count`: would make the scene's spheres 2097152",
+        "random_sphere_clouds[1].count`: would make the scene's primitives (spheres and quads; \
+         a box is six) 2097152",
         "clouds",
     );
+    // The cover's grid at its largest (four million spheres, each with its own material,
+    // took 1 GB from 1.3 KB), and quads beside a full cloud, are weighed the same way.
+    let cover = std::fs::read_to_string(scene_path("cover.toml")).unwrap();
+    let grid = cover.replace("grid = 11", "grid = 1000");
+    assert_ne!(grid, cover);
+    std::fs::write(dir.join("grid.toml"), &grid).unwrap();
+    let o = run_capped(&["render", "grid.toml", "-o", "g.png"], &dir, 1024);
+    refused(
+        &o,
+        "field `random_spheres.grid`: would make the scene's primitives (spheres and quads; a \
+         box is six) 4000004",
+        "grid",
+    );
+    let boxes = format!(
+        "{}[[random_boxes]]\ncorner = [0.0, 0.0, 0.0]\ncount = [1000, 100]\nsize = 1.0\n\
+         top = [1.0, 2.0]\nmaterial = \"m\"\n",
+        cloud.replace("count = 1048576", "count = 1000000")
+    );
+    let boxes = format!(
+        "[image]\nwidth = 8\nheight = 8\nsamples_per_pixel = 1\nmax_depth = 1\n\
+         [materials.m]\ntype = \"lambertian\"\nalbedo = [0.5, 0.5, 0.5]\n{boxes}"
+    );
+    std::fs::write(dir.join("boxes.toml"), &boxes).unwrap();
+    let o = run_capped(&["render", "boxes.toml", "-o", "b.png"], &dir, 1024);
+    refused(&o, "more than the 1048576 a scene may hold", "boxes and a cloud");
     // -o naming the image being checked: refused, the image left as it was.
     refused(
         &run(&["reproduce", "a.png", "-o", "./a.png"], &dir),
