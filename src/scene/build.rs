@@ -5,14 +5,14 @@ use super::check::Checker;
 use super::desc::{self, ColorDesc, OffsetDesc, SceneDesc};
 use super::draws::DrawSettings;
 use super::settings::{Background, RenderSettings, SurfaceOffset};
-use super::textures::{TextureSource, load};
+use super::textures::{MAX_SCENE_TEXTURE_PIXELS, TextureSource, load};
 use super::{Scene, SceneContents, TextureFile, cover, shapes};
 use crate::camera::{Camera, CameraSettings};
 use crate::error::{Error, Result};
 use crate::geometry::MaterialId;
 use crate::material::{Material, Refraction};
 use crate::math::{Color, PixelRect, Vec3, cross, unit};
-use crate::texture::{Noise, Texture, TextureId};
+use crate::texture::{ImageTexture, Noise, Texture, TextureId};
 use std::collections::BTreeMap;
 use std::ops::Range;
 use std::path::Path;
@@ -169,6 +169,10 @@ struct Textures {
     table: Vec<Texture>,
     names: BTreeMap<String, TextureId>,
     files: Vec<TextureFile>,
+    /// The image files read so far, by name: one named by many textures is read once.
+    images: BTreeMap<String, ImageTexture>,
+    /// What the files read so far leave of `MAX_SCENE_TEXTURE_PIXELS`.
+    pixels_left: u64,
 }
 
 impl Textures {
@@ -188,6 +192,8 @@ impl Textures {
             table: Vec::with_capacity(names.len()),
             names,
             files: Vec::new(),
+            images: BTreeMap::new(),
+            pixels_left: MAX_SCENE_TEXTURE_PIXELS,
         };
         // Placeholders, so checkers may name any texture; each is replaced below.
         t.table
@@ -305,11 +311,18 @@ impl Textures {
             "image" => {
                 only_fields(ck, &prefix, kind, &["file"], &present)?;
                 let file = required(ck, d.file.as_ref(), t.span(), &field("file"), kind)?;
-                let loaded = load(file.get_ref(), source)
+                let name = file.get_ref();
+                if let Some(image) = self.images.get(name) {
+                    return Ok(Texture::Image(image.clone()));
+                }
+                let loaded = load(name, source, self.pixels_left)
                     .map_err(|e| ck.error(file.span(), &field("file"), e))?;
                 let _ = loaded.found;
+                let image = loaded.image;
+                self.pixels_left -= u64::from(image.width) * u64::from(image.height);
                 self.files.push(loaded.file);
-                Texture::Image(loaded.image)
+                self.images.insert(name.clone(), image.clone());
+                Texture::Image(image)
             }
             other => {
                 return Err(ck.error(

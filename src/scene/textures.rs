@@ -15,6 +15,9 @@ use std::path::{Component, Path, PathBuf};
 pub const MAX_TEXTURE_BYTES: u64 = 64 << 20;
 /// The most pixels a texture may have: 2²⁵, 96 MiB of RGB.
 pub const MAX_TEXTURE_PIXELS: u64 = 1 << 25;
+/// The most pixels all of a scene's texture files may have together: 2²⁶, 192 MiB of RGB
+/// (the book's earth map has 0.5 million). A file named by many textures is read once.
+pub const MAX_SCENE_TEXTURE_PIXELS: u64 = 1 << 26;
 
 /// Where image textures come from.
 #[derive(Clone, Debug)]
@@ -33,8 +36,14 @@ pub(super) struct LoadedImage {
     pub(super) found: String,
 }
 
-/// Reads and decodes the texture file `name`; the error says what was wrong, with the file.
-pub(super) fn load(name: &str, source: &TextureSource) -> Result<LoadedImage, String> {
+/// Reads and decodes the texture file `name`, of at most `pixels_left` pixels (what the
+/// scene's other files leave of `MAX_SCENE_TEXTURE_PIXELS`); the error says what was
+/// wrong, with the file.
+pub(super) fn load(
+    name: &str,
+    source: &TextureSource,
+    pixels_left: u64,
+) -> Result<LoadedImage, String> {
     let relative = Path::new(name);
     if !is_plain_name(name) {
         return Err(format!(
@@ -65,7 +74,7 @@ pub(super) fn load(name: &str, source: &TextureSource) -> Result<LoadedImage, St
         }
     };
     let hash = xxhash_rust::xxh3::xxh3_128(&bytes);
-    let image = decode(&bytes).map_err(|e| format!("{found}: {e}"))?;
+    let image = decode(&bytes, pixels_left).map_err(|e| format!("{found}: {e}"))?;
     Ok(LoadedImage {
         image,
         file: TextureFile {
@@ -130,8 +139,8 @@ fn read_limited(path: &Path) -> Result<Vec<u8>, String> {
 }
 
 /// Decodes a PNG, JPEG or other image the `image` crate reads into 8-bit RGB, its size
-/// checked before its pixels are.
-pub fn decode(bytes: &[u8]) -> Result<ImageTexture, String> {
+/// checked before its pixels are: at most `MAX_TEXTURE_PIXELS`, and at most `pixels_left`.
+pub fn decode(bytes: &[u8], pixels_left: u64) -> Result<ImageTexture, String> {
     let reader = image::ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()
         .map_err(|e| e.to_string())?;
@@ -149,6 +158,12 @@ pub fn decode(bytes: &[u8]) -> Result<ImageTexture, String> {
     if pixels == 0 || pixels > MAX_TEXTURE_PIXELS {
         return Err(format!(
             "is {width}x{height}: a texture must have between 1 and {MAX_TEXTURE_PIXELS} pixels"
+        ));
+    }
+    if pixels > pixels_left {
+        return Err(format!(
+            "is {width}x{height}: more than the {pixels_left} pixels the scene's other texture \
+             files leave of the {MAX_SCENE_TEXTURE_PIXELS} all of them may have"
         ));
     }
     let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
@@ -185,32 +200,38 @@ mod tests {
     #[test]
     fn a_truncated_jpeg_is_refused_and_the_whole_one_decodes() {
         let whole = include_bytes!("../../scenes/earthmap.jpg");
-        let texture = decode(whole).unwrap();
+        let texture = decode(whole, MAX_TEXTURE_PIXELS).unwrap();
         assert_eq!((texture.width, texture.height), (1024, 512));
         for cut in [whole.len() - 2, whole.len() / 2, 2000] {
-            let e = decode(&whole[..cut]).err().unwrap();
+            let e = decode(&whole[..cut], MAX_TEXTURE_PIXELS).err().unwrap();
             assert!(e.contains("ends before its image does"), "{cut}: {e}");
         }
         // Bytes after the end marker (a file with something appended) are not a truncation.
         let mut appended = whole.to_vec();
         appended.extend(b"appended");
-        assert!(decode(&appended).is_ok());
+        assert!(decode(&appended, MAX_TEXTURE_PIXELS).is_ok());
     }
 
     #[test]
     fn names_that_leave_the_scene_directory_are_refused() {
         let source = TextureSource::Dirs(vec![PathBuf::from(".")]);
         for name in ["/etc/passwd", "../x.jpg", "a/../../b.png", ""] {
-            let e = load(name, &source).err().unwrap();
+            let e = load(name, &source, MAX_SCENE_TEXTURE_PIXELS).err().unwrap();
             assert!(e.contains("relative file name"), "{name}: {e}");
         }
-        let missing = load("no-such.jpg", &source).err().unwrap();
+        let missing = load("no-such.jpg", &source, MAX_SCENE_TEXTURE_PIXELS)
+            .err()
+            .unwrap();
         assert!(missing.contains("not found (looked in ."), "{missing}");
     }
 
     #[test]
     fn what_is_not_an_image_or_too_large_is_refused_before_decoding() {
-        assert!(decode(b"hello").unwrap_err().contains("not an image"));
+        assert!(
+            decode(b"hello", MAX_TEXTURE_PIXELS)
+                .unwrap_err()
+                .contains("not an image")
+        );
         // A PNG header claiming 100000 x 100000 pixels, and nothing else.
         let mut png = b"\x89PNG\r\n\x1a\n\0\0\0\x0dIHDR".to_vec();
         png.extend(100_000u32.to_be_bytes());
@@ -221,7 +242,7 @@ mod tests {
         // An empty IDAT, where the header ends.
         png.extend(b"\0\0\0\0IDAT");
         png.extend(crc32fast::hash(b"IDAT").to_be_bytes());
-        let e = decode(&png).unwrap_err();
+        let e = decode(&png, MAX_TEXTURE_PIXELS).unwrap_err();
         assert!(e.contains("100000x100000"), "{e}");
     }
 }

@@ -847,6 +847,63 @@ fn textured_scene(file: &str) -> String {
     )
 }
 
+/// Each texture may have 2^25 pixels (96 MiB of RGB), and one 98 KB PNG of that size named
+/// by forty textures once took forty decodes and aborted out of memory. A file named again
+/// is read once, and all of a scene's files together have at most 2^26 pixels.
+#[test]
+fn many_textures_of_one_large_file_decode_it_once_and_all_files_share_a_bound() {
+    let dir = temp_dir("hostile-texture-total");
+    image::RgbImage::new(8192, 4096)
+        .save(dir.join("big.png"))
+        .unwrap();
+    for copy in ["big2.png", "big3.png"] {
+        std::fs::copy(dir.join("big.png"), dir.join(copy)).unwrap();
+    }
+    let scene = |files: &[&str]| {
+        let mut s =
+            String::from("[image]\nwidth = 16\nheight = 8\nsamples_per_pixel = 1\nmax_depth = 4\n");
+        for (i, file) in files.iter().enumerate() {
+            s += &format!(
+                "[textures.t{i}]\ntype = \"image\"\nfile = \"{file}\"\n\
+                 [materials.m{i}]\ntype = \"lambertian\"\nalbedo = \"t{i}\"\n\
+                 [[spheres]]\ncenter = [{i}.0, 0.0, -1.0]\nradius = 0.5\nmaterial = \"m{i}\"\n"
+            );
+        }
+        s
+    };
+    std::fs::write(dir.join("forty.toml"), scene(&["big.png"; 40])).unwrap();
+    let o = run_capped(
+        &["render", "forty.toml", "-q", "-o", "forty.png"],
+        &dir,
+        1024,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    std::fs::write(
+        dir.join("three.toml"),
+        scene(&["big.png", "big2.png", "big3.png"]),
+    )
+    .unwrap();
+    let o = run_capped(
+        &["render", "three.toml", "-q", "-o", "three.png"],
+        &dir,
+        1024,
+    );
+    refused(
+        &o,
+        "field `textures.t2.file`: ",
+        "a third file of 2^25 pixels",
+    );
+    assert!(
+        stderr(&o).contains(
+            "big3.png: is 8192x4096: more than the 0 pixels the scene's other \
+                             texture files leave of the 67108864"
+        ),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!dir.join("three.png").exists());
+}
+
 #[test]
 fn texture_files_a_stranger_names_are_refused_with_the_reason_within_bounds() {
     let dir = temp_dir("hostile-textures");
@@ -983,7 +1040,11 @@ fn a_stranger_s_scene_or_recipe_reads_nothing_outside_and_holds_its_size() {
     );
     std::fs::write(dir.join("boxes.toml"), &boxes).unwrap();
     let o = run_capped(&["render", "boxes.toml", "-o", "b.png"], &dir, 1024);
-    refused(&o, "more than the 1048576 a scene may hold", "boxes and a cloud");
+    refused(
+        &o,
+        "more than the 1048576 a scene may hold",
+        "boxes and a cloud",
+    );
     // -o naming the image being checked: refused, the image left as it was.
     refused(
         &run(&["reproduce", "a.png", "-o", "./a.png"], &dir),
