@@ -162,17 +162,28 @@ pub fn render(
     options: &RenderOptions,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<(Film, RenderStats), rayon::ThreadPoolBuildError> {
-    let mut state = JobState::new(Job::whole(scene), options.tile);
     let stop = AtomicBool::new(false);
+    let done = render_unless(scene, options, progress, &stop)?;
+    Ok(done.expect("a render nothing stops is finished"))
+}
+
+/// `render`, given up (`None`) soon after `stop` is set.
+pub fn render_unless(
+    scene: &Scene,
+    options: &RenderOptions,
+    progress: &(dyn Fn(u64) + Sync),
+    stop: &AtomicBool,
+) -> Result<Option<(Film, RenderStats)>, rayon::ThreadPoolBuildError> {
+    let mut state = JobState::new(Job::whole(scene), options.tile);
     let control = Control {
-        stop: &stop,
+        stop,
         on_samples: progress,
         on_progress: None,
         progressive: false,
         watch: None,
     };
     let stats = render_job(scene, options, &mut state, control)?;
-    Ok((state.into_film(), stats))
+    Ok(state.is_complete().then(|| (state.into_film(), stats)))
 }
 
 /// Renders what `state` still lacks, tile by tile over a rayon pool, until it is complete or

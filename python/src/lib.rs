@@ -516,17 +516,33 @@ fn reproduce<'py>(
         None => {
             let dirs = recipe::texture_dirs(textures.as_deref(), &image);
             interruptible(py, |stop| {
-                let scene = recipe.scene(&image, &dirs).map_err(Failed::Tessera)?;
+                let mut scene = recipe.scene(&image, &dirs).map_err(Failed::Tessera)?;
                 // What the recipe's paths cost, traced: only the built scene can say.
                 let cover = tessera::record::workload::Workload::named("quick")
                     .map_err(|e| Failed::Other(format!("{e:#}")))?;
-                let work = work.measured(&scene, &cover.scene);
+                let work = work.measured(&mut scene, &cover.scene);
                 if let Some(refusal) = work.refusal(&image, "any_cost=True")
                     && !any_cost
                 {
                     return Err(Failed::Other(refusal));
                 }
-                let (film, _) = render_whole(&scene, &options, stop, None)?;
+                // Unasked, a render is stopped when it takes far longer than its measure said.
+                let budget = if any_cost {
+                    None
+                } else {
+                    work.time_budget(options.threads).map_err(Failed::Tessera)?
+                };
+                let start = std::time::Instant::now();
+                let (done, timed_out) = verify::within_budget(budget, stop, || {
+                    render_whole(&scene, &options, stop, None)
+                });
+                let (film, _) =
+                    done.map_err(|failed| match failed {
+                        Failed::Interrupted if timed_out => Failed::Other(
+                            verify::stopped_by_budget(&image, start.elapsed(), "any_cost=True"),
+                        ),
+                        failed => failed,
+                    })?;
                 let g = scene.settings.gamma;
                 let differs = verify::differs_rendered(&image, &header, &recipe, &film, g)
                     .map_err(Failed::Tessera)?;

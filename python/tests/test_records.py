@@ -101,6 +101,18 @@ def test_reproduce_judges_the_work_by_its_paths_traced_and_refuses_more_unless_a
         tessera.reproduce(tmp_path / "shells.png")
 
 
+def test_reproduce_stops_a_render_past_its_time_budget(tmp_path, monkeypatch):
+    scene = ("[image]\nwidth = 240\nheight = 135\nsamples_per_pixel = 16\nmax_depth = 50\n"
+             "[render]\nshading = \"path\"\n[materials.glass]\ntype = \"dielectric\"\nir = 1.5\n")
+    scene += "".join(
+        f"[[spheres]]\ncenter = [0.0, 0.0, -1.0]\nradius = {0.3 + 0.2 * i / 4000:.6f}\n"
+        f"material = \"glass\"\n" for i in range(4000))
+    tessera.render(scene).save(tmp_path / "shells.png")
+    monkeypatch.setenv("TESSERA_REPRODUCE_SECONDS", "0.01")
+    with pytest.raises(tessera.TesseraError, match="stopped after .* pass any_cost=True"):
+        tessera.reproduce(tmp_path / "shells.png")
+
+
 def test_reproduce_refuses_what_has_no_recipe(cli, tmp_path):
     cli("render", "scenes/cover.toml", "--width", 16, "--spp", 1, "--no-provenance", "-q",
         "-o", tmp_path / "bare.png")

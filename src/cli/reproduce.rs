@@ -7,6 +7,7 @@ use super::writable::check_output;
 use anyhow::{Result, bail};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 use tessera::image_file::ImageHeader;
 use tessera::recipe::{self, Recipe, describe};
@@ -171,7 +172,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         bail!("{refusal}");
     }
     let dirs = recipe::texture_dirs(args.textures.as_deref(), image);
-    let scene = recipe.scene(image, &dirs)?;
+    let mut scene = recipe.scene(image, &dirs)?;
     let window = recipe.window();
     let differs = ExitCode::from(output::NEGATIVE);
     if let Some(d) = verify::differs_unrendered(image, &header, &recipe) {
@@ -180,7 +181,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     }
     // What the recipe's paths cost, traced: only the built scene can say.
     let cover = tessera::record::workload::Workload::named("quick")?;
-    let work = work.measured(&scene, &cover.scene);
+    let work = work.measured(&mut scene, &cover.scene);
     if let Some(refusal) = work.refusal(image, "--any-cost")
         && !args.any_cost
     {
@@ -193,8 +194,26 @@ pub fn run(args: Args) -> Result<ExitCode> {
     }
     let bar = progress_bar(total, args.quiet);
     let start = Instant::now();
-    let (film, stats) = render::render(&scene, &options, &|n| bar.inc(n))?;
+    // Unasked, a render is stopped when it takes far longer than its measure said.
+    let budget = if args.any_cost {
+        None
+    } else {
+        work.time_budget(options.threads)?
+    };
+    let stop = AtomicBool::new(false);
+    let (done, timed_out) = verify::within_budget(budget, &stop, || {
+        render::render_unless(&scene, &options, &|n| bar.inc(n), &stop)
+    });
     bar.finish_and_clear();
+    let Some((film, stats)) = done? else {
+        if timed_out {
+            bail!(
+                "{}",
+                verify::stopped_by_budget(image, start.elapsed(), "--any-cost")
+            );
+        }
+        bail!("{}: the render was stopped", image.display());
+    };
     // The image is read before the render is written: `-o` may name the image itself.
     let verdict = verify::differs_rendered(image, &header, &recipe, &film, s.gamma)?;
     if let Some(out) = &args.output {

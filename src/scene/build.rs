@@ -20,6 +20,10 @@ use toml::Spanned;
 
 /// The most pixels an image may have (2²⁸: 6 GiB of sums), so a typo cannot exhaust memory.
 pub const MAX_PIXELS: u64 = 1 << 28;
+/// The most ray segments a path may have: far beyond the books' 50, and a bound on what one
+/// sample can cost (a path inside a closed mirror or an inside-out sphere goes on to it;
+/// a render stops between pixels, not within a path).
+pub const MAX_DEPTH: u32 = 1 << 16;
 
 /// Settings given on the command line that replace the file's.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -467,8 +471,24 @@ fn render_settings(desc: &SceneDesc, ck: &Checker, ov: &Overrides) -> Result<Ren
         None => ck.positive_int(&img.samples_per_pixel, "image.samples_per_pixel")?,
     };
     let max_depth = match positive(ov.max_depth, "depth")? {
+        Some(n) if n > MAX_DEPTH => {
+            return Err(Error::Setting {
+                field: "depth".into(),
+                message: format!("must be at most {MAX_DEPTH}, got {n}"),
+            });
+        }
         Some(n) => n,
-        None => ck.positive_int(&img.max_depth, "image.max_depth")?,
+        None => {
+            let n = ck.positive_int(&img.max_depth, "image.max_depth")?;
+            if n > MAX_DEPTH {
+                return Err(ck.error(
+                    img.max_depth.span(),
+                    "image.max_depth",
+                    format!("must be at most {MAX_DEPTH}, got {n}"),
+                ));
+            }
+            n
+        }
     };
     let window = match &img.crop {
         None => PixelRect::full(width, height),

@@ -542,6 +542,49 @@ fn a_recipe_whose_paths_cost_more_than_it_claims_is_refused_once_they_are_traced
     let o = run(&["reproduce", "one.png"], &dir);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stdout(&o).starts_with("identical:"), "{}", stdout(&o));
+    // What the probe misses, the time budget stops (here set low by its variable; unset,
+    // twice four covers' time on this machine), between pixels, writing nothing.
+    ok(
+        &[
+            "render",
+            "shells.toml",
+            "--width",
+            "240",
+            "--spp",
+            "16",
+            "-q",
+            "-o",
+            "sixteen.png",
+        ],
+        &dir,
+    );
+    let budget = [("TESSERA_REPRODUCE_SECONDS", "0.01")];
+    let o = run_in_env(
+        &["reproduce", "sixteen.png", "-q", "-o", "again.png"],
+        &budget,
+        &dir,
+    );
+    refused(
+        &o,
+        "the time reproduce gives a recipe unasked (TESSERA_REPRODUCE_SECONDS, or twice what \
+         four book covers take on this machine)",
+        "budget",
+    );
+    assert!(!dir.join("again.png").exists());
+    let o = run_in_env(&["reproduce", "one.png", "-q", "--any-cost"], &budget, &dir);
+    assert!(
+        stdout(&o).starts_with("identical:"),
+        "{}{}",
+        stdout(&o),
+        stderr(&o)
+    );
+    let bad = [("TESSERA_REPRODUCE_SECONDS", "soon")];
+    let o = run_in_env(&["reproduce", "sixteen.png", "-q"], &bad, &dir);
+    refused(
+        &o,
+        "`TESSERA_REPRODUCE_SECONDS`: must be a number of seconds",
+        "bad budget",
+    );
 }
 
 /// A scene's generators skip draws one at a time: a 2 KB scene (or recipe) of textures each
