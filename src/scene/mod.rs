@@ -228,7 +228,7 @@ impl Scene {
                 path: path.to_owned(),
                 at: Location::of_offset(text, offset),
                 message: format!(
-                    "more than {} values, tables and arrays (commas, equals signs, \
+                    "more than {} values, tables and arrays (commas, equals signs, dots, \
                      brackets and braces) in one scene file; a scene of more spheres draws \
                      them with a generator",
                     values::MAX_SCENE_VALUES

@@ -1,17 +1,17 @@
 //! The bound on how many values, tables and arrays a scene's text holds, counted before
 //! the TOML parser sees it: the parser keeps 150 to 500 bytes for each with its place in
-//! the file, so a 12 MB array of numbers once took 900 MB, and 3 MB of inline tables
-//! 700 MB, before anything checked them.
+//! the file, so a 12 MB array of numbers once took 900 MB, 3 MB of inline tables 700 MB,
+//! and 1 MB of dotted keys 557 MB, before anything checked them.
 
 /// The most values, tables and arrays a scene file may hold, counted as its commas, equals
-/// signs and opening brackets and braces outside strings and comments (each value but an
-/// array's first comes after a comma or an equals sign; each table or array opens with a
-/// bracket or brace): at most about 500 MB of the parser's memory, and some 130,000 spheres
-/// written out one by one (eight each). More spheres come from the scene's generators,
-/// which take a few lines.
+/// signs, dots and opening brackets and braces outside strings and comments (each value but
+/// an array's first comes after a comma or an equals sign; each table or array opens with a
+/// bracket or brace, or a dot of a dotted key; a number's dot counts too): at most about
+/// 500 MB of the parser's memory, and some 85,000 spheres written out one by one (about
+/// twelve each). More spheres come from the scene's generators, which take a few lines.
 pub const MAX_SCENE_VALUES: u64 = 1 << 20;
 
-/// The byte offset in `text` of the comma, equals sign, bracket or brace that takes it past
+/// The byte offset in `text` of the comma, equals sign, dot, bracket or brace that takes it past
 /// `MAX_SCENE_VALUES`, if one does. A string left open ends the count: the parser then
 /// says what is wrong with it.
 pub fn past_the_bound(text: &str) -> Option<usize> {
@@ -29,7 +29,7 @@ pub fn past_the_bound(text: &str) -> Option<usize> {
                 at = end_of_string(bytes, at + 3, b"'''", false)?
             }
             b'\'' => at = end_of_string(bytes, at + 1, b"'", false)?,
-            b',' | b'=' | b'[' | b'{' => {
+            b',' | b'=' | b'[' | b'{' | b'.' => {
                 count += 1;
                 if count > MAX_SCENE_VALUES {
                     return Some(at);
@@ -52,13 +52,23 @@ fn end_of_line(bytes: &[u8], at: usize) -> usize {
 
 /// The offset just past the `close` that ends a string whose text starts at `at`; `escapes`
 /// for a basic string, where a backslash takes the next byte with it. None when the string
-/// never ends.
+/// never ends. A multi-line string's closing quotes may be followed by one or two more,
+/// which are its text (`'''a''''` is `a'`).
 fn end_of_string(bytes: &[u8], mut at: usize, close: &[u8], escapes: bool) -> Option<usize> {
     while at < bytes.len() {
         if escapes && bytes[at] == b'\\' {
             at += 2;
         } else if bytes[at..].starts_with(close) {
-            return Some(at + close.len());
+            let mut end = at + close.len();
+            if close.len() == 3 {
+                let quote = close[0];
+                for _ in 0..2 {
+                    if bytes.get(end) == Some(&quote) {
+                        end += 1;
+                    }
+                }
+            }
+            return Some(end);
         } else {
             at += 1;
         }
@@ -97,6 +107,29 @@ mod tests {
         assert_eq!(past_the_bound(&tables), Some(6 * (n / 2)));
         let inline = format!("a = [{}]", vec!["{}"; n].join(","));
         assert!(past_the_bound(&inline).is_some());
+    }
+
+    #[test]
+    fn quotes_after_a_multi_line_string_s_close_are_its_own() {
+        let n = MAX_SCENE_VALUES as usize;
+        for (open, close) in [("'''", "''''"), ("\"\"\"", "\"\"\"\""), ("'''", "'''''")] {
+            // Read as a string from the stray quote, the numbers would hide in it.
+            let q = &close[..1];
+            let text = format!(
+                "x = {open}a{close}\nv = [{}] # {q}\n",
+                vec!["1"; n].join(",")
+            );
+            assert!(past_the_bound(&text).is_some(), "{open}…{close}");
+        }
+    }
+
+    #[test]
+    fn dotted_keys_count_as_the_tables_they_make() {
+        let n = MAX_SCENE_VALUES as usize;
+        let key = vec!["x"; 60].join(".");
+        let lines = n / 60 + 1;
+        let text: String = (0..lines).map(|i| format!("k{i}.{key} = 1\n")).collect();
+        assert!(past_the_bound(&text).is_some());
     }
 
     #[test]
