@@ -540,6 +540,10 @@ pub fn render_tile_unless(
     }
 }
 
+/// The samples of a pixel rendered between two looks at a stop flag: more than any book
+/// figure's pixel has, so that an ordinary render looks once a pixel.
+const STOP_RUN: u32 = 4096;
+
 /// `render_tile`'s work, for `simd::dispatch` to compile for each path; `FULL`: a scene
 /// that needs *The Next Week*'s paths (`Scene::needs_full_paths`).
 struct TileKernel<'a, const FULL: bool> {
@@ -569,18 +573,33 @@ fn render_tile_on<I: Isa, const FULL: bool>(
     let mut pixels = PixelEvaluator::for_tile(isa, scene, tile);
     let mut sums = Vec::with_capacity(tile.area() as usize);
     let mut rays = 0u64;
+    let stopped = || stop.is_some_and(|stop| stop.load(Ordering::Relaxed));
     for y in tile.y0..tile.y0 + tile.height {
         for x in tile.x0..tile.x0 + tile.width {
-            if stop.is_some_and(|stop| stop.load(Ordering::Relaxed)) {
+            if stopped() {
                 return None;
             }
             let mut acc = [0u64; 3];
-            pixels.evaluate_as::<FULL>(x, y, range, |c: Color, r: u32| {
-                acc[0] += to_fixed(c.x);
-                acc[1] += to_fixed(c.y);
-                acc[2] += to_fixed(c.z);
-                rays += u64::from(r);
-            });
+            // A pixel's samples in runs of STOP_RUN when something may stop the tile, so
+            // that a pixel of billions of samples stops too; the sums are the same (each
+            // sample's value is its own, and integers add in any order).
+            let mut start = range.start;
+            while start < range.end {
+                let end = match stop {
+                    Some(_) => start.saturating_add(STOP_RUN).min(range.end),
+                    None => range.end,
+                };
+                pixels.evaluate_as::<FULL>(x, y, SampleRange { start, end }, |c: Color, r: u32| {
+                    acc[0] += to_fixed(c.x);
+                    acc[1] += to_fixed(c.y);
+                    acc[2] += to_fixed(c.z);
+                    rays += u64::from(r);
+                });
+                start = end;
+                if start < range.end && stopped() {
+                    return None;
+                }
+            }
             sums.push(acc);
         }
     }

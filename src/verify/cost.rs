@@ -27,7 +27,7 @@ pub const UNASKED_COVERS: f64 = 4.0;
 pub const UNASKED_PIXELS: u64 = 1 << 25;
 
 /// The probe's pixels: one in each cell of a 32x32 grid over the window, at a place in the
-/// cell drawn from a fixed hash, one sample each.
+/// cell drawn from a fixed hash, one sample each, its index drawn too.
 const PROBE_GRID: u32 = 32;
 /// How long the recipe's paths are traced at most for the probe (checked after each path).
 const PROBE_TIME: Duration = Duration::from_millis(300);
@@ -183,6 +183,7 @@ impl std::fmt::Display for Work {
 /// tracing for no longer than about `limit` (one path at least).
 fn probe(scene: &Scene, limit: Duration) -> f64 {
     let window = scene.settings.window;
+    let spp = scene.settings.samples_per_pixel.max(1);
     let simd = simd::Path::best();
     let start = Instant::now();
     let mut paths = 0u64;
@@ -195,7 +196,14 @@ fn probe(scene: &Scene, limit: Duration) -> f64 {
                 width: 1,
                 height: 1,
             };
-            render_tile(scene, &tile, SampleRange { start: 0, end: 1 }, simd);
+            // A sample drawn among the pixel's, not always its first: a window of one pixel
+            // is then still 1,024 paths.
+            let sample = (mix(hash) % u64::from(spp)) as u32;
+            let samples = SampleRange {
+                start: sample,
+                end: sample + 1,
+            };
+            render_tile(scene, &tile, samples, simd);
             paths += 1;
             if start.elapsed() > limit {
                 break 'grid;

@@ -578,6 +578,27 @@ fn a_recipe_whose_paths_cost_more_than_it_claims_is_refused_once_they_are_traced
         stdout(&o),
         stderr(&o)
     );
+    // One pixel of four billion samples: the probe draws its samples' indices, and the
+    // budget stops a pixel within 4,096 of them.
+    std::fs::write(
+        dir.join("dot.toml"),
+        "[image]\nwidth = 1\nheight = 1\nsamples_per_pixel = 4000000000\nmax_depth = 1\n",
+    )
+    .unwrap();
+    ok(
+        &["render", "dot.toml", "--spp", "1", "-q", "-o", "dot1.png"],
+        &dir,
+    );
+    let mut recipe = recipe_json(&dir, "dot1.png");
+    recipe["overrides"] = serde_json::json!({});
+    recipe["image"]["samples_per_pixel"] = 4_000_000_000u64.into();
+    let dot = std::fs::read(dir.join("dot1.png")).unwrap();
+    std::fs::write(dir.join("dot.png"), png_with_recipe(&dot, &recipe)).unwrap();
+    let started = std::time::Instant::now();
+    let half = [("TESSERA_REPRODUCE_SECONDS", "0.5")];
+    let o = run_in_env(&["reproduce", "dot.png", "-q"], &half, &dir);
+    refused(&o, "stopped after", "one pixel of many samples");
+    assert!(started.elapsed().as_secs() < 30, "{:?}", started.elapsed());
     let bad = [("TESSERA_REPRODUCE_SECONDS", "soon")];
     let o = run_in_env(&["reproduce", "sixteen.png", "-q"], &bad, &dir);
     refused(
