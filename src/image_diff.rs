@@ -3,10 +3,11 @@
 use crate::error::{Error, Result};
 use std::path::Path;
 
-/// The most pixels an image may have to be compared: 8192x4096, as many as `reproduce`
-/// renders unasked. Each is held as three floats, so two such images take 800 MB; the
-/// size a file claims is checked against it before anything is decoded.
-pub const MAX_COMPARED_PIXELS: u64 = 1 << 25;
+/// The most pixels an image may have to be compared: 4096x4096. Each is held as three
+/// floats beside the decoder's buffer (up to eight bytes a pixel, 16-bit RGBA), so two such
+/// images take at most about 530 MB; the size a file claims is checked against it before
+/// anything is decoded.
+pub const MAX_COMPARED_PIXELS: u64 = 1 << 24;
 
 /// Difference statistics of two images, over all pixels and RGB channels, values in [0, 1].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -80,7 +81,7 @@ impl RgbImage {
         let (width, height) = decoder.dimensions();
         if u64::from(width) * u64::from(height) > MAX_COMPARED_PIXELS {
             return Err(fail(format!(
-                "{width}x{height} is more than the {MAX_COMPARED_PIXELS} pixels (8192x4096) \
+                "{width}x{height} is more than the {MAX_COMPARED_PIXELS} pixels (4096x4096) \
                  an image may have to be compared"
             )));
         }
