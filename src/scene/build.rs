@@ -5,7 +5,7 @@ use super::check::Checker;
 use super::desc::{self, ColorDesc, OffsetDesc, SceneDesc};
 use super::draws::DrawSettings;
 use super::settings::{Background, RenderSettings, SurfaceOffset};
-use super::textures::{MAX_SCENE_TEXTURE_PIXELS, TextureSource, load};
+use super::textures::{MAX_SCENE_TEXTURE_PIXELS, TextureSource, identity, load};
 use super::{Scene, SceneContents, TextureFile, cover, shapes};
 use crate::camera::{Camera, CameraSettings};
 use crate::error::{Error, Result};
@@ -173,8 +173,9 @@ struct Textures {
     table: Vec<Texture>,
     names: BTreeMap<String, TextureId>,
     files: Vec<TextureFile>,
-    /// The image files read so far, by name: one named by many textures is read once.
-    images: BTreeMap<String, ImageTexture>,
+    /// The image files read so far with their hashes, by file (`textures::identity`): one
+    /// named by many textures, however spelt, is read once.
+    images: BTreeMap<String, (ImageTexture, u128)>,
     /// What the files read so far leave of `MAX_SCENE_TEXTURE_PIXELS`.
     pixels_left: u64,
 }
@@ -316,7 +317,15 @@ impl Textures {
                 only_fields(ck, &prefix, kind, &["file"], &present)?;
                 let file = required(ck, d.file.as_ref(), t.span(), &field("file"), kind)?;
                 let name = file.get_ref();
-                if let Some(image) = self.images.get(name) {
+                let key = identity(name, source);
+                if let Some((image, hash)) = key.as_ref().and_then(|k| self.images.get(k)) {
+                    // The recipe lists every name given, each with its file's hash.
+                    if !self.files.iter().any(|f| &f.name == name) {
+                        self.files.push(TextureFile {
+                            name: name.clone(),
+                            hash: *hash,
+                        });
+                    }
                     return Ok(Texture::Image(image.clone()));
                 }
                 let loaded = load(name, source, self.pixels_left)
@@ -324,8 +333,10 @@ impl Textures {
                 let _ = loaded.found;
                 let image = loaded.image;
                 self.pixels_left -= u64::from(image.width) * u64::from(image.height);
+                if let Some(key) = key {
+                    self.images.insert(key, (image.clone(), loaded.file.hash));
+                }
                 self.files.push(loaded.file);
-                self.images.insert(name.clone(), image.clone());
                 Texture::Image(image)
             }
             other => {

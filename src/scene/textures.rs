@@ -85,6 +85,25 @@ pub(super) fn load(
     })
 }
 
+/// The file the texture name `name` comes from, as one key whatever the spelling
+/// (`a.png`, `./a.png`): its canonical path, or its compiled-in name. None when it is not
+/// found (`load` then says why).
+pub(super) fn identity(name: &str, source: &TextureSource) -> Option<String> {
+    if !is_plain_name(name) {
+        return None;
+    }
+    match source {
+        TextureSource::Embedded(files) => files
+            .iter()
+            .any(|(n, _)| *n == name)
+            .then(|| format!("compiled in: {name}")),
+        TextureSource::Dirs(dirs) => {
+            let path = find_texture(dirs, Path::new(name)).ok()??;
+            Some(path.canonicalize().ok()?.display().to_string())
+        }
+    }
+}
+
 /// Whether `name` is a texture's name as a scene may give it: relative, without `..`.
 pub fn is_plain_name(name: &str) -> bool {
     !name.is_empty()

@@ -943,6 +943,18 @@ fn many_textures_of_one_large_file_decode_it_once_and_all_files_share_a_bound() 
         1024,
     );
     assert!(o.status.success(), "{}", stderr(&o));
+    // The same file however spelt is one file: two of 2^25 pixels fill the 2^26.
+    std::fs::write(
+        dir.join("spelt.toml"),
+        scene(&["big.png", "./big.png", "big2.png"]),
+    )
+    .unwrap();
+    let o = run_capped(
+        &["render", "spelt.toml", "-q", "-o", "spelt.png"],
+        &dir,
+        1024,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
     std::fs::write(
         dir.join("three.toml"),
         scene(&["big.png", "big2.png", "big3.png"]),
