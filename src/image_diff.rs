@@ -103,13 +103,15 @@ fn unit(c: f32) -> f32 {
     if c > 0.0 { c.min(1.0) } else { 0.0 }
 }
 
+/// What is said of two images of the sizes `a` and `b`, if they differ.
+fn sizes_differ(a: (u32, u32), b: (u32, u32)) -> Option<String> {
+    (a != b).then(|| format!("images differ in size: {}x{} and {}x{}", a.0, a.1, b.0, b.1))
+}
+
 /// The difference of two images; they must have the same size.
 pub fn difference(a: &RgbImage, b: &RgbImage) -> std::result::Result<Difference, String> {
-    if (a.width, a.height) != (b.width, b.height) {
-        return Err(format!(
-            "images differ in size: {}x{} and {}x{}",
-            a.width, a.height, b.width, b.height
-        ));
+    if let Some(differ) = sizes_differ((a.width, a.height), (b.width, b.height)) {
+        return Err(differ);
     }
     let n = a.data.len().max(1) as f64;
     let (mut sq, mut abs) = (0.0f64, 0.0f64);
@@ -133,14 +135,10 @@ pub fn difference(a: &RgbImage, b: &RgbImage) -> std::result::Result<Difference,
 /// Loads two image files and gives their difference; their sizes are compared, and checked,
 /// before either is decoded.
 pub fn difference_of_files(a: &Path, b: &Path) -> Result<Difference> {
-    let (size_a, size_b) = (RgbImage::size(a)?, RgbImage::size(b)?);
-    if size_a != size_b {
+    if let Some(message) = sizes_differ(RgbImage::size(a)?, RgbImage::size(b)?) {
         return Err(Error::Image {
             path: b.to_owned(),
-            message: format!(
-                "images differ in size: {}x{} and {}x{}",
-                size_a.0, size_a.1, size_b.0, size_b.1
-            ),
+            message,
         });
     }
     let (ia, ib) = (RgbImage::load(a)?, RgbImage::load(b)?);

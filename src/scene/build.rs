@@ -482,25 +482,19 @@ fn render_settings(desc: &SceneDesc, ck: &Checker, ov: &Overrides) -> Result<Ren
         None => ck.positive_int(&img.samples_per_pixel, "image.samples_per_pixel")?,
     };
     let max_depth = match positive(ov.max_depth, "depth")? {
-        Some(n) if n > MAX_DEPTH => {
-            return Err(Error::Setting {
-                field: "depth".into(),
-                message: format!("must be at most {MAX_DEPTH}, got {n}"),
-            });
-        }
         Some(n) => n,
-        None => {
-            let n = ck.positive_int(&img.max_depth, "image.max_depth")?;
-            if n > MAX_DEPTH {
-                return Err(ck.error(
-                    img.max_depth.span(),
-                    "image.max_depth",
-                    format!("must be at most {MAX_DEPTH}, got {n}"),
-                ));
-            }
-            n
-        }
+        None => ck.positive_int(&img.max_depth, "image.max_depth")?,
     };
+    if max_depth > MAX_DEPTH {
+        let message = format!("must be at most {MAX_DEPTH}, got {max_depth}");
+        return Err(match ov.max_depth {
+            Some(_) => Error::Setting {
+                field: "depth".to_owned(),
+                message,
+            },
+            None => ck.error(img.max_depth.span(), "image.max_depth", message),
+        });
+    }
     let window = match &img.crop {
         None => PixelRect::full(width, height),
         Some(c) => crop(c, ck, (file_width, file_height), (width, height))?,

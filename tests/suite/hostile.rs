@@ -936,35 +936,18 @@ fn many_textures_of_one_large_file_decode_it_once_and_all_files_share_a_bound() 
         }
         s
     };
-    std::fs::write(dir.join("forty.toml"), scene(&["big.png"; 40])).unwrap();
-    let o = run_capped(
-        &["render", "forty.toml", "-q", "-o", "forty.png"],
-        &dir,
-        1024,
-    );
+    // Renders the scene of `files` as `name`.toml to `name`.png, under a 1 GiB cap.
+    let render = |name: &str, files: &[&str]| {
+        std::fs::write(dir.join(format!("{name}.toml")), scene(files)).unwrap();
+        let (toml, png) = (format!("{name}.toml"), format!("{name}.png"));
+        run_capped(&["render", &toml, "-q", "-o", &png], &dir, 1024)
+    };
+    let o = render("forty", &["big.png"; 40]);
     assert!(o.status.success(), "{}", stderr(&o));
     // The same file however spelt is one file: two of 2^25 pixels fill the 2^26.
-    std::fs::write(
-        dir.join("spelt.toml"),
-        scene(&["big.png", "./big.png", "big2.png"]),
-    )
-    .unwrap();
-    let o = run_capped(
-        &["render", "spelt.toml", "-q", "-o", "spelt.png"],
-        &dir,
-        1024,
-    );
+    let o = render("spelt", &["big.png", "./big.png", "big2.png"]);
     assert!(o.status.success(), "{}", stderr(&o));
-    std::fs::write(
-        dir.join("three.toml"),
-        scene(&["big.png", "big2.png", "big3.png"]),
-    )
-    .unwrap();
-    let o = run_capped(
-        &["render", "three.toml", "-q", "-o", "three.png"],
-        &dir,
-        1024,
-    );
+    let o = render("three", &["big.png", "big2.png", "big3.png"]);
     refused(
         &o,
         "field `textures.t2.file`: ",
