@@ -517,32 +517,29 @@ fn reproduce<'py>(
             let dirs = recipe::texture_dirs(textures.as_deref(), &image);
             interruptible(py, |stop| {
                 let mut scene = recipe.scene(&image, &dirs).map_err(Failed::Tessera)?;
-                // What the recipe's paths cost, traced: only the built scene can say.
-                let cover = tessera::record::workload::Workload::named("quick")
-                    .map_err(|e| Failed::Other(format!("{e:#}")))?;
-                let work = work.measured(&mut scene, &cover.scene);
-                if let Some(refusal) = work.refusal(&image, "any_cost=True")
-                    && !any_cost
-                {
-                    return Err(Failed::Other(refusal));
-                }
-                // Unasked, a render is stopped when it takes far longer than its measure said.
-                let budget = if any_cost {
-                    None
-                } else {
-                    work.time_budget(options.threads).map_err(Failed::Tessera)?
-                };
-                let start = std::time::Instant::now();
-                let (done, timed_out) = verify::within_budget(budget, stop, || {
-                    render_whole(&scene, &options, stop, None)
-                });
-                let (film, _) =
-                    done.map_err(|failed| match failed {
-                        Failed::Interrupted if timed_out => Failed::Other(
-                            verify::stopped_by_budget(&image, start.elapsed(), "any_cost=True"),
-                        ),
-                        failed => failed,
-                    })?;
+                let judged = verify::render_judged(
+                    work,
+                    &mut scene,
+                    &image,
+                    "any_cost=True",
+                    any_cost,
+                    options.threads,
+                    stop,
+                    |_| {},
+                    |scene| render_whole(scene, &options, stop, None),
+                )
+                .map_err(|not| match not {
+                    verify::NotStarted::Refused(refusal) => Failed::Other(refusal),
+                    verify::NotStarted::Setting(e) => Failed::Tessera(e),
+                    verify::NotStarted::Failed(e) => Failed::Other(format!("{e:#}")),
+                })?;
+                let (film, _) = judged.done.map_err(|failed| match failed {
+                    Failed::Interrupted if judged.over_budget.is_some() => {
+                        Failed::Other(judged.over_budget.clone().unwrap_or_default())
+                    }
+                    failed => failed,
+                })?;
+                let work = judged.work;
                 let g = scene.settings.gamma;
                 let differs = verify::differs_rendered(&image, &header, &recipe, &film, g)
                     .map_err(Failed::Tessera)?;

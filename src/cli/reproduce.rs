@@ -8,7 +8,6 @@ use anyhow::{Result, bail};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::AtomicBool;
-use std::time::Instant;
 use tessera::image_file::ImageHeader;
 use tessera::recipe::{self, Recipe, describe};
 use tessera::render::{self, RenderOptions};
@@ -179,41 +178,42 @@ pub fn run(args: Args) -> Result<ExitCode> {
         out(&differs_text(&d.summary, &d.details))?;
         return Ok(differs);
     }
-    // What the recipe's paths cost, traced: only the built scene can say.
-    let cover = tessera::record::workload::Workload::named("quick")?;
-    let work = work.measured(&mut scene, &cover.scene);
-    if let Some(refusal) = work.refusal(image, "--any-cost")
-        && !args.any_cost
-    {
-        bail!("{refusal}");
-    }
     let s = &scene.settings;
     let total = u64::from(window.width) * u64::from(window.height) * u64::from(s.samples_per_pixel);
-    if !args.quiet {
-        note(format_args!("reproduce: rendering {work}"));
-    }
-    let bar = progress_bar(total, args.quiet);
-    let start = Instant::now();
-    // Unasked, a render is stopped when it takes far longer than its measure said.
-    let budget = if args.any_cost {
-        None
-    } else {
-        work.time_budget(options.threads)?
-    };
     let stop = AtomicBool::new(false);
-    let (done, timed_out) = verify::within_budget(budget, &stop, || {
-        render::render_unless(&scene, &options, &|n| bar.inc(n), &stop)
-    });
-    bar.finish_and_clear();
-    let Some((film, stats)) = done? else {
-        if timed_out {
-            bail!(
-                "{}",
-                verify::stopped_by_budget(image, start.elapsed(), "--any-cost")
-            );
+    let judged = verify::render_judged(
+        work,
+        &mut scene,
+        image,
+        "--any-cost",
+        args.any_cost,
+        options.threads,
+        &stop,
+        |work| {
+            if !args.quiet {
+                note(format_args!("reproduce: rendering {work}"));
+            }
+        },
+        |scene| {
+            let bar = progress_bar(total, args.quiet);
+            let done = render::render_unless(scene, &options, &|n| bar.inc(n), &stop);
+            bar.finish_and_clear();
+            done
+        },
+    );
+    let judged = match judged {
+        Ok(judged) => judged,
+        Err(verify::NotStarted::Refused(refusal)) => bail!("{refusal}"),
+        Err(verify::NotStarted::Setting(e)) => return Err(e.into()),
+        Err(verify::NotStarted::Failed(e)) => return Err(e),
+    };
+    let Some((film, stats)) = judged.done? else {
+        if let Some(over) = judged.over_budget {
+            bail!("{over}");
         }
         bail!("{}: the render was stopped", image.display());
     };
+    let s = &scene.settings;
     // The image is read before the render is written: `-o` may name the image itself.
     let verdict = verify::differs_rendered(image, &header, &recipe, &film, s.gamma)?;
     if let Some(out) = &args.output {
@@ -223,7 +223,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let how = format!(
         "{} in {:.1} s on {}, SIMD path {}",
         describe(&recipe.image),
-        start.elapsed().as_secs_f64(),
+        judged.elapsed.as_secs_f64(),
         count(stats.threads as u64, "thread"),
         options.simd.name()
     );

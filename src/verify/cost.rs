@@ -233,7 +233,7 @@ fn mix(mut x: u64) -> u64 {
 
 /// What is said of a render of `image` that the time budget stopped after `elapsed`; `allow`
 /// is what renders it anyway.
-pub fn stopped_by_budget(image: &std::path::Path, elapsed: Duration, allow: &str) -> String {
+fn stopped_by_budget(image: &std::path::Path, elapsed: Duration, allow: &str) -> String {
     format!(
         "{}: stopped after {:.0} s, the time reproduce gives a recipe unasked \
          ({BUDGET_VARIABLE}, or twice what four book covers take on this machine): its recipe \
@@ -243,9 +243,77 @@ pub fn stopped_by_budget(image: &std::path::Path, elapsed: Duration, allow: &str
     )
 }
 
+/// Why a reproduce's render was not started: its cost, or a setting.
+#[derive(Debug)]
+pub enum NotStarted {
+    /// The recipe's work, its paths traced, is more than reproduce renders unasked: the
+    /// refusal, in words.
+    Refused(String),
+    /// The time budget's setting (`BUDGET_VARIABLE`) is wrong.
+    Setting(Error),
+    /// The cover to measure against is missing (a build without its scene).
+    Failed(anyhow::Error),
+}
+
+/// A reproduce's render, judged and bounded (`render_judged`).
+pub struct Judged<T> {
+    /// What `render` returned.
+    pub done: T,
+    /// The work, with what the probe measured.
+    pub work: Work,
+    /// What to say when the time budget stopped the render (`render` then returned as
+    /// stopped).
+    pub over_budget: Option<String>,
+    /// How long `render` ran.
+    pub elapsed: Duration,
+}
+
+/// The rest of a reproduce once the recipe's scene is built, the same for every front end:
+/// a few of the recipe's paths traced against the book cover's (`Work::measured`), a refusal
+/// beyond `UNASKED_COVERS` unless `any_cost` (`allow` names the flag that lifts it),
+/// `announce` told the work, then `render`, which stops soon after `stop` is set, stopped
+/// also past the time budget unless `any_cost`.
+#[allow(clippy::too_many_arguments)]
+pub fn render_judged<T>(
+    work: Work,
+    scene: &mut Scene,
+    image: &std::path::Path,
+    allow: &str,
+    any_cost: bool,
+    threads: Option<usize>,
+    stop: &AtomicBool,
+    announce: impl FnOnce(&Work),
+    render: impl FnOnce(&Scene) -> T,
+) -> std::result::Result<Judged<T>, NotStarted> {
+    // What the recipe's paths cost, traced: only the built scene can say.
+    let cover = crate::record::workload::Workload::named("quick").map_err(NotStarted::Failed)?;
+    let work = work.measured(scene, &cover.scene);
+    if let Some(refusal) = work.refusal(image, allow)
+        && !any_cost
+    {
+        return Err(NotStarted::Refused(refusal));
+    }
+    announce(&work);
+    let budget = if any_cost {
+        None
+    } else {
+        work.time_budget(threads).map_err(NotStarted::Setting)?
+    };
+    let start = Instant::now();
+    let scene = &*scene;
+    let (done, timed_out) = within_budget(budget, stop, || render(scene));
+    let elapsed = start.elapsed();
+    Ok(Judged {
+        done,
+        work,
+        over_budget: timed_out.then(|| stopped_by_budget(image, elapsed, allow)),
+        elapsed,
+    })
+}
+
 /// Runs `render`, which stops soon after `stop` is set, with `stop` set also once `budget`
 /// (if any) has passed; the second value says whether the budget stopped it.
-pub fn within_budget<T>(
+fn within_budget<T>(
     budget: Option<Duration>,
     stop: &AtomicBool,
     render: impl FnOnce() -> T,

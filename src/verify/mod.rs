@@ -13,8 +13,8 @@ use std::path::Path;
 
 mod cost;
 pub use cost::{
-    BUDGET_VARIABLE, COVER_RAYS, COVER_SAMPLES, Measured, UNASKED_COVERS, UNASKED_PIXELS, Work,
-    stopped_by_budget, within_budget,
+    BUDGET_VARIABLE, COVER_RAYS, COVER_SAMPLES, Judged, Measured, NotStarted, UNASKED_COVERS,
+    UNASKED_PIXELS, Work, render_judged,
 };
 
 /// The recipe of the image at `path`, read and checked, with the image's header.
