@@ -1,0 +1,571 @@
+//! The results database: an SQLite file (rusqlite, with SQLite compiled in) holding every
+//! benchmark result recorded or imported, each as its full JSON and the columns queries
+//! need. It is opened carefully: before SQLite touches a file, its header says whose it is
+//! (tessera's `application_id`, or a schema 1 or 2 database with exactly tessera's tables),
+//! its schema must be tessera's statement for statement, and anything else (not SQLite,
+//! another program's, a newer tessera's, damaged, SQL of its own) is refused with the file
+//! and its directory left as they were. A new database is made whole under a
+//! temporary name and published with a hard link, so no process ever sees one half-made; it
+//! is readable by its owner alone. Writers wait for each other (WAL, a busy timeout), and
+//! each run or import is one transaction, so a crash never loses rows already there.
+//! `file` recognises a file and makes a new one; this module opens, migrates and queries.
+
+mod file;
+
+use super::result::BenchResult;
+use anyhow::{Context, Result, anyhow, bail};
+use file::{
+    cannot_open_wal_files, create, immutable_there, open_immutable, recognise,
+    refuse_dangling_link, schema_difference, whose,
+};
+use rusqlite::{Connection, OpenFlags, OptionalExtension, TransactionBehavior, params};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+/// tessera's SQLite `application_id` (the file header's bytes 68..72, big-endian): the ASCII
+/// bytes "TSRA". Migration 3 sets it; a database with another one is another program's.
+pub const APPLICATION_ID: u32 = 0x5453_5241;
+
+/// The first schema version that carries `APPLICATION_ID`. The versions before it (1 and 2,
+/// application_id 0) are recognised by their tables, and brought up to date when opened to
+/// write.
+const APPLICATION_ID_SINCE: i64 = 3;
+
+/// The schema's migrations: `MIGRATIONS[i]` takes a database from `user_version` i to i + 1.
+/// A migration is never edited once released; a change is a new one.
+const MIGRATIONS: &[&str] = &[
+    // 1: runs, and their scaling rows.
+    "CREATE TABLE runs (
+        id INTEGER PRIMARY KEY,
+        digest TEXT NOT NULL UNIQUE,
+        added_unix_s INTEGER NOT NULL,
+        source TEXT NOT NULL,
+        started_unix_s INTEGER NOT NULL,
+        machine_id TEXT NOT NULL,
+        cpu_model TEXT,
+        logical_cpus INTEGER NOT NULL,
+        version TEXT NOT NULL,
+        commit_id TEXT NOT NULL,
+        simd TEXT NOT NULL,
+        workload TEXT NOT NULL,
+        workload_id TEXT NOT NULL,
+        threads INTEGER NOT NULL,
+        sps_median REAL NOT NULL,
+        sps_min REAL NOT NULL,
+        sps_max REAL NOT NULL,
+        validation TEXT NOT NULL,
+        result TEXT NOT NULL
+    ) STRICT;
+    CREATE TABLE scaling (
+        run_id INTEGER NOT NULL REFERENCES runs (id) ON DELETE CASCADE,
+        threads INTEGER NOT NULL,
+        sps_median REAL NOT NULL,
+        sps_min REAL NOT NULL,
+        sps_max REAL NOT NULL,
+        PRIMARY KEY (run_id, threads)
+    ) STRICT;
+    CREATE INDEX runs_by_machine ON runs (machine_id, workload_id, started_unix_s);",
+    // 2: whether the machine was busy while the run ran (results before it: not known, 0).
+    "ALTER TABLE runs ADD COLUMN busy INTEGER NOT NULL DEFAULT 0;",
+    // 3: tessera's application_id (APPLICATION_ID, "TSRA"), which says whose the file is.
+    "PRAGMA application_id = 1414746689;",
+];
+
+/// The schema version this build makes and reads.
+pub const SCHEMA_VERSION: i64 = MIGRATIONS.len() as i64;
+
+/// How long a writer waits for another before giving up.
+const BUSY_TIMEOUT: Duration = Duration::from_secs(30);
+
+/// Where the database is unless `--db` or `TESSERA_DB` says: `$XDG_DATA_HOME/tessera/
+/// results.db`, or `~/.local/share/tessera/results.db`.
+pub fn default_path() -> Option<PathBuf> {
+    let absolute = |var: &str| {
+        std::env::var_os(var)
+            .map(PathBuf::from)
+            .filter(|p| p.is_absolute())
+    };
+    let data =
+        absolute("XDG_DATA_HOME").or_else(|| absolute("HOME").map(|h| h.join(".local/share")))?;
+    Some(data.join("tessera").join("results.db"))
+}
+
+/// The database at `path`, or the default one.
+pub fn resolve(path: Option<PathBuf>) -> Result<PathBuf> {
+    path.or_else(default_path).ok_or_else(|| {
+        anyhow!("no results database: set --db PATH or TESSERA_DB (neither XDG_DATA_HOME nor HOME is set)")
+    })
+}
+
+/// One run as `list` shows it.
+#[derive(Clone, Debug)]
+pub struct Run {
+    pub id: i64,
+    pub started_unix_s: i64,
+    pub machine_id: String,
+    pub cpu_model: Option<String>,
+    pub logical_cpus: i64,
+    pub version: String,
+    pub commit: String,
+    pub simd: String,
+    pub workload: String,
+    pub workload_id: String,
+    pub threads: i64,
+    pub sps: [f64; 3],
+    pub validation: String,
+    /// The machine was busy while it ran (other work, steal time).
+    pub busy: bool,
+}
+
+/// Which runs `list` shows.
+#[derive(Default)]
+pub struct Filter {
+    pub workload: Option<String>,
+    /// A machine id's prefix, or part of a CPU model.
+    pub machine: Option<String>,
+    /// A commit's prefix.
+    pub commit: Option<String>,
+    pub limit: Option<u32>,
+}
+
+/// What adding a result did.
+#[derive(Debug, PartialEq)]
+pub enum Added {
+    New(i64),
+    /// The same result was already there (by its digest).
+    Duplicate(i64),
+}
+
+#[derive(Clone, Copy, PartialEq)]
+enum Access {
+    Read,
+    Write,
+}
+
+pub struct ResultsDb {
+    conn: Connection,
+    path: PathBuf,
+    /// The schema version of the file: older than this build's only where it could not be
+    /// brought up to date (read on a read-only disk).
+    schema: i64,
+}
+
+impl ResultsDb {
+    /// Opens the database at `path`, creating it (and its directory) if it does not exist.
+    pub fn open(path: &Path) -> Result<Self> {
+        Self::open_as(path, Access::Write)
+    }
+
+    /// Opens the database at `path` to read it: it is not created, and nothing is written,
+    /// so it reads on a read-only disk too. One that needs a migration is opened to write
+    /// where it can be, and read as it is where it cannot.
+    pub fn open_to_read(path: &Path) -> Result<Self> {
+        refuse_dangling_link(path)?;
+        if !path.exists() {
+            bail!(
+                "{}: no results database yet (`tessera bench` records its runs there, `tessera results import` adds others')",
+                path.display()
+            );
+        }
+        Self::open_as(path, Access::Read)
+    }
+
+    fn open_as(path: &Path, access: Access) -> Result<Self> {
+        let missing = matches!(std::fs::metadata(path),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound);
+        if missing && access == Access::Write {
+            refuse_dangling_link(path)?;
+            create(path)?;
+        }
+        // Whose the file is, from what it holds, before SQLite opens it to use it: a file
+        // this build must refuse is left as it was, and no -wal or -shm file is made for it.
+        recognise(path)?;
+        let mut db = match access {
+            Access::Read => Self::connect_to_read(path)?,
+            Access::Write => Self::connect(path, OpenFlags::SQLITE_OPEN_READ_WRITE)?,
+        };
+        // The same checks through SQLite, which also reads what the WAL holds.
+        db.schema = db.check()?;
+        if access == Access::Read {
+            if db.schema < SCHEMA_VERSION {
+                // Brought up to date where it can be written; read as it is where it cannot
+                // (a read-only disk). This connection is closed first: the upgrade reads the
+                // file's header itself, and closing a file drops every POSIX lock the
+                // process holds on it, SQLite's too.
+                drop(db);
+                return Self::open_as(path, Access::Write).or_else(|_| {
+                    let mut db = Self::connect_to_read(path)?;
+                    db.schema = db.check()?;
+                    Ok(db)
+                });
+            }
+            return Ok(db);
+        }
+        db.conn.pragma_update(None, "foreign_keys", true)?;
+        db.migrate(db.schema)?;
+        db.schema = SCHEMA_VERSION;
+        Ok(db)
+    }
+
+    /// A connection to `path` with `flags`, waiting for other writers.
+    fn connect(path: &Path, flags: OpenFlags) -> Result<Self> {
+        let conn = Connection::open_with_flags(path, flags | OpenFlags::SQLITE_OPEN_NO_MUTEX)
+            .with_context(|| format!("{}: could not open the results database", path.display()))?;
+        conn.busy_timeout(BUSY_TIMEOUT)?;
+        // Nothing of the file's schema runs a function with side effects, whoever made it.
+        conn.pragma_update(None, "trusted_schema", false)?;
+        Ok(Self {
+            conn,
+            path: path.to_owned(),
+            schema: 0,
+        })
+    }
+
+    /// A read-only connection to `path`. A WAL database needs its -shm file to be read,
+    /// and a read-only file system cannot hold a new one: there it is read as immutable,
+    /// which is true of it, since nobody can write it.
+    fn connect_to_read(path: &Path) -> Result<Self> {
+        let db = Self::connect(path, OpenFlags::SQLITE_OPEN_READ_ONLY)?;
+        // The first read is where SQLite opens the -wal and -shm files. Any other error
+        // shows at the checks that follow.
+        let first = db
+            .conn
+            .query_row("SELECT count(*) FROM sqlite_schema", [], |r| {
+                r.get::<_, i64>(0)
+            });
+        match first {
+            Err(e) if cannot_open_wal_files(&e) => {
+                // Closed before the file is probed: closing a file drops every POSIX lock the
+                // process holds on it, SQLite's too.
+                drop(db);
+                if !immutable_there(path) {
+                    return Self::connect(path, OpenFlags::SQLITE_OPEN_READ_ONLY);
+                }
+                let conn = open_immutable(path).with_context(|| {
+                    format!("{}: could not open the results database", path.display())
+                })?;
+                Ok(Self {
+                    conn,
+                    path: path.to_owned(),
+                    schema: 0,
+                })
+            }
+            _ => Ok(db),
+        }
+    }
+
+    /// Checks that the database is whole and tessera's, of a schema this build knows, and
+    /// returns that schema version. It only reads.
+    fn check(&self) -> Result<i64> {
+        let shown = self.path.display();
+        let started = Instant::now();
+        let check: String = (self.conn)
+            .query_row("PRAGMA quick_check", [], |r| r.get(0))
+            .map_err(|e| self.error(e, "could not read it", started))?;
+        if check != "ok" {
+            bail!(
+                "{shown}: the results database is damaged ({}); left as it is",
+                check.escape_debug()
+            );
+        }
+        let pragma = |name: &str| {
+            (self.conn)
+                .query_row(&format!("PRAGMA {name}"), [], |r| r.get::<_, i64>(0))
+                .map_err(|e| self.error(e, "could not read it", started))
+        };
+        // SQLite returns the header's 32 bits as a signed number.
+        let application_id = pragma("application_id")? as u32;
+        let user_version = pragma("user_version")?;
+        whose(&self.path, application_id, user_version, |version| {
+            schema_difference(&self.conn, version)
+                .map_err(|e| self.error(e, "could not read it", started))
+        })
+    }
+
+    /// An SQLite error as the user should read it; `started` is when the operation began
+    /// (how long it waited on a busy database).
+    fn error(&self, e: rusqlite::Error, doing: &str, started: Instant) -> anyhow::Error {
+        explain(&self.path, e, doing, started)
+    }
+
+    fn migrate(&self, from: i64) -> Result<()> {
+        for (i, sql) in MIGRATIONS.iter().enumerate().skip(from as usize) {
+            let started = Instant::now();
+            let tx =
+                rusqlite::Transaction::new_unchecked(&self.conn, TransactionBehavior::Immediate)
+                    .map_err(|e| self.error(e, "could not update its schema", started))?;
+            // Another process may have migrated it meanwhile.
+            let now: i64 = tx.query_row("PRAGMA user_version", [], |r| r.get(0))?;
+            if now > i as i64 {
+                continue;
+            }
+            tx.execute_batch(sql)
+                .and_then(|()| tx.pragma_update(None, "user_version", i as i64 + 1))
+                .and_then(|()| tx.commit())
+                .map_err(|e| self.error(e, "could not update its schema", started))?;
+        }
+        Ok(())
+    }
+
+    /// Adds `reports` (from `source`: `bench` or `import`) in one transaction: all or none.
+    pub fn add_all(&mut self, reports: &[BenchResult], source: &str) -> Result<Vec<Added>> {
+        let added_unix_s = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_secs() as i64);
+        let jsons = (reports.iter())
+            .map(serde_json::to_string)
+            .collect::<Result<Vec<_>, _>>()?;
+        let started = Instant::now();
+        let written = (|| {
+            let tx = self
+                .conn
+                .transaction_with_behavior(TransactionBehavior::Immediate)?;
+            let mut outcomes = Vec::new();
+            for (report, json) in reports.iter().zip(&jsons) {
+                outcomes.push(insert(&tx, report, json, source, added_unix_s)?);
+            }
+            tx.commit()?;
+            Ok(outcomes)
+        })();
+        written.map_err(|e| self.error(e, "could not write the results", started))
+    }
+
+    /// The runs `filter` selects, newest first.
+    pub fn runs(&self, filter: &Filter) -> Result<Vec<Run>> {
+        // Schema 1 (read where it could not be updated) knows nothing of busy machines.
+        let busy = if self.schema >= 2 { "busy" } else { "0" };
+        let mut stmt = self.conn.prepare(&format!(
+            "SELECT id, started_unix_s, machine_id, cpu_model, logical_cpus, version, commit_id,
+                    simd, workload, workload_id, threads, sps_median, sps_min, sps_max, validation,
+                    {busy}
+             FROM runs
+             WHERE (?1 IS NULL OR workload = ?1)
+               AND (?2 IS NULL OR machine_id LIKE ?2 || '%' ESCAPE '\\'
+                    OR instr(lower(cpu_model), lower(?3)) > 0)
+               AND (?4 IS NULL OR commit_id LIKE ?4 || '%' ESCAPE '\\')
+             ORDER BY started_unix_s DESC, id DESC
+             LIMIT ?5"
+        ))?;
+        let like = |s: &Option<String>| {
+            s.as_ref().map(|s| {
+                s.replace('\\', "\\\\")
+                    .replace('%', "\\%")
+                    .replace('_', "\\_")
+            })
+        };
+        let limit = filter.limit.map_or(-1, i64::from);
+        let rows = stmt.query_map(
+            params![
+                filter.workload,
+                like(&filter.machine),
+                filter.machine,
+                like(&filter.commit),
+                limit
+            ],
+            |r| {
+                Ok(Run {
+                    id: r.get(0)?,
+                    started_unix_s: r.get(1)?,
+                    machine_id: r.get(2)?,
+                    cpu_model: r.get(3)?,
+                    logical_cpus: r.get(4)?,
+                    version: r.get(5)?,
+                    commit: r.get(6)?,
+                    simd: r.get(7)?,
+                    workload: r.get(8)?,
+                    workload_id: r.get(9)?,
+                    threads: r.get(10)?,
+                    sps: [r.get(11)?, r.get(12)?, r.get(13)?],
+                    validation: r.get(14)?,
+                    busy: r.get(15)?,
+                })
+            },
+        )?;
+        Ok(rows.collect::<rusqlite::Result<Vec<_>>>()?)
+    }
+}
+
+impl ResultsDb {
+    /// Each thread count's samples/s (median, min, max) of run `id`, fewest threads first.
+    pub fn scaling(&self, id: i64) -> Result<Vec<(i64, [f64; 3])>> {
+        let mut stmt = self.conn.prepare(
+            "SELECT threads, sps_median, sps_min, sps_max FROM scaling
+             WHERE run_id = ?1 ORDER BY threads",
+        )?;
+        let rows = stmt.query_map([id], |r| Ok((r.get(0)?, [r.get(1)?, r.get(2)?, r.get(3)?])))?;
+        Ok(rows.collect::<rusqlite::Result<Vec<_>>>()?)
+    }
+
+    /// How many runs it holds.
+    pub fn count(&self) -> Result<usize> {
+        let n: i64 = self
+            .conn
+            .query_row("SELECT count(*) FROM runs", [], |r| r.get(0))?;
+        Ok(n as usize)
+    }
+
+    /// Run `id`'s result JSON, as it was recorded.
+    pub fn result_json(&self, id: i64) -> Result<String> {
+        Ok(self
+            .conn
+            .query_row("SELECT result FROM runs WHERE id = ?1", [id], |r| r.get(0))?)
+    }
+
+    /// Every run's result JSON, oldest first.
+    pub fn results_json(&self) -> Result<Vec<String>> {
+        let mut stmt = self
+            .conn
+            .prepare("SELECT result FROM runs ORDER BY started_unix_s, id")?;
+        let rows = stmt.query_map([], |r| r.get(0))?;
+        Ok(rows.collect::<rusqlite::Result<Vec<_>>>()?)
+    }
+}
+
+/// Adds one result in transaction `tx`, unless a result of the same digest is there.
+fn insert(
+    tx: &rusqlite::Transaction,
+    report: &BenchResult,
+    json: &str,
+    source: &str,
+    added_unix_s: i64,
+) -> rusqlite::Result<Added> {
+    let digest = format!("{:032x}", xxhash_rust::xxh3::xxh3_128(json.as_bytes()));
+    let existing: Option<i64> = tx
+        .query_row("SELECT id FROM runs WHERE digest = ?1", [&digest], |r| {
+            r.get(0)
+        })
+        .optional()?;
+    if let Some(id) = existing {
+        return Ok(Added::Duplicate(id));
+    }
+    let r = &report.result;
+    tx.execute(
+        "INSERT INTO runs (digest, added_unix_s, source, started_unix_s, machine_id,
+            cpu_model, logical_cpus, version, commit_id, simd, workload, workload_id,
+            threads, sps_median, sps_min, sps_max, validation, result, busy)
+         VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18,
+            ?19)",
+        params![
+            digest,
+            added_unix_s,
+            source,
+            report.method.started_unix_s as i64,
+            report.machine_id(),
+            report.host.cpu_model,
+            report.host.logical_cpus as i64,
+            report.build.version,
+            report.build.commit,
+            report.build.simd,
+            report.workload.name,
+            report.workload.id,
+            r.threads as i64,
+            r.samples_per_sec.median,
+            r.samples_per_sec.min,
+            r.samples_per_sec.max,
+            report.validation.status,
+            json,
+            report.busy.as_ref().is_some_and(|b| b.busy),
+        ],
+    )?;
+    let id = tx.last_insert_rowid();
+    for row in &report.scaling {
+        let s = row.samples_per_sec;
+        tx.execute(
+            "INSERT OR REPLACE INTO scaling (run_id, threads, sps_median, sps_min, sps_max)
+             VALUES (?1, ?2, ?3, ?4, ?5)",
+            params![id, row.threads as i64, s.median, s.min, s.max],
+        )?;
+    }
+    Ok(Added::New(id))
+}
+
+/// An SQLite error as the user should read it; `started` is when the operation began.
+fn explain(path: &Path, e: rusqlite::Error, doing: &str, started: Instant) -> anyhow::Error {
+    let shown = path.display();
+    match e.sqlite_error_code() {
+        Some(rusqlite::ErrorCode::NotADatabase) => {
+            anyhow!("{shown}: damaged or not a database ({e}); left as it is")
+        }
+        Some(rusqlite::ErrorCode::DatabaseCorrupt) => {
+            anyhow!("{shown}: the results database is damaged ({e}); left as it is")
+        }
+        Some(rusqlite::ErrorCode::ReadOnly) | Some(rusqlite::ErrorCode::CannotOpen) => {
+            anyhow!("{shown}: {doing}: the database or its directory is read-only ({e})")
+        }
+        Some(rusqlite::ErrorCode::DiskFull) => anyhow!("{shown}: {doing}: the disk is full"),
+        // SQLite reports a full disk as an I/O error where it maps its -shm file.
+        Some(rusqlite::ErrorCode::SystemIoFailure) => {
+            anyhow!("{shown}: {doing}: {e} (is the disk full?)")
+        }
+        Some(rusqlite::ErrorCode::DatabaseBusy) | Some(rusqlite::ErrorCode::DatabaseLocked) => {
+            // SQLite waits up to BUSY_TIMEOUT for most locks but returns some at once: say
+            // how long it waited.
+            let waited = started.elapsed();
+            let waited = if waited >= Duration::from_secs(1) {
+                format!("{:.1} s", waited.as_secs_f64())
+            } else {
+                format!("{} ms", waited.as_millis())
+            };
+            anyhow!(
+                "{shown}: {doing}: another process held the database; gave up after {waited} ({e})"
+            )
+        }
+        _ => anyhow!("{shown}: {doing}: {e}"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn migrations_take_every_version_to_the_latest() {
+        for start in 0..=MIGRATIONS.len() {
+            let conn = Connection::open_in_memory().unwrap();
+            for sql in &MIGRATIONS[..start] {
+                conn.execute_batch(sql).unwrap();
+            }
+            conn.pragma_update(None, "user_version", start as i64)
+                .unwrap();
+            let db = ResultsDb {
+                conn,
+                path: PathBuf::from(":memory:"),
+                schema: start as i64,
+            };
+            db.migrate(start as i64).unwrap();
+            let v: i64 = db
+                .conn
+                .query_row("PRAGMA user_version", [], |r| r.get(0))
+                .unwrap();
+            assert_eq!(v, SCHEMA_VERSION);
+            let id: i64 = db
+                .conn
+                .query_row("PRAGMA application_id", [], |r| r.get(0))
+                .unwrap();
+            assert_eq!(
+                id,
+                i64::from(APPLICATION_ID),
+                "the migration's number is not TSRA"
+            );
+        }
+        assert_eq!(&APPLICATION_ID.to_be_bytes(), b"TSRA");
+    }
+
+    #[test]
+    fn a_busy_database_says_how_long_it_was_waited_for() {
+        let busy = || {
+            rusqlite::Error::SqliteFailure(
+                rusqlite::ffi::Error::new(rusqlite::ffi::SQLITE_BUSY),
+                None,
+            )
+        };
+        let path = Path::new("r.db");
+        let at_once = explain(path, busy(), "could not write", Instant::now()).to_string();
+        assert!(at_once.contains("gave up after 0 ms"), "{at_once}");
+        assert!(!at_once.contains("30"), "{at_once}");
+        if let Some(long_ago) = Instant::now().checked_sub(Duration::from_secs(31)) {
+            let waited = explain(path, busy(), "could not write", long_ago).to_string();
+            assert!(waited.contains("gave up after 31.0 s"), "{waited}");
+        }
+    }
+}
