@@ -15,6 +15,7 @@ use tessera::film::Film;
 use tessera::image_file::Format;
 use tessera::job::{Job, JobState};
 use tessera::recipe::{self, Recipe, Source};
+use tessera::record::workload::Workload;
 use tessera::record::{db, measure};
 use tessera::render::{
     Control, DEFAULT_TILE, Progress, RenderOptions, RenderStats, Watch, render_job,
@@ -517,9 +518,12 @@ fn reproduce<'py>(
             let dirs = recipe::texture_dirs(textures.as_deref(), &image);
             interruptible(py, |stop| {
                 let mut scene = recipe.scene(&image, &dirs).map_err(Failed::Tessera)?;
+                let yardstick =
+                    Workload::named("quick").map_err(|e| Failed::Other(format!("{e:#}")))?;
                 let judged = verify::render_judged(
                     work,
                     &mut scene,
+                    &yardstick.scene,
                     &image,
                     "any_cost=True",
                     any_cost,
@@ -531,7 +535,6 @@ fn reproduce<'py>(
                 .map_err(|not| match not {
                     verify::NotStarted::Refused(refusal) => Failed::Other(refusal),
                     verify::NotStarted::Setting(e) => Failed::Tessera(e),
-                    verify::NotStarted::Failed(e) => Failed::Other(format!("{e:#}")),
                 })?;
                 let (film, _) = judged.done.map_err(|failed| match failed {
                     Failed::Interrupted if judged.over_budget.is_some() => {
@@ -581,8 +584,8 @@ fn bench_workload(
 ) -> PyResult<String> {
     let chosen = simd.as_deref().is_some_and(|s| s != "auto");
     let path = simd_path(simd.as_deref())?;
-    let workload = tessera::record::workload::Workload::named(workload)
-        .map_err(|e| PyValueError::new_err(format!("workload: {e:#}")))?;
+    let workload =
+        Workload::named(workload).map_err(|e| PyValueError::new_err(format!("workload: {e:#}")))?;
     let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
     let plan = measure::Plan {
         workload,

@@ -10,6 +10,7 @@ use std::process::ExitCode;
 use std::sync::atomic::AtomicBool;
 use tessera::image_file::ImageHeader;
 use tessera::recipe::{self, Recipe, describe};
+use tessera::record::workload::Workload;
 use tessera::render::{self, RenderOptions};
 use tessera::text::{terminal_safe, terminal_safe_lines};
 use tessera::verify;
@@ -181,9 +182,11 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let s = &scene.settings;
     let total = u64::from(window.width) * u64::from(window.height) * u64::from(s.samples_per_pixel);
     let stop = AtomicBool::new(false);
+    let yardstick = Workload::named("quick")?;
     let judged = verify::render_judged(
         work,
         &mut scene,
+        &yardstick.scene,
         image,
         "--any-cost",
         args.any_cost,
@@ -205,7 +208,6 @@ pub fn run(args: Args) -> Result<ExitCode> {
         Ok(judged) => judged,
         Err(verify::NotStarted::Refused(refusal)) => bail!("{refusal}"),
         Err(verify::NotStarted::Setting(e)) => return Err(e.into()),
-        Err(verify::NotStarted::Failed(e)) => return Err(e),
     };
     let Some((film, stats)) = judged.done? else {
         if let Some(over) = judged.over_budget {

@@ -251,8 +251,6 @@ pub enum NotStarted {
     Refused(String),
     /// The time budget's setting (`BUDGET_VARIABLE`) is wrong.
     Setting(Error),
-    /// The cover to measure against is missing (a build without its scene).
-    Failed(anyhow::Error),
 }
 
 /// A reproduce's render, judged and bounded (`render_judged`).
@@ -269,7 +267,8 @@ pub struct Judged<T> {
 }
 
 /// The rest of a reproduce once the recipe's scene is built, the same for every front end:
-/// a few of the recipe's paths traced against the book cover's (`Work::measured`), a refusal
+/// a few of the recipe's paths traced against those of `yardstick` (the `quick` workload's
+/// scene, which the caller builds: workloads sit above this module) (`Work::measured`), a refusal
 /// beyond `UNASKED_COVERS` unless `any_cost` (`allow` names the flag that lifts it),
 /// `announce` told the work, then `render`, which stops soon after `stop` is set, stopped
 /// also past the time budget unless `any_cost`.
@@ -277,6 +276,7 @@ pub struct Judged<T> {
 pub fn render_judged<T>(
     work: Work,
     scene: &mut Scene,
+    yardstick: &Scene,
     image: &std::path::Path,
     allow: &str,
     any_cost: bool,
@@ -286,8 +286,7 @@ pub fn render_judged<T>(
     render: impl FnOnce(&Scene) -> T,
 ) -> std::result::Result<Judged<T>, NotStarted> {
     // What the recipe's paths cost, traced: only the built scene can say.
-    let cover = crate::record::workload::Workload::named("quick").map_err(NotStarted::Failed)?;
-    let work = work.measured(scene, &cover.scene);
+    let work = work.measured(scene, yardstick);
     if let Some(refusal) = work.refusal(image, allow)
         && !any_cost
     {
