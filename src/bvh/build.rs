@@ -1,6 +1,8 @@
 //! Building the hierarchy over the primitives' bounds: a binary tree by the surface area
 //! heuristic (binned for large nodes; for small ones, a sweep that keeps packs full),
-//! collapsed into wide nodes of up to `WIDTH` children, with leaves of one pack each.
+//! collapsed into wide nodes of up to `WIDTH` children, with leaves of one pack each; or,
+//! for a small set of a kind that asks (`Leaf::CLUSTERED`), one node over packs grouped by
+//! their boxes' areas.
 
 use super::{
     BINS, Bvh, EMPTY, FLAT_GROUP, FLAT_MAX_PACKS, LEAF, Leaf, MAX_LEAF, PackBoxes, TRAVERSAL_COST,
@@ -67,6 +69,12 @@ pub(super) fn build<P: Leaf>(prims: &[P::Item], layer_grid: bool) -> Bvh<P> {
     if items.is_empty() {
         return bvh;
     }
+    if P::CLUSTERED
+        && let Some(groups) = clusters(&items)
+    {
+        bvh.over_packs(prims, &items, &groups);
+        return bvh;
+    }
     let mut binary = vec![Node {
         bounds: Aabb::EMPTY,
         first: 0,
@@ -85,6 +93,50 @@ pub(super) fn build<P: Leaf>(prims: &[P::Item], layer_grid: bool) -> Bvh<P> {
         bvh.flat = pack_boxes(&bvh.packs, prims);
     }
     bvh
+}
+
+/// A pack's box test relative to its primitives' test, for `clusters`: eight or sixteen
+/// boxes are tested at once, so a pack more costs a fraction of a pack test.
+const BOX_TEST_COST: f32 = 1.0 / 16.0;
+
+/// The items grouped into at most `WIDTH` packs (`Leaf::CLUSTERED`), each a list of item
+/// indices, or `None` where they need more. A pack is tested by every ray that meets its
+/// box, so the groups are chosen to make the sum of their boxes' areas small, each box
+/// test counted too: from one item a group, the two groups whose merging lowers that cost
+/// the most are merged while any does. Merging two parallel walls of a room makes a box of
+/// the whole room, so the walls stay apart (a ray crosses the flat box of the one wall it
+/// meets), and the blocks inside become packs of their own: a ray tests a wall and the
+/// blocks it passes, where axis splits put walls and blocks together in packs that every
+/// ray tests. Deterministic: ties go to the first pair in order.
+fn clusters(items: &[BuildItem]) -> Option<Vec<Vec<usize>>> {
+    if items.len() > WIDTH * MAX_LEAF {
+        return None;
+    }
+    let whole = items.iter().fold(Aabb::EMPTY, |b, it| b.union(it.bounds));
+    let box_cost = BOX_TEST_COST * whole.area();
+    let mut groups: Vec<(Aabb, Vec<usize>)> = (items.iter().enumerate())
+        .map(|(i, it)| (it.bounds, vec![i]))
+        .collect();
+    loop {
+        let mut best: Option<(f32, usize, usize)> = None;
+        for a in 0..groups.len() {
+            for b in a + 1..groups.len() {
+                let ((box_a, in_a), (box_b, in_b)) = (&groups[a], &groups[b]);
+                if in_a.len() + in_b.len() > MAX_LEAF {
+                    continue;
+                }
+                let gain = box_a.area() + box_b.area() + box_cost - box_a.union(*box_b).area();
+                if gain > 0.0 && best.is_none_or(|(g, _, _)| gain > g) {
+                    best = Some((gain, a, b));
+                }
+            }
+        }
+        let Some((_, a, b)) = best else { break };
+        let (box_b, in_b) = groups.remove(b);
+        groups[a].0 = groups[a].0.union(box_b);
+        groups[a].1.extend(in_b);
+    }
+    (groups.len() <= WIDTH).then(|| groups.into_iter().map(|(_, g)| g).collect())
 }
 
 /// The boxes of `packs` (the same as the tree's leaf boxes: unions of the primitives'
@@ -111,6 +163,33 @@ fn pack_boxes<P: Leaf>(packs: &[P], prims: &[P::Item]) -> Vec<PackBoxes> {
 }
 
 impl<P: Leaf> Bvh<P> {
+    /// Makes the hierarchy one node over a pack for each of `groups` (indices into `items`,
+    /// at most `WIDTH` groups), walked flat where the path allows.
+    fn over_packs(&mut self, prims: &[P::Item], items: &[BuildItem], groups: &[Vec<usize>]) {
+        let mut root = WideNode {
+            planes: [F32x8::ZERO; 6],
+            child: [EMPTY; WIDTH],
+            leaf_mask: 0,
+            inner_mask: 0,
+        };
+        let mut boxes = Vec::with_capacity(groups.len());
+        for (lane, group) in groups.iter().enumerate() {
+            let ids: Vec<u32> = group.iter().map(|&i| items[i].id).collect();
+            boxes.push(
+                group
+                    .iter()
+                    .fold(Aabb::EMPTY, |b, &i| b.union(items[i].bounds)),
+            );
+            self.packs.push(P::pack(prims, &ids));
+            root.child[lane] = LEAF | lane as u32;
+            root.leaf_mask |= 1 << lane;
+        }
+        root.planes = box_planes::<WIDTH>(boxes).map(F32x8);
+        self.nodes = vec![root];
+        self.max_level = 0;
+        self.flat = pack_boxes(&self.packs, prims);
+    }
+
     /// Appends the wide node for binary node `at` (or, for a leaf root, for `kids`), and
     /// returns its index.
     fn collapse(

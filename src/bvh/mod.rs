@@ -112,6 +112,14 @@ pub trait Leaf: Clone + fmt::Debug + Send + Sync + Sized + 'static {
     /// better waited on for the bound it gives. The answer is the same either way.
     const OVERLAP: bool = false;
 
+    /// True when a small set of this kind's primitives (at most `WIDTH` packs' worth) is
+    /// better grouped into packs by their boxes' areas than by the tree's axis splits
+    /// (`build::clusters`): primitives that enclose one another, as a room's walls do its
+    /// furniture, cannot be split apart along an axis, so every pack would span the room
+    /// and every ray test them all. The spheres keep the axis splits the cover was tuned
+    /// with.
+    const CLUSTERED: bool = false;
+
     /// The primitive as a still sphere (centre, radius), for what is shaped for spheres
     /// (the layer grid, the camera's ray bundles); `None` for other kinds.
     fn as_sphere(_item: &Self::Item) -> Option<(Vec3, f32)> {

@@ -24,6 +24,8 @@ impl Leaf for QuadPack {
     const ID_BASE: u32 = PrimitiveId::QUADS;
     // A quad's test waits on a division before it can miss.
     const OVERLAP: bool = true;
+    // The book's Cornell box: five walls and a lamp around two blocks.
+    const CLUSTERED: bool = true;
 
     fn bounds(item: &Quad) -> Aabb {
         item.bounds()

@@ -123,6 +123,11 @@ impl Scene {
         &self.primitives.spheres
     }
 
+    /// Every primitive, by kind.
+    pub fn primitives(&self) -> &Primitives {
+        &self.primitives
+    }
+
     /// How the scene's accelerator is shaped (see `AcceleratorChoice`).
     pub fn accelerator(&self) -> AcceleratorChoice {
         self.accel.choice()
