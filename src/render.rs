@@ -4,10 +4,10 @@
 //! workers' threads; what a sample is, is the integrator's business.
 
 use crate::film::{Film, to_fixed};
-use crate::integrator::PixelEvaluator;
+use crate::integrator::{self, PixelEvaluator};
 use crate::job::{Job, JobState, SampleRange};
 use crate::math::{Color, PixelRect};
-use crate::scene::Scene;
+use crate::scene::{Scene, Shading};
 use crate::simd::{self, Isa, Kernel};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -570,10 +570,26 @@ fn render_tile_on<I: Isa, const FULL: bool>(
     range: SampleRange,
     stop: Option<&AtomicBool>,
 ) -> Option<TileResult> {
+    let stopped = || stop.is_some_and(|stop| stop.load(Ordering::Relaxed));
+    let settings = &scene.settings;
+    if FULL && scene.batches_paths() && settings.shading == Shading::Path && settings.max_depth > 0
+    {
+        // Paths sixteen at a time (see `integrator::trace_tile`): the same sums.
+        let mut sums = vec![[0u64; 3]; tile.area() as usize];
+        let mut rays = 0u64;
+        let run = if stop.is_some() { STOP_RUN } else { u32::MAX };
+        let finished = integrator::trace_tile(isa, scene, tile, range, stopped, run, |i, c, r| {
+            let acc = &mut sums[i];
+            acc[0] += to_fixed(c.x);
+            acc[1] += to_fixed(c.y);
+            acc[2] += to_fixed(c.z);
+            rays += u64::from(r);
+        });
+        return finished.then_some(TileResult { sums, rays });
+    }
     let mut pixels = PixelEvaluator::for_tile(isa, scene, tile);
     let mut sums = Vec::with_capacity(tile.area() as usize);
     let mut rays = 0u64;
-    let stopped = || stop.is_some_and(|stop| stop.load(Ordering::Relaxed));
     for y in tile.y0..tile.y0 + tile.height {
         for x in tile.x0..tile.x0 + tile.width {
             if stopped() {

@@ -11,6 +11,7 @@
 //! other kinds), `candidates` picks the spheres a bundle of rays can reach, `layer` finds the
 //! few packs a ray in or over a thin layer of spheres can meet without walking the tree.
 
+mod batch;
 mod build;
 mod candidates;
 mod layer;
@@ -22,6 +23,7 @@ mod quads;
 mod tests;
 mod traverse;
 
+pub use batch::{BATCH, QuadBatch, RayBatch, media_hit};
 pub use candidates::Candidates;
 pub use media::MediumPack;
 pub use moving::MovingSpherePack;
@@ -148,7 +150,7 @@ const BINS: usize = 12;
 const LEAF: u32 = 1 << 31;
 const EMPTY: u32 = u32::MAX;
 /// The primitive id of no hit, during traversal.
-const NO_HIT: u32 = u32::MAX;
+pub const NO_HIT: u32 = u32::MAX;
 /// The id in an unused lane of a sphere pack.
 const NO_SPHERE: u32 = u32::MAX;
 

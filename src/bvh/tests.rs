@@ -598,3 +598,134 @@ fn the_cornell_box_s_walls_and_blocks_are_packed_apart() {
         }
     }
 }
+
+/// Batches of eight rays against a set of quads, tested on a SIMD path (see
+/// `a_batch_of_rays_finds_what_each_ray_s_walk_finds`).
+struct BatchHits<'a> {
+    batch: &'a QuadBatch,
+    rays: &'a [RayBatch],
+}
+
+impl crate::simd::Kernel for BatchHits<'_> {
+    type Output = Vec<([f32; BATCH], [u32; BATCH])>;
+
+    #[inline(always)]
+    fn run<I: crate::simd::Isa>(self, isa: I) -> Self::Output {
+        self.rays
+            .iter()
+            .map(|r| self.batch.intersect(isa, r))
+            .collect()
+    }
+}
+
+#[test]
+fn a_batch_of_rays_finds_what_each_ray_s_walk_finds() {
+    // The Cornell box and random sets up to the batch's most, one with every quad twice (each
+    // hit a tie, which the lower id wins); each lane with its own interval, some leaving a
+    // quad (`RayHints::leaving`), some empty; on every SIMD path, bit for bit.
+    let mut rng = Sampler::from_seed(47);
+    let mut sets = vec![cornell_quads()];
+    for n in [1, 3, 8, 17, QuadBatch::MAX] {
+        sets.push(random_quads(n, &mut rng));
+    }
+    let twice = random_quads(QuadBatch::MAX / 2, &mut rng);
+    sets.push(twice.iter().chain(&twice).copied().collect());
+    for quads in &sets {
+        let batch = QuadBatch::new(quads);
+        let bvh = Bvh::<QuadPack>::build(quads);
+        let mut stack = bvh.new_stack();
+        let mut batches = Vec::new();
+        let mut expected = Vec::new();
+        for _ in 0..600 {
+            let mut rays = RayBatch::default();
+            let mut want = [(f32::INFINITY, NO_HIT); BATCH];
+            for (lane, want) in want.iter_mut().enumerate() {
+                if rng.uniform() < 0.1 {
+                    rays.clear(lane);
+                    continue;
+                }
+                let centre = if quads.len() == 18 {
+                    Vec3::splat(278.0)
+                } else {
+                    Vec3::ZERO
+                };
+                let spread = if quads.len() == 18 { 400.0 } else { 20.0 };
+                let origin = centre + spread * (rng.uniform() - 0.5) * rng.unit_vector();
+                let ray = Ray::new(origin, rng.unit_vector());
+                let interval = if rng.uniform() < 0.3 {
+                    Interval::new(0.0, f32::INFINITY)
+                } else {
+                    Interval::new(rng.range(0.0, 1.0), rng.range(1.0, 900.0))
+                };
+                // Leaving the quad it hits from behind, or one at random, or none.
+                let hit = bvh.walk(
+                    Portable,
+                    &ray,
+                    Moment::default(),
+                    interval,
+                    &mut stack,
+                    RayHints::default(),
+                    false,
+                );
+                let leaving = match (rng.uniform() < 0.5, hit) {
+                    (true, Some((_, id))) => Leaving(id.0),
+                    (false, _) if rng.uniform() < 0.5 => Leaving(
+                        PrimitiveId::QUADS
+                            + (rng.uniform() * quads.len() as f32) as u32 % quads.len() as u32,
+                    ),
+                    _ => Leaving::NONE,
+                };
+                let hints = RayHints {
+                    leaving,
+                    ..RayHints::default()
+                };
+                rays.set(lane, &ray, interval, leaving.id());
+                let got = bvh.walk(
+                    Portable,
+                    &ray,
+                    Moment::default(),
+                    interval,
+                    &mut stack,
+                    hints,
+                    false,
+                );
+                if let Some((t, id)) = got {
+                    *want = (t, id.0);
+                }
+            }
+            batches.push(rays);
+            expected.push(want);
+        }
+        for path in crate::simd::Path::supported() {
+            let got = crate::simd::dispatch(
+                path,
+                BatchHits {
+                    batch: &batch,
+                    rays: &batches,
+                },
+            );
+            for (b, (t, ids)) in got.iter().enumerate() {
+                for lane in 0..BATCH {
+                    if batches[b].t_min(lane) == f32::INFINITY {
+                        assert_eq!(ids[lane], NO_HIT);
+                        continue;
+                    }
+                    let (want_t, want_id) = expected[b][lane];
+                    assert_eq!(
+                        ids[lane],
+                        want_id,
+                        "{path}, {} quads, batch {b} lane {lane}",
+                        quads.len()
+                    );
+                    if want_id != NO_HIT {
+                        assert_eq!(
+                            t[lane].to_bits(),
+                            want_t.to_bits(),
+                            "{path}, batch {b} lane {lane}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+}

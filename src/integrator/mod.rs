@@ -5,8 +5,10 @@
 //! take its loop as it was; everything else *The Next Week*'s, which adds what the hit
 //! emits, textures, the ray's time and the media's random numbers. No threads, no I/O.
 
+mod batch;
 mod pixel;
 
+pub use batch::trace_tile;
 pub use pixel::{PixelEvaluator, tile_candidates};
 
 use crate::bvh::{Leaving, Moment, RayHints, TraversalStack};
@@ -84,49 +86,113 @@ pub fn path_trace_from<I: Isa>(
 pub fn path_trace_full<I: Isa>(
     isa: I,
     scene: &Scene,
-    mut ray: Ray,
-    mut moment: Moment,
+    ray: Ray,
+    moment: Moment,
     first: Option<Hit>,
     rng: &mut Sampler,
     stack: &mut TraversalStack,
 ) -> Radiance {
-    let settings = &scene.settings;
-    let mut radiance = Color::ZERO;
-    let mut throughput = Color::ONE;
+    let mut path = FullPath::start(ray, moment);
     let mut hit = first;
-    let mut rays = 1;
-    let media = scene.has_media();
     loop {
+        match path.advance(scene, hit, rng) {
+            Some((next, interval, hints)) => {
+                hit = scene.hit_at(isa, &next, path.moment, interval, stack, hints);
+            }
+            None => return path.radiance(),
+        }
+    }
+}
+
+/// A path of *The Next Week*'s `ray_color` (see `path_trace_full`), a segment at a time:
+/// what it has gathered so far, and the ray it traced last. The caller traces each segment
+/// the path asks for and hands its hit back, so that several paths can be traced side by
+/// side (`batch`).
+#[derive(Clone, Copy, Debug)]
+pub struct FullPath {
+    /// The ray traced last.
+    ray: Ray,
+    /// Its time, and the medium key of its segment.
+    pub moment: Moment,
+    radiance: Color,
+    throughput: Color,
+    rays: u32,
+}
+
+impl FullPath {
+    /// A path whose first segment is the camera ray `ray`, taken at `moment`.
+    #[inline(always)]
+    pub fn start(ray: Ray, moment: Moment) -> Self {
+        FullPath {
+            ray,
+            moment,
+            radiance: Color::ZERO,
+            throughput: Color::ONE,
+            rays: 1,
+        }
+    }
+
+    /// Takes the hit of the segment traced last (`None`: it escaped) and returns the next
+    /// segment to trace (the ray, where along it hits count, and the tree's hints), or
+    /// `None` when the path has ended and `radiance` is its value.
+    #[inline(always)]
+    pub fn advance(
+        &mut self,
+        scene: &Scene,
+        hit: Option<Hit>,
+        rng: &mut Sampler,
+    ) -> Option<(Ray, Interval, RayHints)> {
+        let (here, raw) = self.scatter(scene, hit, rng)?;
+        Some(self.leave(scene, &here, raw))
+    }
+
+    /// `advance`'s first half: takes the hit, adds what it emits and scatters there; the
+    /// hit and the (not necessarily unit) direction the path goes on in, or `None` when it
+    /// has ended. Every random number a segment needs is drawn here.
+    #[inline(always)]
+    pub fn scatter(
+        &mut self,
+        scene: &Scene,
+        hit: Option<Hit>,
+        rng: &mut Sampler,
+    ) -> Option<(Hit, Vec3)> {
         let Some(here) = hit else {
-            return Radiance {
-                color: radiance + throughput * scene.background.radiance(ray.dir),
-                rays,
-            };
+            self.radiance += self.throughput * scene.background.radiance(self.ray.dir);
+            return None;
         };
         let material = scene.material(&here);
-        let texture = scene.texture_at(&here, moment.time);
+        let texture = scene.texture_at(&here, self.moment.time);
         let tint = |c: Color| texture.map_or(c, |t| c * t);
-        radiance += throughput * tint(material.emitted());
-        let Some(scatter) = material.scatter(ray.dir, &here, settings.diffuse, rng) else {
-            return Radiance {
-                color: radiance,
-                rays,
-            };
-        };
-        if rays >= settings.max_depth {
-            return Radiance {
-                color: radiance,
-                rays,
-            };
+        self.radiance += self.throughput * tint(material.emitted());
+        let settings = &scene.settings;
+        let scatter = material.scatter(self.ray.dir, &here, settings.diffuse, rng)?;
+        if self.rays >= settings.max_depth {
+            return None;
         }
-        throughput *= tint(scatter.attenuation);
-        if media {
-            moment.medium_key = rng.word();
+        self.throughput *= tint(scatter.attenuation);
+        if scene.has_media() {
+            self.moment.medium_key = rng.word();
         }
-        let (next, interval, hints) = bounce::<true>(scene, &here, scatter.dir);
-        hit = scene.hit_at(isa, &next, moment, interval, stack, hints);
-        ray = next;
-        rays += 1;
+        Some((here, scatter.dir))
+    }
+
+    /// `advance`'s second half: the segment leaving `here` along `raw` (what `scatter`
+    /// returned), which becomes the ray traced last.
+    #[inline(always)]
+    pub fn leave(&mut self, scene: &Scene, here: &Hit, raw: Vec3) -> (Ray, Interval, RayHints) {
+        let (next, interval, hints) = bounce::<true>(scene, here, raw);
+        self.ray = next;
+        self.rays += 1;
+        (next, interval, hints)
+    }
+
+    /// What the path has brought back so far: all of it once `advance` says it has ended.
+    #[inline(always)]
+    pub fn radiance(&self) -> Radiance {
+        Radiance {
+            color: self.radiance,
+            rays: self.rays,
+        }
     }
 }
 

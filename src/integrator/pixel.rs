@@ -17,11 +17,11 @@ use crate::simd::Isa;
 /// its generator after the draws that made them. (Its ray's `Moment` goes beside it, for
 /// the scenes that have one.)
 #[derive(Clone, Debug)]
-struct CameraSample {
+pub(super) struct CameraSample {
     u: f32,
     v: f32,
-    ray: Ray,
-    rng: Sampler,
+    pub(super) ray: Ray,
+    pub(super) rng: Sampler,
 }
 
 impl CameraSample {
@@ -30,7 +30,12 @@ impl CameraSample {
     /// scenes) the time when the shutter is open a while and the medium key when the scene
     /// has media.
     #[inline(always)]
-    fn new<const FULL: bool>(scene: &Scene, x: u32, y: u32, mut rng: Sampler) -> (Self, Moment) {
+    pub(super) fn new<const FULL: bool>(
+        scene: &Scene,
+        x: u32,
+        y: u32,
+        mut rng: Sampler,
+    ) -> (Self, Moment) {
         let s = &scene.settings;
         let (du, dv) = if s.jitter {
             (rng.uniform(), rng.uniform())

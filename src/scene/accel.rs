@@ -3,8 +3,8 @@
 //! pack in its leaves), chosen by what the scene holds.
 
 use crate::bvh::{
-    Bvh, Candidates, MediumPack, Moment, MovingSpherePack, MultiWalk, QuadPack, RayHints,
-    SphereBvh, TraversalStack,
+    BATCH, Bvh, Candidates, MediumPack, Moment, MovingSpherePack, MultiWalk, QuadBatch, QuadPack,
+    RayBatch, RayHints, SphereBvh, TraversalStack, media_hit,
 };
 use crate::geometry::{Medium, MovingSphere, PrimitiveId, Quad, Sphere};
 use crate::math::{Interval, Vec3};
@@ -49,6 +49,11 @@ pub enum AcceleratorChoice {
     /// media), each walked in turn with the closest hit so far as its bound, without the
     /// layer grid.
     PerKind,
+    /// A few quads (at most `QuadBatch::MAX`) and any media, nothing else (the Cornell
+    /// box): the trees of `PerKind` for a ray alone, and paths traced sixteen at a time, each
+    /// segment's sixteen rays tested against every quad at once (`QuadBatch`), then against
+    /// each medium.
+    FewQuads,
 }
 
 /// Bits of `Accelerator::present`: which kinds the scene holds.
@@ -67,13 +72,20 @@ pub(super) struct Accelerator {
     moving: Bvh<MovingSpherePack>,
     quads: Bvh<QuadPack>,
     media: Bvh<MediumPack>,
+    /// For `FewQuads`, the quads as a batch of rays tests them.
+    quad_batch: QuadBatch,
 }
 
 impl Accelerator {
     pub(super) fn build(prims: &Primitives) -> Self {
         let bit = |has: bool, b: u8| if has { b } else { 0 };
+        let few_quads = prims.spheres.is_empty()
+            && prims.moving_spheres.is_empty()
+            && (1..=QuadBatch::MAX).contains(&prims.quads.len());
         let choice = if prims.only_still_spheres() {
             AcceleratorChoice::StillSpheres
+        } else if few_quads {
+            AcceleratorChoice::FewQuads
         } else {
             AcceleratorChoice::PerKind
         };
@@ -86,11 +98,15 @@ impl Accelerator {
             // The layer grid is the cover's shape: a scene of still spheres only.
             spheres: match choice {
                 AcceleratorChoice::StillSpheres => SphereBvh::build(&prims.spheres),
-                AcceleratorChoice::PerKind => SphereBvh::build_plain(&prims.spheres),
+                _ => SphereBvh::build_plain(&prims.spheres),
             },
             moving: Bvh::build_plain(&prims.moving_spheres),
             quads: Bvh::build_plain(&prims.quads),
             media: Bvh::build_plain(&prims.media),
+            quad_batch: match choice {
+                AcceleratorChoice::FewQuads => QuadBatch::new(&prims.quads),
+                _ => QuadBatch::default(),
+            },
         }
     }
 
@@ -160,7 +176,7 @@ impl Accelerator {
     ) -> Option<Candidates> {
         match self.choice {
             AcceleratorChoice::StillSpheres => self.spheres.candidates(spheres, keep_box, keep),
-            AcceleratorChoice::PerKind => None,
+            AcceleratorChoice::PerKind | AcceleratorChoice::FewQuads => None,
         }
     }
 
@@ -174,5 +190,41 @@ impl Accelerator {
     ) -> Option<(f32, PrimitiveId)> {
         self.spheres
             .intersect_candidates(isa, candidates, ray, interval)
+    }
+}
+
+impl Accelerator {
+    /// For `FewQuads`: each lane's closest hit of `rays` (`rays_alone` the same rays, and
+    /// `moments` their moments; lanes of `active` only), as `hit_all` finds it for each
+    /// ray: its parameter and id, or `NO_HIT`.
+    #[inline(always)]
+    pub(super) fn hit_batch<I: Isa>(
+        &self,
+        isa: I,
+        rays: &RayBatch,
+        rays_alone: &[Ray; BATCH],
+        moments: &[Moment; BATCH],
+        active: u32,
+        media: &[Medium],
+    ) -> ([f32; BATCH], [u32; BATCH]) {
+        let (mut closest, mut found) = self.quad_batch.intersect(isa, rays);
+        if !media.is_empty() {
+            let mut lanes = active;
+            while lanes != 0 {
+                let lane = lanes.trailing_zeros() as usize & (BATCH - 1);
+                lanes &= lanes - 1;
+                let m = moments[lane];
+                media_hit(
+                    media,
+                    &rays_alone[lane],
+                    m.time,
+                    m.medium_key,
+                    rays.t_min(lane),
+                    &mut closest[lane],
+                    &mut found[lane],
+                );
+            }
+        }
+        (closest, found)
     }
 }

@@ -22,7 +22,7 @@ pub use textures::{
 pub const MAX_SCENE_BYTES: u64 = 64 << 20;
 pub use settings::{Background, RenderSettings, Shading, SurfaceOffset};
 
-use crate::bvh::{Candidates, Moment, RayHints, TraversalStack};
+use crate::bvh::{BATCH, Candidates, Moment, RayBatch, RayHints, TraversalStack};
 use crate::camera::{Camera, CameraSettings};
 use crate::error::{Error, Location, Result};
 use crate::geometry::{Hit, PrimitiveId, PrimitiveKind, Sphere};
@@ -321,6 +321,35 @@ impl Scene {
         self.accel
             .hit_all(isa, ray, moment, interval, stack, hints)
             .map(|(t, id)| self.surface(ray, moment, t, id))
+    }
+
+    /// True when paths are traced sixteen at a time, each segment's rays tested together
+    /// (`AcceleratorChoice::FewQuads`): see `hit_batch`.
+    pub fn batches_paths(&self) -> bool {
+        self.accel.choice() == AcceleratorChoice::FewQuads
+    }
+
+    /// For a scene that `batches_paths`: the closest hit of each ray of `rays` (in the lanes
+    /// of `active`; `alone`, the same rays one by one, taken at `moments`), as `hit_at` finds
+    /// it for that ray alone: its parameter and primitive id (`bvh::NO_HIT` for none). Its
+    /// hit record is `surface_of`'s.
+    #[inline(always)]
+    pub fn hit_batch<I: Isa>(
+        &self,
+        isa: I,
+        rays: &RayBatch,
+        alone: &[Ray; BATCH],
+        moments: &[Moment; BATCH],
+        active: u32,
+    ) -> ([f32; BATCH], [u32; BATCH]) {
+        (self.accel).hit_batch(isa, rays, alone, moments, active, &self.primitives.media)
+    }
+
+    /// The hit record of primitive `id` (`bvh::NO_HIT`: none) at `t` along `ray` taken at
+    /// `moment`.
+    #[inline(always)]
+    pub fn surface_of(&self, ray: &Ray, moment: Moment, t: f32, id: u32) -> Option<Hit> {
+        (id != crate::bvh::NO_HIT).then(|| self.surface(ray, moment, t, PrimitiveId(id)))
     }
 
     /// The spheres, giants included, that `keep` accepts, when they are few enough to test

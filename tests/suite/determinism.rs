@@ -187,6 +187,88 @@ fn fast_tile_tracer_equals_tracing_each_sample_alone() {
     assert!(tile_candidates(&scene, &tiles[5]).is_none());
 }
 
+#[test]
+fn paths_traced_sixteen_at_a_time_equal_tracing_each_sample_alone() {
+    // The Cornell box with its blocks, and with its smoke (media): a tile's paths go sixteen at
+    // a time (`integrator::trace_tile`), each lane taking the next sample as its path ends;
+    // every pixel's sums and the ray count must be those of each sample traced alone, on
+    // every SIMD path, whatever the tile's shape and the samples' range.
+    use tessera::film::to_fixed;
+    use tessera::integrator::PixelEvaluator;
+    use tessera::job::SampleRange;
+    use tessera::render::render_tile;
+    use tessera::simd::{Path, Portable};
+    let rect = |x0, y0, width, height| PixelRect {
+        x0,
+        y0,
+        width,
+        height,
+    };
+    for name in [
+        "img-2.20-cornell-standard.toml",
+        "img-2.21-cornell-smoke.toml",
+    ] {
+        let scene = load(
+            &scene_path(name),
+            Overrides {
+                width: Some(60),
+                ..Overrides::default()
+            },
+        );
+        assert!(scene.batches_paths(), "{name}");
+        let mut alone = PixelEvaluator::with_candidates(Portable, &scene, None);
+        // A corner, the lamp's rows, a block, one pixel, a row, and fewer pixels than lanes.
+        let tiles = [
+            rect(0, 0, 16, 16),
+            rect(24, 0, 13, 9),
+            rect(30, 40, 16, 16),
+            rect(59, 59, 1, 1),
+            rect(0, 30, 60, 1),
+            rect(10, 10, 3, 2),
+        ];
+        for (tile, range) in tiles
+            .iter()
+            .zip([(0, 4), (3, 10), (0, 1), (5, 25), (1, 3), (0, 2)])
+        {
+            let range = SampleRange {
+                start: range.0,
+                end: range.1,
+            };
+            let paths = Path::supported();
+            let fast = render_tile(&scene, tile, range, *paths.last().unwrap());
+            for &path in &paths {
+                let on_path = render_tile(&scene, tile, range, path);
+                assert_eq!(on_path.sums, fast.sums, "{name} {path}");
+                assert_eq!(on_path.rays, fast.rays, "{name} {path}");
+            }
+            let mut rays = 0u64;
+            for (i, y) in (tile.y0..tile.y0 + tile.height).enumerate() {
+                for (j, x) in (tile.x0..tile.x0 + tile.width).enumerate() {
+                    let mut sum = [0u64; 3];
+                    for start in range.start..range.end {
+                        let one = SampleRange {
+                            start,
+                            end: start + 1,
+                        };
+                        alone.evaluate(x, y, one, |c, r| {
+                            sum[0] += to_fixed(c.x);
+                            sum[1] += to_fixed(c.y);
+                            sum[2] += to_fixed(c.z);
+                            rays += u64::from(r);
+                        });
+                    }
+                    let pixel = i * tile.width as usize + j;
+                    assert_eq!(
+                        fast.sums[pixel], sum,
+                        "{name}: pixel ({x}, {y}) of {tile:?}"
+                    );
+                }
+            }
+            assert_eq!(fast.rays, rays, "{name} {tile:?}");
+        }
+    }
+}
+
 /// A watcher that records what it is told, and stops the job once a pass is done if asked.
 struct Recorder<'a> {
     stop_after_pass: Option<(usize, &'a std::sync::atomic::AtomicBool)>,
