@@ -161,8 +161,21 @@ fn channels(value: &[u8]) -> Result<Vec<(String, SampleType)>, String> {
     }
 }
 
-/// Reads the header of the `len`-byte EXR file `r` is at the start of.
-pub fn read<R: Read>(r: R, len: u64) -> Result<ExrHeader, String> {
+/// Checks that the header of the `len`-byte EXR file `r` is at the start of keeps within
+/// the bounds every header is read in (one part, no deep data, at most `MAX_ATTRIBUTES`
+/// attributes of at most `MAX_VALUE` bytes), whatever its channels and attributes: for an
+/// EXR another program may have made (an image texture, an image to compare), which the
+/// `exr` crate then reads, keeping every attribute without a bound of its own.
+pub fn check_bounds<R: Read>(r: R, len: u64) -> Result<(), String> {
+    walk(r, len, &mut |_, _, _| Ok(()))
+}
+
+/// What is done with each attribute of a header walked: its name, type and value.
+type Visit<'a> = dyn FnMut(&str, &str, Vec<u8>) -> Result<(), String> + 'a;
+
+/// Walks the header of the `len`-byte EXR file `r` is at the start of, within the bounds,
+/// handing `visit` each attribute's name, type and value.
+fn walk<R: Read>(r: R, len: u64, visit: &mut Visit<'_>) -> Result<(), String> {
     let mut r = Bounded {
         inner: r,
         left: len,
@@ -191,13 +204,11 @@ pub fn read<R: Read>(r: R, len: u64) -> Result<ExrHeader, String> {
             "has OpenEXR flags tessera does not know (0x{version:x})"
         ));
     }
-    let (mut data, mut display, mut list, mut recipe) = (None, None, None, None);
-    let mut display_changes = Vec::new();
     let mut seen = std::collections::HashSet::new();
     loop {
         let name = r.name("attribute name")?;
         if name.is_empty() {
-            break;
+            return Ok(());
         }
         if seen.len() == MAX_ATTRIBUTES {
             return Err(format!(
@@ -216,7 +227,16 @@ pub fn read<R: Read>(r: R, len: u64) -> Result<ExrHeader, String> {
             ));
         }
         let value = r.bytes(u64::from(size), "attribute")?;
-        match (name.as_str(), kind.as_str()) {
+        visit(&name, &kind, value)?;
+    }
+}
+
+/// Reads the header of the `len`-byte EXR file `r` is at the start of.
+pub fn read<R: Read>(r: R, len: u64) -> Result<ExrHeader, String> {
+    let (mut data, mut display, mut list, mut recipe) = (None, None, None, None);
+    let mut display_changes = Vec::new();
+    walk(r, len, &mut |name, kind, value| {
+        match (name, kind) {
             ("dataWindow", "box2i") => data = Some(box2i(&value, "dataWindow")?),
             ("displayWindow", "box2i") => display = Some(box2i(&value, "displayWindow")?),
             ("channels", "chlist") => list = Some(channels(&value)?),
@@ -264,7 +284,8 @@ pub fn read<R: Read>(r: R, len: u64) -> Result<ExrHeader, String> {
                 }
             }
         }
-    }
+        Ok(())
+    })?;
     let data = data.ok_or("has no dataWindow attribute")?;
     let list = list.ok_or("has no channels attribute")?;
     let names: Vec<&str> = list.iter().map(|(n, _)| n.as_str()).collect();

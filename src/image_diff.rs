@@ -1,6 +1,7 @@
 //! The difference of two images of equal size: RMSE, PSNR and mean absolute error.
 
 use crate::error::{Error, Result};
+use std::io::Seek;
 use std::path::Path;
 
 /// The most pixels an image may have to be compared: 4096x4096. Each is held as three
@@ -64,6 +65,7 @@ impl RgbImage {
             path: path.to_owned(),
             cause,
         })?;
+        let len = file.metadata().map(|m| m.len()).unwrap_or(0);
         let mut reader = image::ImageReader::new(std::io::BufReader::new(file));
         match image::ImageFormat::from_path(path) {
             Ok(format) => reader.set_format(format),
@@ -72,6 +74,18 @@ impl RgbImage {
                     .with_guessed_format()
                     .map_err(|e| fail(e.to_string()))?
             }
+        }
+        if let Some(format @ image::ImageFormat::OpenExr) = reader.format() {
+            // The `exr` crate keeps every attribute of a header, whatever its count: the
+            // header's bounds are checked first, and the file read again from its start.
+            let mut file = reader.into_inner();
+            crate::exr_header::check_bounds(&mut file, len).map_err(fail)?;
+            file.seek(std::io::SeekFrom::Start(0))
+                .map_err(|cause| Error::Io {
+                    path: path.to_owned(),
+                    cause,
+                })?;
+            reader = image::ImageReader::with_format(file, format);
         }
         // The decoder's own buffer, at most four 32-bit floats a pixel (an EXR with alpha).
         let mut limits = image::Limits::default();

@@ -168,6 +168,10 @@ pub fn decode(bytes: &[u8], pixels_left: u64) -> Result<ImageTexture, String> {
         Some(image::ImageFormat::Jpeg) if !jpeg_ends(bytes) => {
             return Err("is a JPEG that ends before its image does (a truncated file?)".into());
         }
+        // The `exr` crate keeps every attribute of a header, whatever its count.
+        Some(image::ImageFormat::OpenExr) => {
+            crate::exr_header::check_bounds(bytes, bytes.len() as u64)?;
+        }
         Some(_) => {}
     }
     let (width, height) = reader
