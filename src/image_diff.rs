@@ -75,11 +75,18 @@ impl RgbImage {
                     .map_err(|e| fail(e.to_string()))?
             }
         }
-        if let Some(format @ image::ImageFormat::OpenExr) = reader.format() {
-            // The `exr` crate keeps every attribute of a header, whatever its count: the
-            // header's bounds are checked first, and the file read again from its start.
+        if let Some(format @ (image::ImageFormat::OpenExr | image::ImageFormat::Png)) =
+            reader.format()
+        {
+            // The `exr` crate keeps every attribute of a header and the PNG decoder every
+            // text chunk, whatever their count: the chunks or attributes are walked within
+            // bounds first, and the file read again from its start.
             let mut file = reader.into_inner();
-            crate::exr_header::check_bounds(&mut file, len).map_err(fail)?;
+            if format == image::ImageFormat::Png {
+                crate::image_file::png_header(&mut file, len).map_err(fail)?;
+            } else {
+                crate::exr_header::check_bounds(&mut file, len).map_err(fail)?;
+            }
             file.seek(std::io::SeekFrom::Start(0))
                 .map_err(|cause| Error::Io {
                     path: path.to_owned(),

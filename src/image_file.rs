@@ -271,7 +271,10 @@ const DISPLAY_CHUNKS: [(&[u8; 4], &str); 13] = [
 
 /// Walks a PNG's chunks (`len` bytes in all) for its size, the recipe's iTXt chunk and the
 /// chunks that change how it is shown, skipping the others unread.
-fn png_header<R: Read + Seek>(r: R, len: u64) -> std::result::Result<ImageHeader, String> {
+pub(crate) fn png_header<R: Read + Seek>(
+    r: R,
+    len: u64,
+) -> std::result::Result<ImageHeader, String> {
     let mut r = std::io::BufReader::new(r);
     let mut signature = [0u8; 8];
     if r.read_exact(&mut signature).is_err() || signature != PNG_SIGNATURE {

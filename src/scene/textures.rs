@@ -19,6 +19,11 @@ pub const MAX_TEXTURE_PIXELS: u64 = 1 << 25;
 /// (the book's earth map has 0.5 million). A file named by many textures is read once.
 pub const MAX_SCENE_TEXTURE_PIXELS: u64 = 1 << 26;
 
+/// The most a decoder may allocate while it reads a texture file's size: what comes before
+/// the pixels (a PNG's colour profile, inflated, and its text) takes a few KiB in the book's
+/// files, and a 1 MB PNG of 16 pixels whose profile inflates to 1 GiB once took 532 MB here.
+const MAX_HEADER_ALLOC: u64 = 16 << 20;
+
 /// Where image textures come from.
 #[derive(Clone, Debug)]
 pub enum TextureSource {
@@ -160,7 +165,7 @@ fn read_limited(path: &Path) -> Result<Vec<u8>, String> {
 /// Decodes a PNG, JPEG or other image the `image` crate reads into 8-bit RGB, its size
 /// checked before its pixels are: at most `MAX_TEXTURE_PIXELS`, and at most `pixels_left`.
 pub fn decode(bytes: &[u8], pixels_left: u64) -> Result<ImageTexture, String> {
-    let reader = image::ImageReader::new(std::io::Cursor::new(bytes))
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()
         .map_err(|e| e.to_string())?;
     match reader.format() {
@@ -168,12 +173,21 @@ pub fn decode(bytes: &[u8], pixels_left: u64) -> Result<ImageTexture, String> {
         Some(image::ImageFormat::Jpeg) if !jpeg_ends(bytes) => {
             return Err("is a JPEG that ends before its image does (a truncated file?)".into());
         }
+        // The PNG decoder keeps every text chunk before the pixels, whatever their count.
+        Some(image::ImageFormat::Png) => {
+            crate::image_file::png_header_of(bytes)?;
+        }
         // The `exr` crate keeps every attribute of a header, whatever its count.
         Some(image::ImageFormat::OpenExr) => {
             crate::exr_header::check_bounds(bytes, bytes.len() as u64)?;
         }
         Some(_) => {}
     }
+    // What a decoder keeps of the file before its pixels (a PNG's colour profile, inflated):
+    // at most `MAX_HEADER_ALLOC`.
+    let mut limits = image::Limits::default();
+    limits.max_alloc = Some(MAX_HEADER_ALLOC);
+    reader.limits(limits);
     let (width, height) = reader
         .into_dimensions()
         .map_err(|e| format!("cannot read the image's size: {e}"))?;
@@ -262,9 +276,12 @@ mod tests {
         png.extend([8, 2, 0, 0, 0]);
         let crc = crc32fast::hash(&png[12..29]);
         png.extend(crc.to_be_bytes());
-        // An empty IDAT, where the header ends.
-        png.extend(b"\0\0\0\0IDAT");
-        png.extend(crc32fast::hash(b"IDAT").to_be_bytes());
+        // An empty IDAT, where the header ends, and the end.
+        for kind in [b"IDAT", b"IEND"] {
+            png.extend(b"\0\0\0\0");
+            png.extend(kind);
+            png.extend(crc32fast::hash(kind).to_be_bytes());
+        }
         let e = decode(&png, MAX_TEXTURE_PIXELS).unwrap_err();
         assert!(e.contains("100000x100000"), "{e}");
     }

@@ -997,6 +997,42 @@ fn many_textures_of_one_large_file_decode_it_once_and_all_files_share_a_bound() 
     assert!(!dir.join("three.png").exists());
 }
 
+/// What a PNG holds before its pixels is read before its size is: a 1 MB PNG of 16 pixels
+/// whose colour profile inflates to 1 GiB took 532 MB as a texture, and a 200 MB PNG of 16
+/// pixels and 17 million text chunks 1.6 GB in `compare`. A texture's header is read within
+/// 16 MiB, and a PNG of more chunks than a PNG tessera reads may have is refused.
+#[test]
+fn a_png_s_profile_and_text_before_its_pixels_are_read_within_bounds() {
+    let dir = temp_dir("hostile-png-metadata");
+    let small = dir.join("small.png");
+    image::RgbImage::from_pixel(4, 4, image::Rgb([128, 128, 128]))
+        .save(&small)
+        .unwrap();
+    let png = std::fs::read(&small).unwrap();
+    let mut profile = b"p\0\0".to_vec();
+    profile.extend(fdeflate::compress_to_vec(&vec![0u8; 256 << 20]));
+    std::fs::write(
+        dir.join("profile.png"),
+        png_with_chunks(&png, &png_chunk(b"iCCP", &profile)),
+    )
+    .unwrap();
+    let text = png_chunk(b"tEXt", b"k\0v").repeat(70_000);
+    std::fs::write(dir.join("text.png"), png_with_chunks(&png, &text)).unwrap();
+    std::fs::write(dir.join("profile.toml"), textured_scene("profile.png")).unwrap();
+    let o = run_capped(&["render", "profile.toml", "-q", "-o", "p.png"], &dir, 256);
+    assert!(o.status.success(), "{}", stderr(&o));
+    std::fs::write(dir.join("text.toml"), textured_scene("text.png")).unwrap();
+    let o = run_capped(&["render", "text.toml", "-q", "-o", "t.png"], &dir, 256);
+    refused(
+        &o,
+        "field `textures.t.file`: text.png: has more than 65536 chunks",
+        "texture",
+    );
+    assert!(!dir.join("t.png").exists());
+    let o = run_capped(&["compare", "text.png", "small.png"], &dir, 256);
+    refused(&o, "text.png: has more than 65536 chunks", "compare");
+}
+
 #[test]
 fn texture_files_a_stranger_names_are_refused_with_the_reason_within_bounds() {
     let dir = temp_dir("hostile-textures");
