@@ -24,6 +24,10 @@ pub const MAX_PIXELS: u64 = 1 << 28;
 /// sample can cost (a path inside a closed mirror or an inside-out sphere goes on to it;
 /// a render stops between pixels, not within a path).
 pub const MAX_DEPTH: u32 = 1 << 16;
+/// The most noise textures a scene may have: each draws its own tables (4.8 KB, some 1,500
+/// draws), so 250,000 of them in a 12 MB scene once took 1 GB beside the parser's 0.5 GB.
+/// The books' scenes have one or two; these take 20 MB at most.
+pub const MAX_NOISE_TEXTURES: usize = 1 << 12;
 
 /// Settings given on the command line that replace the file's.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -178,6 +182,8 @@ struct Textures {
     images: BTreeMap<String, (ImageTexture, u128)>,
     /// What the files read so far leave of `MAX_SCENE_TEXTURE_PIXELS`.
     pixels_left: u64,
+    /// The noise textures built so far, at most `MAX_NOISE_TEXTURES`.
+    noises: usize,
 }
 
 impl Textures {
@@ -199,6 +205,7 @@ impl Textures {
             files: Vec::new(),
             images: BTreeMap::new(),
             pixels_left: MAX_SCENE_TEXTURE_PIXELS,
+            noises: 0,
         };
         // Placeholders, so checkers may name any texture; each is replaced below.
         t.table
@@ -289,6 +296,17 @@ impl Textures {
                 let allowed = ["noise", "scale", "generator", "seed", "skip", "draw_order"];
                 only_fields(ck, &prefix, kind, &allowed, &present)?;
                 let noise = required(ck, d.noise.as_ref(), t.span(), &field("noise"), kind)?;
+                if self.noises == MAX_NOISE_TEXTURES {
+                    return Err(ck.error(
+                        t.span(),
+                        &prefix,
+                        format!(
+                            "is one noise texture more than the {MAX_NOISE_TEXTURES} a scene \
+                             may have (each draws its own tables)"
+                        ),
+                    ));
+                }
+                self.noises += 1;
                 let scale = match &d.scale {
                     None => 1.0,
                     Some(s) => ck.in_range(

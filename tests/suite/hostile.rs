@@ -1251,3 +1251,33 @@ fn a_long_chain_of_checkers_is_checked_in_linear_time_and_a_long_cycle_found() {
         "a cycle of 3000",
     );
 }
+
+/// Each noise texture draws its own 4.8 KB of tables: 250,000 of them, 12 MB of scene within
+/// its bound on values, once took 1.5 GB. A scene has at most 4,096, and the one over is
+/// refused by name before its tables are drawn.
+#[test]
+fn a_scene_of_many_noise_textures_is_refused_at_the_one_over_the_bound() {
+    let dir = temp_dir("hostile-noises");
+    let noises = |n: usize| {
+        let mut t = String::from(
+            "[image]\nwidth = 8\nheight = 8\nsamples_per_pixel = 1\nmax_depth = 2\n\
+             [materials.m]\ntype = \"lambertian\"\nalbedo = \"t0000\"\n\
+             [[spheres]]\ncenter = [0, 0, -1]\nradius = 0.5\nmaterial = \"m\"\n",
+        );
+        for i in 0..n {
+            t.push_str(&format!(
+                "[textures.t{i:04}]\ntype = \"noise\"\nnoise = \"perlin\"\nseed = {i}\n"
+            ));
+        }
+        t
+    };
+    std::fs::write(dir.join("within.toml"), noises(4096)).unwrap();
+    ok(&["render", "within.toml", "-o", "within.png", "-q"], &dir);
+    std::fs::write(dir.join("over.toml"), noises(4097)).unwrap();
+    refused(
+        &run(&["render", "over.toml", "-o", "over.png"], &dir),
+        "field `textures.t4096`: is one noise texture more than the 4096 a scene may have",
+        "4097 noise textures",
+    );
+    assert!(!dir.join("over.png").exists());
+}
