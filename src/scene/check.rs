@@ -201,7 +201,8 @@ impl<'a> Checker<'a> {
                 v.span(),
                 field,
                 format!(
-                    "must be a range [low, high] of finite numbers within ±{MAX_LENGTH:e}, low                      at most high, got [{}, {}]",
+                    "must be a range [low, high] of finite numbers within ±{MAX_LENGTH:e}, low at \
+                     most high, got [{}, {}]",
                     plain(a),
                     plain(b)
                 ),

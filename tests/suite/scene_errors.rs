@@ -191,6 +191,18 @@ fn nan_and_infinity_are_rejected() {
         &GOOD.replace("[0.0, 0.0, -1.0]", "[0.0, inf, -1.0]"),
         &["scene.toml:12:10", "spheres[0].center", "finite"],
     );
+    // A range's message reads as one sentence, without a run of the source's indentation.
+    assert_rejected(
+        "inf-move-times",
+        &GOOD.replace(
+            "radius = 0.5",
+            "radius = 0.5\ncenter2 = [0.0, 1.0, -1.0]\nmove_times = [0.0, inf]",
+        ),
+        &[
+            "spheres[0].move_times",
+            "within ±1e18, low at most high, got [0, inf]",
+        ],
+    );
 }
 
 #[test]
