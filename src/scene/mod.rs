@@ -228,16 +228,24 @@ impl Scene {
                 },
             }
         };
-        if let Some(offset) = values::past_the_bound(text) {
-            return Err(Error::SceneSyntax {
-                path: path.to_owned(),
-                at: Location::of_offset(text, offset),
-                message: format!(
+        if let Some((offset, bound)) = values::past_the_bound(text) {
+            let message = match bound {
+                values::Bound::Values => format!(
                     "more than {} values, tables and arrays (commas, equals signs, dots, \
                      brackets and braces) in one scene file; a scene of more spheres draws \
                      them with a generator",
                     values::MAX_SCENE_VALUES
                 ),
+                values::Bound::Tokens => format!(
+                    "more than {} words, strings, comments, line ends and runs of blanks in \
+                     one scene file",
+                    values::MAX_SCENE_TOKENS
+                ),
+            };
+            return Err(Error::SceneSyntax {
+                path: path.to_owned(),
+                at: Location::of_offset(text, offset),
+                message,
             });
         }
         let document = toml::Deserializer::parse(text).map_err(|e| syntax(&e, None))?;

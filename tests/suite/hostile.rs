@@ -1216,6 +1216,45 @@ fn a_scene_of_millions_of_small_values_is_refused_before_it_is_parsed() {
     assert!(!dir.join("n.png").exists() && !dir.join("t.png").exists());
 }
 
+/// The TOML parser lexes the whole text before it parses any of it, keeping 48 bytes for
+/// each token: 60 MB of empty lines took 2.9 GB and rendered, 60 MB of bare carriage
+/// returns 2.9 GB before the error on the first. Line ends, words, strings, comments and
+/// runs of blanks are counted with the values, and refused past 2^22 where they go over.
+#[test]
+fn a_scene_of_millions_of_empty_lines_or_words_is_refused_before_it_is_parsed() {
+    let dir = temp_dir("hostile-tokens");
+    let head = "[image]\nwidth = 8\nheight = 8\nsamples_per_pixel = 1\nmax_depth = 1\n";
+    let cases = [
+        ("lines", "\n".repeat(20_000_000), "lines.toml:4194288:1: "),
+        (
+            "returns",
+            "\r".repeat(20_000_000),
+            "returns.toml:6:4194283: ",
+        ),
+        ("words", "a ".repeat(10_000_000), "words.toml:6:4194283: "),
+        (
+            "comments",
+            "#\n".repeat(10_000_000),
+            "comments.toml:2097147:1: ",
+        ),
+    ];
+    for (name, tail, at) in cases {
+        let file = format!("{name}.toml");
+        std::fs::write(dir.join(&file), format!("{head}{tail}")).unwrap();
+        let o = run_capped(&["render", &file, "-o", "out.png"], &dir, 512);
+        refused(
+            &o,
+            &format!("{at}more than 4194304 words, strings, comments, line ends and runs"),
+            name,
+        );
+    }
+    assert!(!dir.join("out.png").exists());
+    // Within the bound, blank lines are only blank lines.
+    let blank = format!("{head}{}", "\n".repeat(4_000_000));
+    std::fs::write(dir.join("blank.toml"), blank).unwrap();
+    ok(&["render", "blank.toml", "-q", "-o", "blank.png"], &dir);
+}
+
 #[test]
 fn a_long_chain_of_checkers_is_checked_in_linear_time_and_a_long_cycle_found() {
     let dir = temp_dir("hostile-chain");
