@@ -415,6 +415,49 @@ fn png_with_recipe(png: &[u8], recipe: &serde_json::Value) -> Vec<u8> {
     png_with_chunks(&kept, &png_chunk(b"iTXt", &data))
 }
 
+/// A recipe may list 256 texture files, each read whole and hashed before its scene is
+/// built: 256 spellings of one 48 MB file (`big.png`, `./big.png`, `.//big.png`, …) once read
+/// 12 GB, 17 s. A file is read once however it is spelt, so 256 names cost about what one
+/// does.
+#[test]
+fn a_recipe_naming_one_texture_file_many_ways_reads_it_once() {
+    let dir = temp_dir("hostile-recipe-spellings");
+    let png = std::fs::read(rendered(&dir, "a.png")).unwrap();
+    let big = vec![7u8; 32 << 20];
+    std::fs::write(dir.join("big.png"), &big).unwrap();
+    let hash = format!("xxh3-128:{:032x}", xxhash_rust::xxh3::xxh3_128(&big));
+    let mut recipe = recipe_json(&dir, "a.png");
+    let mut timed = |name: &str, names: Vec<String>| {
+        recipe["textures"] = names
+            .iter()
+            .map(|n| serde_json::json!({"name": n, "hash": hash}))
+            .collect();
+        std::fs::write(dir.join(name), png_with_recipe(&png, &recipe)).unwrap();
+        let started = std::time::Instant::now();
+        let o = run(&["reproduce", name, "-q"], &dir);
+        // The image's scene names no texture: refused once every file is checked.
+        refused(
+            &o,
+            "its recipe's texture files are not those its scene reads",
+            name,
+        );
+        started.elapsed()
+    };
+    let once = timed("once.png", vec!["big.png".into()]);
+    // `.` or `./.`, one to 128 slashes, the name: 256 names within a name's 255 bytes.
+    let spellings = (0..256)
+        .map(|k| {
+            let dot = if k < 128 { "." } else { "./." };
+            format!("{dot}{}big.png", "/".repeat(k % 128 + 1))
+        })
+        .collect();
+    let many = timed("many.png", spellings);
+    assert!(
+        many < once * 4 + std::time::Duration::from_secs(1),
+        "256 names of one file took {many:?}, one {once:?}"
+    );
+}
+
 /// Characters that rewrite a terminal or hide text.
 const INVISIBLE: [char; 7] = [
     '\u{1b}', '\u{7}', '\u{9b}', '\u{61c}', '\u{2028}', '\u{2029}', '\u{feff}',
