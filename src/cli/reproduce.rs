@@ -137,7 +137,15 @@ pub fn info(args: InfoArgs) -> Result<ExitCode> {
 pub fn run(args: Args) -> Result<ExitCode> {
     let image = &args.image;
     let (header, recipe) = recipe_of(image)?;
+    let same = |a: &Path, b: &Path| matches!((a.canonicalize(), b.canonicalize()), (Ok(a), Ok(b)) if a == b);
     if let Some(file) = &args.extract_scene {
+        if same(file, image) {
+            bail!(
+                "--extract-scene {} names the image being checked: write the scene to another \
+                 file",
+                file.display()
+            );
+        }
         check_output(file)?;
         tessera::atomic_file::write_atomically_with(file, &mut |w| {
             w.write_all(recipe.scene.text.as_bytes())
@@ -151,7 +159,6 @@ pub fn run(args: Args) -> Result<ExitCode> {
         return Ok(ExitCode::SUCCESS);
     }
     if let Some(file) = &args.output {
-        let same = |a: &Path, b: &Path| matches!((a.canonicalize(), b.canonicalize()), (Ok(a), Ok(b)) if a == b);
         if same(file, image) {
             bail!(
                 "-o {} names the image being checked: write the render to another file",

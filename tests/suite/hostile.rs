@@ -1223,6 +1223,12 @@ fn a_stranger_s_scene_or_recipe_reads_nothing_outside_and_holds_its_size() {
         "names the image being checked",
         "reproduce -o itself",
     );
+    // So is --extract-scene naming it, which once wrote the scene's text over the image.
+    refused(
+        &run(&["reproduce", "a.png", "--extract-scene", "./a.png"], &dir),
+        "--extract-scene ./a.png names the image being checked",
+        "reproduce --extract-scene itself",
+    );
     assert_eq!(std::fs::read(dir.join("a.png")).unwrap(), png);
 }
 

@@ -548,12 +548,41 @@ fn bad_preview_addresses_are_errors_before_the_render() {
         &["--preview-every", "5"],
         &["--preview-hold"],
     ] {
-        let mut all = vec!["render", "--width", "32", "-o", "x.png"];
+        let scene = cover();
+        let mut all = vec!["render", &scene, "--width", "32", "-o", "x.png"];
         all.extend_from_slice(args);
         let o = run(&all, &dir);
         assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(!stderr(&o).contains("no such scene file"), "{}", stderr(&o));
         assert!(!dir.join("x.png").exists());
     }
+    // A preview file is not the output, however spelt: the image would hold part of the
+    // render while it runs, and after Ctrl-C.
+    std::fs::write(dir.join("x.png"), b"an earlier image").unwrap();
+    let scene = cover();
+    let o = run(
+        &[
+            "render",
+            &scene,
+            "--width",
+            "32",
+            "-o",
+            "x.png",
+            "--preview-file",
+            "./x.png",
+        ],
+        &dir,
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("--preview-file ./x.png names the render's output"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(
+        std::fs::read(dir.join("x.png")).unwrap(),
+        b"an earlier image"
+    );
 }
 
 #[test]

@@ -243,6 +243,16 @@ impl RenderPlan {
         {
             check_output(&c.path)?;
         }
+        // A preview written where the image goes would replace an earlier image with part of
+        // a render, and leave it so if the render stops.
+        if let Some(path) = &args.preview.preview_file
+            && same_file(path, output.path())
+        {
+            bail!(
+                "--preview-file {} names the render's output: give the preview a file of its own",
+                path.display()
+            );
+        }
         // Last, so that the port is taken only once everything else is known to be right.
         let preview = PreviewSettings::new(&args.preview)?;
         Ok(Self {
@@ -368,6 +378,19 @@ fn default_output(scene: &Path) -> PathBuf {
     let mut name = stem;
     name.push(".png");
     PathBuf::from(name)
+}
+
+/// Whether `a` and `b` name one file, whether or not it exists yet: the same name in the
+/// same directory, however the directory is spelt.
+fn same_file(a: &Path, b: &Path) -> bool {
+    let place = |p: &Path| {
+        let dir = match p.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        Some((dir.canonicalize().ok()?, p.file_name()?.to_owned()))
+    };
+    matches!((place(a), place(b)), (Some(a), Some(b)) if a == b)
 }
 
 #[cfg(test)]
