@@ -27,6 +27,8 @@ struct QuadRow {
     along_v: [f32; 3],
     /// The quad's index among the scene's quads, as a float.
     index: f32,
+    /// Its id's bits as a float's, moved (never computed with) into the lanes that hit it.
+    id_bits: f32,
 }
 
 /// The quads of a scene small enough to test every one against every ray.
@@ -108,7 +110,8 @@ struct HalfLanes<I: Isa> {
     t_min: Lanes<I>,
     skip: Lanes<I>,
     closest: Lanes<I>,
-    /// The index of the quad found, as a float; -1 for none.
+    /// The id of the quad found, its bits as a float's (`QuadRow::id_bits`); `NO_HIT`'s
+    /// for none.
     found: Lanes<I>,
 }
 
@@ -122,7 +125,7 @@ impl<I: Isa> HalfLanes<I> {
             t_min: Lanes::load(isa, &h.t_min),
             skip: Lanes::load(isa, &h.skip),
             closest: Lanes::load(isa, &h.t_max),
-            found: Lanes::splat(isa, -1.0),
+            found: Lanes::splat(isa, f32::from_bits(NO_HIT)),
         }
     }
 
@@ -149,17 +152,13 @@ impl<I: Isa> HalfLanes<I> {
         let apart = self.skip - index;
         let not_left = apart.fast_max(-apart).simd_ge(s(0.5));
         let (a, b) = (a0 + t * da, b0 + t * db);
-        let (zero, one) = (s(0.0), s(1.0));
-        let hit = self.t_min.simd_lt(t)
-            & t.simd_lt(self.closest)
-            & a.simd_ge(zero)
-            & a.simd_le(one)
-            & b.simd_ge(zero)
-            & b.simd_le(one)
-            & facing
-            & not_left;
+        // Both edge coordinates in [0, 1] as the least at least 0 and the greatest at most
+        // 1: the same lanes, as `a` or `b` is NaN only where `t` is infinite, which the
+        // interval refuses anyway.
+        let inside = a.fast_min(b).simd_ge(s(0.0)) & a.fast_max(b).simd_le(s(1.0));
+        let hit = self.t_min.simd_lt(t) & t.simd_lt(self.closest) & inside & facing & not_left;
         self.closest = hit.select(t, self.closest);
-        self.found = hit.select(index, self.found);
+        self.found = hit.select(s(q.id_bits), self.found);
     }
 }
 
@@ -181,6 +180,7 @@ impl QuadBatch {
                     along_u: along_u.to_array(),
                     along_v: along_v.to_array(),
                     index: index as f32,
+                    id_bits: f32::from_bits(PrimitiveId::QUADS + index as u32),
                 }
             })
             .collect();
@@ -201,11 +201,7 @@ impl QuadBatch {
         let mut ids = [NO_HIT; BATCH];
         for (i, h) in [low, high].iter().enumerate() {
             t[i * HALF..][..HALF].copy_from_slice(&h.closest.to_array());
-            for (id, f) in ids[i * HALF..][..HALF].iter_mut().zip(h.found.to_array()) {
-                if f >= 0.0 {
-                    *id = PrimitiveId::QUADS + f as u32;
-                }
-            }
+            ids[i * HALF..][..HALF].copy_from_slice(&h.found.to_array().map(f32::to_bits));
         }
         (t, ids)
     }
