@@ -658,15 +658,7 @@ fn a_batch_of_rays_finds_what_each_ray_s_walk_finds() {
                     Interval::new(rng.range(0.0, 1.0), rng.range(1.0, 900.0))
                 };
                 // Leaving the quad it hits from behind, or one at random, or none.
-                let hit = bvh.walk(
-                    Portable,
-                    &ray,
-                    Moment::default(),
-                    interval,
-                    &mut stack,
-                    RayHints::default(),
-                    false,
-                );
+                let hit = bvh.intersect_with(&ray, interval, &mut stack, RayHints::default());
                 let leaving = match (rng.uniform() < 0.5, hit) {
                     (true, Some((_, id))) => Leaving(id.0),
                     (false, _) if rng.uniform() < 0.5 => Leaving(
@@ -680,15 +672,7 @@ fn a_batch_of_rays_finds_what_each_ray_s_walk_finds() {
                     ..RayHints::default()
                 };
                 rays.set(lane, &ray, interval, leaving.id());
-                let got = bvh.walk(
-                    Portable,
-                    &ray,
-                    Moment::default(),
-                    interval,
-                    &mut stack,
-                    hints,
-                    false,
-                );
+                let got = bvh.intersect_with(&ray, interval, &mut stack, hints);
                 if let Some((t, id)) = got {
                     *want = (t, id.0);
                 }

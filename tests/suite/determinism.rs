@@ -114,6 +114,63 @@ fn cropped_regions_equal_the_whole(name: &str) {
     }
 }
 
+/// Renders samples `range` of `tile` on every SIMD path this CPU runs, which must agree,
+/// and checks the sums and ray count against each sample traced alone through the tree (the
+/// reference, on the portable path); `what` names the case in a failure.
+fn tile_equals_each_sample_alone(
+    scene: &tessera::scene::Scene,
+    tile: &PixelRect,
+    range: tessera::job::SampleRange,
+    what: &str,
+) {
+    use tessera::film::to_fixed;
+    use tessera::integrator::PixelEvaluator;
+    use tessera::job::SampleRange;
+    use tessera::render::render_tile;
+    use tessera::simd::{Path, Portable};
+    let paths = Path::supported();
+    let fast = render_tile(scene, tile, range, *paths.last().unwrap());
+    for &path in &paths {
+        let on_path = render_tile(scene, tile, range, path);
+        assert_eq!(on_path.sums, fast.sums, "{what} {path}");
+        assert_eq!(on_path.rays, fast.rays, "{what} {path}");
+    }
+    let mut alone = PixelEvaluator::with_candidates(Portable, scene, None);
+    let mut rays = 0u64;
+    for (i, y) in (tile.y0..tile.y0 + tile.height).enumerate() {
+        for (j, x) in (tile.x0..tile.x0 + tile.width).enumerate() {
+            let mut sum = [0u64; 3];
+            for start in range.start..range.end {
+                let one = SampleRange {
+                    start,
+                    end: start + 1,
+                };
+                alone.evaluate(x, y, one, |c, r| {
+                    sum[0] += to_fixed(c.x);
+                    sum[1] += to_fixed(c.y);
+                    sum[2] += to_fixed(c.z);
+                    rays += u64::from(r);
+                });
+            }
+            let pixel = i * tile.width as usize + j;
+            assert_eq!(
+                fast.sums[pixel], sum,
+                "{what}: pixel ({x}, {y}) of {tile:?}"
+            );
+        }
+    }
+    assert_eq!(fast.rays, rays, "{what}: {tile:?}");
+}
+
+fn rect(x0: u32, y0: u32, width: u32, height: u32) -> PixelRect {
+    PixelRect {
+        x0,
+        y0,
+        width,
+        height,
+    }
+}
+
 /// The renderer tests a tile's camera rays against the few spheres picked for it
 /// (`integrator::tile_candidates`) and makes each sample's camera ray while the one before is
 /// traced. Tracing each sample alone (a range of one) through the whole hierarchy, the simple
@@ -121,11 +178,8 @@ fn cropped_regions_equal_the_whole(name: &str) {
 /// every SIMD path this CPU runs.
 #[test]
 fn fast_tile_tracer_equals_tracing_each_sample_alone() {
-    use tessera::film::to_fixed;
-    use tessera::integrator::{PixelEvaluator, tile_candidates};
+    use tessera::integrator::tile_candidates;
     use tessera::job::SampleRange;
-    use tessera::render::render_tile;
-    use tessera::simd::{Path, Portable};
     let scene = load(
         &scene_path("cover.toml"),
         Overrides {
@@ -134,12 +188,6 @@ fn fast_tile_tracer_equals_tracing_each_sample_alone() {
         },
     );
     let range = SampleRange { start: 5, end: 9 };
-    let rect = |x0, y0, width, height| PixelRect {
-        x0,
-        y0,
-        width,
-        height,
-    };
     // Sky, the three big spheres, the field of small ones, the ground near the camera, an
     // odd-sized tile, and one too wide for a candidate list.
     let tiles = [
@@ -150,38 +198,10 @@ fn fast_tile_tracer_equals_tracing_each_sample_alone() {
         rect(37, 101, 9, 13),
         rect(0, 100, 300, 8),
     ];
-    let mut alone = PixelEvaluator::with_candidates(Portable, &scene, None);
     let mut listed = 0;
     for tile in &tiles {
         listed += usize::from(tile_candidates(&scene, tile).is_some());
-        let paths = Path::supported();
-        let fast = render_tile(&scene, tile, range, *paths.last().unwrap());
-        for &path in &paths {
-            let on_path = render_tile(&scene, tile, range, path);
-            assert_eq!(on_path.sums, fast.sums, "{path}");
-            assert_eq!(on_path.rays, fast.rays, "{path}");
-        }
-        let mut rays = 0u64;
-        for (i, y) in (tile.y0..tile.y0 + tile.height).enumerate() {
-            for (j, x) in (tile.x0..tile.x0 + tile.width).enumerate() {
-                let mut sum = [0u64; 3];
-                for start in range.start..range.end {
-                    let one = SampleRange {
-                        start,
-                        end: start + 1,
-                    };
-                    alone.evaluate(x, y, one, |c, r| {
-                        sum[0] += to_fixed(c.x);
-                        sum[1] += to_fixed(c.y);
-                        sum[2] += to_fixed(c.z);
-                        rays += u64::from(r);
-                    });
-                }
-                let pixel = i * tile.width as usize + j;
-                assert_eq!(fast.sums[pixel], sum, "pixel ({x}, {y}) of {tile:?}");
-            }
-        }
-        assert_eq!(fast.rays, rays, "{tile:?}");
+        tile_equals_each_sample_alone(&scene, tile, range, "cover");
     }
     assert!(listed >= 4, "only {listed} tiles had candidate lists");
     assert!(tile_candidates(&scene, &tiles[5]).is_none());
@@ -189,21 +209,11 @@ fn fast_tile_tracer_equals_tracing_each_sample_alone() {
 
 #[test]
 fn paths_traced_sixteen_at_a_time_equal_tracing_each_sample_alone() {
-    // The Cornell box with its blocks, and with its smoke (media): a tile's paths go sixteen at
-    // a time (`integrator::trace_tile`), each lane taking the next sample as its path ends;
-    // every pixel's sums and the ray count must be those of each sample traced alone, on
-    // every SIMD path, whatever the tile's shape and the samples' range.
-    use tessera::film::to_fixed;
-    use tessera::integrator::PixelEvaluator;
+    // The Cornell box with its blocks, and with its smoke (media): a tile's paths go sixteen
+    // at a time (`integrator::trace_tile`), each lane taking the next sample as its path
+    // ends; every pixel's sums and the ray count must be those of each sample traced alone,
+    // on every SIMD path, whatever the tile's shape and the samples' range.
     use tessera::job::SampleRange;
-    use tessera::render::render_tile;
-    use tessera::simd::{Path, Portable};
-    let rect = |x0, y0, width, height| PixelRect {
-        x0,
-        y0,
-        width,
-        height,
-    };
     for name in [
         "img-2.20-cornell-standard.toml",
         "img-2.21-cornell-smoke.toml",
@@ -216,7 +226,6 @@ fn paths_traced_sixteen_at_a_time_equal_tracing_each_sample_alone() {
             },
         );
         assert!(scene.batches_paths(), "{name}");
-        let mut alone = PixelEvaluator::with_candidates(Portable, &scene, None);
         // A corner, the lamp's rows, a block, one pixel, a row, and fewer pixels than lanes.
         let tiles = [
             rect(0, 0, 16, 16),
@@ -226,45 +235,9 @@ fn paths_traced_sixteen_at_a_time_equal_tracing_each_sample_alone() {
             rect(0, 30, 60, 1),
             rect(10, 10, 3, 2),
         ];
-        for (tile, range) in tiles
-            .iter()
-            .zip([(0, 4), (3, 10), (0, 1), (5, 25), (1, 3), (0, 2)])
-        {
-            let range = SampleRange {
-                start: range.0,
-                end: range.1,
-            };
-            let paths = Path::supported();
-            let fast = render_tile(&scene, tile, range, *paths.last().unwrap());
-            for &path in &paths {
-                let on_path = render_tile(&scene, tile, range, path);
-                assert_eq!(on_path.sums, fast.sums, "{name} {path}");
-                assert_eq!(on_path.rays, fast.rays, "{name} {path}");
-            }
-            let mut rays = 0u64;
-            for (i, y) in (tile.y0..tile.y0 + tile.height).enumerate() {
-                for (j, x) in (tile.x0..tile.x0 + tile.width).enumerate() {
-                    let mut sum = [0u64; 3];
-                    for start in range.start..range.end {
-                        let one = SampleRange {
-                            start,
-                            end: start + 1,
-                        };
-                        alone.evaluate(x, y, one, |c, r| {
-                            sum[0] += to_fixed(c.x);
-                            sum[1] += to_fixed(c.y);
-                            sum[2] += to_fixed(c.z);
-                            rays += u64::from(r);
-                        });
-                    }
-                    let pixel = i * tile.width as usize + j;
-                    assert_eq!(
-                        fast.sums[pixel], sum,
-                        "{name}: pixel ({x}, {y}) of {tile:?}"
-                    );
-                }
-            }
-            assert_eq!(fast.rays, rays, "{name} {tile:?}");
+        let ranges = [(0, 4), (3, 10), (0, 1), (5, 25), (1, 3), (0, 2)];
+        for (tile, (start, end)) in tiles.iter().zip(ranges) {
+            tile_equals_each_sample_alone(&scene, tile, SampleRange { start, end }, name);
         }
     }
 }
