@@ -4,7 +4,7 @@
 //! the file's length before it is read. It gives the image's size, the recipe's text and the
 //! attributes that change how a viewer shows the picture.
 
-use crate::recipe;
+use crate::metadata as recipe;
 use std::io::Read;
 
 /// The most attributes a header may have: tessera writes about ten.

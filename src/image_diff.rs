@@ -83,7 +83,7 @@ impl RgbImage {
             // bounds first, and the file read again from its start.
             let mut file = reader.into_inner();
             if format == image::ImageFormat::Png {
-                crate::image_file::png_header(&mut file, len).map_err(fail)?;
+                crate::png_header::read(&mut file, len).map_err(fail)?;
             } else {
                 crate::exr_header::check_bounds(&mut file, len).map_err(fail)?;
             }

@@ -15,11 +15,7 @@ use std::path::{Path, PathBuf};
 /// The recipe's format, and the one this tessera reads.
 pub const SCHEMA: &str = "tessera-recipe/1";
 const SCHEMA_PREFIX: &str = "tessera-recipe/";
-/// The PNG text chunk's keyword and the EXR header attribute's name.
-pub const KEY: &str = "tessera-recipe";
-/// The most bytes a recipe may take once decompressed: the cover's is 3 KiB. A chunk that
-/// inflates beyond this is refused before it is inflated further.
-pub const MAX_BYTES: usize = 1 << 20;
+pub use crate::metadata::{KEY, MAX_BYTES};
 /// The longest scene file name a recipe may give.
 const MAX_NAME: usize = 255;
 /// The most texture files a recipe may list.

@@ -175,7 +175,7 @@ pub fn decode(bytes: &[u8], pixels_left: u64) -> Result<ImageTexture, String> {
         }
         // The PNG decoder keeps every text chunk before the pixels, whatever their count.
         Some(image::ImageFormat::Png) => {
-            crate::image_file::png_header_of(bytes)?;
+            crate::png_header::read(std::io::Cursor::new(bytes), bytes.len() as u64)?;
         }
         // The `exr` crate keeps every attribute of a header, whatever its count.
         Some(image::ImageFormat::OpenExr) => {
