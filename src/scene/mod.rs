@@ -237,8 +237,8 @@ impl Scene {
                     values::MAX_SCENE_VALUES
                 ),
                 values::Bound::Tokens => format!(
-                    "more than {} words, strings, comments, line ends and runs of blanks in \
-                     one scene file",
+                    "more than {} words, strings, comments, line ends, runs of blanks and \
+                     closing brackets in one scene file",
                     values::MAX_SCENE_TOKENS
                 ),
             };

@@ -14,9 +14,10 @@
 pub const MAX_SCENE_VALUES: u64 = 1 << 20;
 
 /// The most other tokens a scene file may hold: words (keys, numbers, `true`), strings,
-/// comments, line ends, bare carriage returns and runs of blanks, each of which the parser
-/// keeps (48 bytes, so at most 200 MB). A sphere written out takes about 25, a value in an
-/// array two: a file within `MAX_SCENE_VALUES` stays within this.
+/// comments, line ends, bare carriage returns, runs of blanks and closing brackets and
+/// braces, each of which the parser keeps (48 bytes, so at most 200 MB). A sphere written
+/// out takes about 28, a value in an array two: a file within `MAX_SCENE_VALUES` stays
+/// within this.
 pub const MAX_SCENE_TOKENS: u64 = 1 << 22;
 
 /// Which bound a scene's text goes past.
@@ -28,116 +29,107 @@ pub enum Bound {
     Tokens,
 }
 
-/// What a byte outside strings and comments starts, for counting runs of them as one token.
-#[derive(Clone, Copy, PartialEq, Eq)]
-enum Run {
-    None,
-    Blanks,
-    Word,
-}
+/// The bytes that end a word (the TOML lexer's atom): a quote does not, so `b"` is one word.
+const WORD_ENDS: &[u8] = b".=,[]{} \t#\r\n";
 
 /// The byte offset in `text` where it goes past `MAX_SCENE_VALUES` (the comma, equals sign,
 /// dot, bracket or brace that does) or `MAX_SCENE_TOKENS` (the token that does), and which,
-/// if it does. A string left open ends the count: the parser then says what is wrong with
-/// it.
+/// if it does. The text is cut into tokens as the TOML lexer (`toml_parser`) cuts it, which
+/// it does to the whole text before the parser looks at any: a string on one line ends at
+/// the line's end, a comment at a carriage return, a quote inside a word is the word's, and
+/// each closing bracket or brace is a token. Read any other way, what the lexer keeps could
+/// hide from the count (inside what the count took for a string, or in a run of `]`).
 pub fn past_the_bound(text: &str) -> Option<(usize, Bound)> {
     let bytes = text.as_bytes();
     let (mut values, mut tokens) = (0u64, 0u64);
-    let mut run = Run::None;
     let mut at = 0;
     while at < bytes.len() {
         let start = at;
-        // Each token but a value's separator, and what comes after it.
-        let (token, next) = match bytes[at] {
-            b'#' => {
-                at = end_of_line(bytes, at);
-                (true, Run::None)
-            }
-            b'"' if bytes[at..].starts_with(b"\"\"\"") => {
-                at = end_of_string(bytes, at + 3, b"\"\"\"", true)?;
-                (true, Run::None)
-            }
-            b'"' => {
-                at = end_of_string(bytes, at + 1, b"\"", true)?;
-                (true, Run::None)
-            }
-            b'\'' if bytes[at..].starts_with(b"'''") => {
-                at = end_of_string(bytes, at + 3, b"'''", false)?;
-                (true, Run::None)
-            }
-            b'\'' => {
-                at = end_of_string(bytes, at + 1, b"\'", false)?;
-                (true, Run::None)
-            }
+        at = match bytes[at] {
             b',' | b'=' | b'[' | b'{' | b'.' => {
                 values += 1;
                 if values > MAX_SCENE_VALUES {
                     return Some((at, Bound::Values));
                 }
+                // A value's separator or opening: counted as a value, not again as a token.
                 at += 1;
-                (false, Run::None)
+                continue;
             }
-            // A line end, CRLF as one; a carriage return alone is a token of its own.
-            b'\r' if bytes.get(at + 1) == Some(&b'\n') => {
-                at += 2;
-                (true, Run::None)
-            }
-            b'\n' | b'\r' => {
-                at += 1;
-                (true, Run::None)
-            }
-            b' ' | b'\t' => {
-                at += 1;
-                (run != Run::Blanks, Run::Blanks)
-            }
-            _ => {
-                at += 1;
-                (run != Run::Word, Run::Word)
-            }
+            b']' | b'}' | b'\n' => at + 1,
+            b'\r' if bytes.get(at + 1) == Some(&b'\n') => at + 2,
+            b'\r' => at + 1,
+            b' ' | b'\t' => run_end(bytes, at, |b| b != b' ' && b != b'\t'),
+            b'#' => run_end(bytes, at, |b| b == b'\r' || b == b'\n'),
+            b'"' if bytes[at..].starts_with(b"\"\"\"") => multi_line_end(bytes, at + 3, b'"'),
+            b'\'' if bytes[at..].starts_with(b"\'\'\'") => multi_line_end(bytes, at + 3, b'\''),
+            b'"' => basic_string_end(bytes, at + 1),
+            b'\'' => match bytes[at + 1..]
+                .iter()
+                .position(|&b| b == b'\'' || b == b'\n')
+            {
+                // Past the closing quote, or at the line end that cuts the string short.
+                Some(n) => at + 1 + n + usize::from(bytes[at + 1 + n] == b'\''),
+                None => bytes.len(),
+            },
+            _ => run_end(bytes, at, |b| WORD_ENDS.contains(&b)),
         };
-        run = next;
-        if token {
-            tokens += 1;
-            if tokens > MAX_SCENE_TOKENS {
-                return Some((start, Bound::Tokens));
-            }
+        tokens += 1;
+        if tokens > MAX_SCENE_TOKENS {
+            return Some((start, Bound::Tokens));
         }
     }
     None
 }
 
-/// The offset of the newline ending the comment at `at` (or the end of the text).
-fn end_of_line(bytes: &[u8], at: usize) -> usize {
-    bytes[at..]
+/// The offset of the first byte after `at` for which `ends` holds (or the text's end).
+fn run_end(bytes: &[u8], at: usize, ends: impl Fn(u8) -> bool) -> usize {
+    bytes[at + 1..]
         .iter()
-        .position(|&b| b == b'\n')
-        .map_or(bytes.len(), |n| at + n)
+        .position(|&b| ends(b))
+        .map_or(bytes.len(), |n| at + 1 + n)
 }
 
-/// The offset just past the `close` that ends a string whose text starts at `at`; `escapes`
-/// for a basic string, where a backslash takes the next byte with it. None when the string
-/// never ends. A multi-line string's closing quotes may be followed by one or two more,
-/// which are its text (`'''a''''` is `a'`).
-fn end_of_string(bytes: &[u8], mut at: usize, close: &[u8], escapes: bool) -> Option<usize> {
+/// The offset just past a basic string on one line whose text starts at `at`: past its
+/// closing quote, or at the line end that cuts it short, or the text's end. A backslash
+/// takes a following backslash or quote with it, as the lexer's does; not a line end.
+fn basic_string_end(bytes: &[u8], mut at: usize) -> usize {
     while at < bytes.len() {
-        if escapes && bytes[at] == b'\\' {
-            at += 2;
-        } else if bytes[at..].starts_with(close) {
-            let mut end = at + close.len();
-            if close.len() == 3 {
-                let quote = close[0];
-                for _ in 0..2 {
-                    if bytes.get(end) == Some(&quote) {
-                        end += 1;
-                    }
+        match bytes[at] {
+            b'"' => return at + 1,
+            b'\n' => return at,
+            b'\\' if matches!(bytes.get(at + 1), Some(b'\\' | b'"')) => at += 2,
+            _ => at += 1,
+        }
+    }
+    bytes.len()
+}
+
+/// The offset just past a multi-line string whose text starts at `at`, closed by three
+/// `quote`s (or the text's end, where the lexer takes the rest as the string too). In a
+/// basic one (`"`) a backslash takes a following backslash or quote with it. The closing
+/// quotes may be followed by one or two more, which are its text (`'''a''''` is `a'`).
+fn multi_line_end(bytes: &[u8], mut at: usize, quote: u8) -> usize {
+    let close = [quote; 3];
+    while at < bytes.len() {
+        if quote == b'"' && bytes[at] == b'\\' {
+            at += if matches!(bytes.get(at + 1), Some(b'\\' | b'"')) {
+                2
+            } else {
+                1
+            };
+        } else if bytes[at..].starts_with(&close) {
+            let mut end = at + 3;
+            for _ in 0..2 {
+                if bytes.get(end) == Some(&quote) {
+                    end += 1;
                 }
             }
-            return Some(end);
+            return end;
         } else {
             at += 1;
         }
     }
-    None
+    bytes.len()
 }
 
 #[cfg(test)]
@@ -203,6 +195,45 @@ mod tests {
     fn an_open_string_ends_the_count() {
         let open = format!("a = \"{}", ",".repeat(10));
         assert_eq!(past_the_bound(&open), None);
+    }
+
+    #[test]
+    fn what_the_lexer_keeps_cannot_hide_where_the_count_does_not_look() {
+        let n = MAX_SCENE_VALUES as usize;
+        let values = format!("v = [{}]\n", vec!["1"; n].join(","));
+        // The lexer ends a string on one line at its line end, a comment at a carriage
+        // return, and takes a quote inside a word as the word's: the numbers that follow are
+        // its tokens, as they are the count's.
+        for (name, opening, closing) in [
+            ("a basic string left open", "a = \"\n", "# \""),
+            ("a literal string left open", "a = '\n", "# '"),
+            ("an escaped line end", "a = \"\\\n", "# \""),
+            ("a comment cut by a carriage return", "# \r", ""),
+            ("a quote inside a word", "a = b\"\n", "# \""),
+            ("a quote inside a literal word", "a = b'\n", "# '"),
+        ] {
+            let text = format!("{opening}{values}{closing}\n");
+            assert_eq!(
+                past_the_bound(&text).map(|(_, bound)| bound),
+                Some(Bound::Values),
+                "{name}"
+            );
+        }
+        // Each closing bracket or brace is a token of the lexer's, however many in a row.
+        let m = MAX_SCENE_TOKENS as usize;
+        for close in ["]", "}", "]}"] {
+            let text = format!("a = {}", close.repeat(m / close.len() + 1));
+            assert_eq!(
+                past_the_bound(&text),
+                Some((4 + m - 3, Bound::Tokens)),
+                "{close}"
+            );
+        }
+        // Strings that do end on their line still hide what they hold.
+        let escaped = format!("a = \"\\\\{}\\\"\"\n", ",".repeat(n + 10));
+        assert_eq!(past_the_bound(&escaped), None);
+        let multi = format!("a = \"\"\"\n\\\"\"\"{}\n\"\"\"\n", ",".repeat(n + 10));
+        assert_eq!(past_the_bound(&multi), None);
     }
 
     #[test]
