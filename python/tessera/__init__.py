@@ -164,19 +164,48 @@ def _json_value(value: Any) -> Any:
     )
 
 
+#: The most values a scene dict may hold, counted as JSON would write them out (a list or
+#: dict held twice, twice): a scene file's bound (`MAX_SCENE_VALUES`, src/scene/values.rs).
+_MAX_SCENE_VALUES = 1 << 20
+#: The most characters its keys and strings may hold, so counted: a scene file's 64 MiB.
+_MAX_SCENE_CHARS = 64 << 20
+
+
 def _string_keys(scene: Mapping) -> None:
     """Refuses a dict, at any depth, with a key that is not a string (JSON would turn `1`
-    into `"1"` without a word)."""
+    into `"1"` without a word), one that holds itself, and one larger, written out, than a
+    scene file may be: a list held many times over is as many lists in the JSON, and a walk
+    without bounds never ends on a dict that holds itself (a YAML anchor and its alias)."""
+    values = chars = 0
+    # The dicts and lists to walk, each followed by None once its items are walked, to
+    # leave it; those being walked, by id.
     pending: list = [scene]
+    inside: dict = {}
     while pending:
         value = pending.pop()
-        if isinstance(value, Mapping):
-            for key, item in value.items():
-                if not isinstance(key, str):
-                    raise ValueError(f"scene: a dict's keys must be strings, not {key!r}")
+        if value is None:
+            inside.popitem()
+            continue
+        if id(value) in inside:
+            raise ValueError("scene: a dict or list holds itself")
+        inside[id(value)] = None
+        pending.append(None)
+        items = value.items() if isinstance(value, Mapping) else enumerate(value)
+        for key, item in items:
+            if isinstance(key, str):
+                chars += len(key)
+            elif isinstance(value, Mapping):
+                raise ValueError(f"scene: a dict's keys must be strings, not {key!r}")
+            if isinstance(item, str):
+                chars += len(item)
+            elif isinstance(item, (Mapping, list, tuple)):
                 pending.append(item)
-        elif isinstance(value, (list, tuple)):
-            pending.extend(value)
+            values += 1
+        if values > _MAX_SCENE_VALUES or chars > _MAX_SCENE_CHARS:
+            raise ValueError(
+                f"scene: more than {_MAX_SCENE_VALUES} values or {_MAX_SCENE_CHARS >> 20} MiB "
+                "of text written out, more than a scene file may hold"
+            )
 
 
 def _scene_input(scene: SceneLike) -> "tuple[str, str]":

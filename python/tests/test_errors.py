@@ -94,6 +94,50 @@ def test_a_bad_dict_is_refused(scene, says):
     assert says in str(e.value), str(e.value)
 
 
+def _holding_itself():
+    scene = {"image": {"width": 8}}
+    scene["image"]["self"] = scene
+    return scene
+
+
+def _list_holding_itself_twice():
+    twice: list = []
+    twice += [twice, twice]
+    return {"image": twice}
+
+
+def _one_list_held_2_to_the_40_times():
+    shared: list = [1]
+    for _ in range(40):
+        shared = [shared, shared]
+    return {"spheres": shared}
+
+
+@pytest.mark.parametrize(
+    "make, says",
+    [
+        # The key check once walked these forever, the second growing by 8 MB a second.
+        (_holding_itself, "a dict or list holds itself"),
+        (_list_holding_itself_twice, "a dict or list holds itself"),
+        # 2^40 lists written out: refused at the values a scene file may hold.
+        (_one_list_held_2_to_the_40_times, "more than 1048576 values"),
+        (lambda: {"a": ["x" * (1 << 20)] * 65}, "64 MiB of text"),
+    ],
+)
+def test_a_dict_that_holds_itself_or_writes_out_too_large_is_refused(make, says):
+    with pytest.raises(ValueError) as e:
+        tessera.render(make())
+    assert says in str(e.value), str(e.value)
+    # One dict held in many places is no cycle.
+    shared = {"type": "lambertian", "albedo": [0.5, 0.5, 0.5]}
+    scene = {
+        "image": {"width": 8, "height": 8, "samples_per_pixel": 1, "max_depth": 2},
+        "materials": {"a": shared, "b": shared},
+        "spheres": [{"center": [0, 0, -1], "radius": 0.5, "material": "a"}],
+    }
+    assert tessera.render(scene).width == 8
+
+
 HOSTILE_TEXTS = [
     # Tall: the width of 8 asked for below keeps the aspect, 8 x 799999992 pixels.
     "[image]\nwidth = 1\nheight = 99999999\nsamples_per_pixel = 1\nmax_depth = 1\n",
