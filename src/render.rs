@@ -544,6 +544,15 @@ pub fn render_tile_unless(
 /// figure's pixel has, so that an ordinary render looks once a pixel.
 const STOP_RUN: u32 = 4096;
 
+/// The samples of a pixel rendered between two looks at a stop flag, for paths of at most
+/// `max_depth` rays: `STOP_RUN`, or as many as keep within `integrator::STOP_RAYS`, at
+/// least one. A sample's path may be 65,536 bounces (in fog of albedo 1, every one is), so
+/// 4,096 such samples were a minute between looks.
+fn stop_run(max_depth: u32) -> u32 {
+    let most = integrator::STOP_RAYS / (u64::from(max_depth) + 1);
+    most.clamp(1, u64::from(STOP_RUN)) as u32
+}
+
 /// `render_tile`'s work, for `simd::dispatch` to compile for each path; `FULL`: a scene
 /// that needs *The Next Week*'s paths (`Scene::needs_full_paths`).
 struct TileKernel<'a, const FULL: bool> {
@@ -577,7 +586,11 @@ fn render_tile_on<I: Isa, const FULL: bool>(
         // Paths sixteen at a time (see `integrator::trace_tile`): the same sums.
         let mut sums = vec![[0u64; 3]; tile.area() as usize];
         let mut rays = 0u64;
-        let run = if stop.is_some() { STOP_RUN } else { u32::MAX };
+        let run = if stop.is_some() {
+            stop_run(settings.max_depth)
+        } else {
+            u32::MAX
+        };
         let finished = integrator::trace_tile(isa, scene, tile, range, stopped, run, |i, c, r| {
             let acc = &mut sums[i];
             acc[0] += to_fixed(c.x);
@@ -587,6 +600,7 @@ fn render_tile_on<I: Isa, const FULL: bool>(
         });
         return finished.then_some(TileResult { sums, rays });
     }
+    let run = stop_run(settings.max_depth);
     let mut pixels = PixelEvaluator::for_tile(isa, scene, tile);
     let mut sums = Vec::with_capacity(tile.area() as usize);
     let mut rays = 0u64;
@@ -596,13 +610,14 @@ fn render_tile_on<I: Isa, const FULL: bool>(
                 return None;
             }
             let mut acc = [0u64; 3];
-            // A pixel's samples in runs of STOP_RUN when something may stop the tile, so
-            // that a pixel of billions of samples stops too; the sums are the same (each
-            // sample's value is its own, and integers add in any order).
+            // A pixel's samples in runs (`stop_run`) when something may stop the tile, so
+            // that a pixel of billions of samples, or of very long paths, stops too; the
+            // sums are the same (each sample's value is its own, and integers add in any
+            // order).
             let mut start = range.start;
             while start < range.end {
                 let end = match stop {
-                    Some(_) => start.saturating_add(STOP_RUN).min(range.end),
+                    Some(_) => start.saturating_add(run).min(range.end),
                     None => range.end,
                 };
                 pixels.evaluate_as::<FULL>(x, y, SampleRange { start, end }, |c: Color, r: u32| {
@@ -620,4 +635,21 @@ fn render_tile_on<I: Isa, const FULL: bool>(
         }
     }
     Some(TileResult { sums, rays })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_stop_is_looked_at_within_stop_rays_however_long_the_paths() {
+        // The books' depths keep a look a pixel; the longest paths allowed, a look a sample.
+        assert_eq!(stop_run(50), 1285);
+        for depth in [1, 50, 1000, 4096, 65_536, u32::MAX] {
+            let run = stop_run(depth);
+            assert!((1..=STOP_RUN).contains(&run), "{depth}: {run}");
+            let rays = u64::from(run) * (u64::from(depth) + 1);
+            assert!(rays <= integrator::STOP_RAYS || run == 1, "{depth}: {rays}");
+        }
+    }
 }

@@ -106,6 +106,10 @@ impl<'a> Feed<'a> {
     }
 }
 
+/// The rounds (a ray a lane each) between two looks at the stop flag besides those the feed
+/// makes: `STOP_RAYS` rays.
+const LOOK_ROUNDS: u32 = (super::STOP_RAYS / BATCH as u64) as u32;
+
 /// The hits of a camera ray count at any distance.
 const CAMERA: Interval = Interval::new(0.0, f32::INFINITY);
 
@@ -175,8 +179,8 @@ impl Lanes {
 /// Traces samples `range` of every pixel of `tile` (the scene must `batches_paths`, shade by
 /// path tracing and allow a segment), handing each sample's radiance and ray segments to
 /// `add` with its pixel's index in the tile (row by row). False when `stopped` said to
-/// stop (looked at before each pixel and every `stop_run` samples within one) before the
-/// last sample.
+/// stop (looked at before each pixel, every `stop_run` samples within one and every
+/// `LOOK_ROUNDS` rounds) before the last sample.
 #[inline(always)]
 pub fn trace_tile<I: Isa>(
     isa: I,
@@ -214,7 +218,17 @@ pub fn trace_tile<I: Isa>(
     };
     let mut heres = [nowhere; BATCH];
     let mut raws = [Vec3::ZERO; BATCH];
+    // Rounds to the next look at `stopped`: sixteen paths of thousands of bounces each may
+    // hand out no sample for as many rounds.
+    let mut until_look = LOOK_ROUNDS;
     while l.active != 0 {
+        until_look -= 1;
+        if until_look == 0 {
+            if stopped() {
+                return false;
+            }
+            until_look = LOOK_ROUNDS;
+        }
         let (t, ids) = scene.hit_batch(isa, &l.rays, &l.alone, &l.moments, l.active);
         let mut ended = 0u32;
         let mut lanes = l.active;

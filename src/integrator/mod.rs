@@ -11,6 +11,11 @@ mod pixel;
 pub use batch::trace_tile;
 pub use pixel::{PixelEvaluator, tile_candidates};
 
+/// The rays traced between two looks at a stop flag, at most (and one sample's more): some
+/// milliseconds' work on one thread, so that a stop is seen within a tenth of a second
+/// whatever the paths' lengths.
+pub const STOP_RAYS: u64 = 1 << 16;
+
 use crate::bvh::{Leaving, Moment, RayHints, TraversalStack};
 use crate::geometry::Hit;
 use crate::math::{Color, Interval, Vec3};
@@ -270,6 +275,8 @@ pub fn bounce<const ANY_KIND: bool>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::job::SampleRange;
+    use crate::math::PixelRect;
     use crate::scene::Overrides;
     use std::path::Path;
 
@@ -297,6 +304,49 @@ mod tests {
             skipped += usize::from(hints.leaving.is_some());
         }
         assert!(bounces > 15_000 && skipped > 5_000, "{bounces} {skipped}");
+    }
+
+    /// Sixteen paths of 65,536 bounces each (a box of white fog, the camera inside) hand out
+    /// no sample for 65,536 rounds: the batch looks at its stop flag every `STOP_RAYS` rays
+    /// all the same. It once looked only when a lane took a new sample, every 4,096 of
+    /// them: a minute of such paths between looks.
+    #[test]
+    fn a_batch_of_endless_paths_looks_at_its_stop_flag_every_stop_rays() {
+        let text = "[image]\nwidth = 1\nheight = 1\nsamples_per_pixel = 16\nmax_depth = 65536\n\
+                    [camera]\nlookfrom = [278.0, 278.0, 200.0]\nlookat = [278.0, 278.0, 555.0]\n\
+                    vfov_deg = 40.0\n\
+                    [materials.w]\ntype = \"lambertian\"\nalbedo = [0.5, 0.5, 0.5]\n\
+                    [materials.fog]\ntype = \"isotropic\"\nalbedo = [1.0, 1.0, 1.0]\n\
+                    [[quads]]\ncorner = [0.0, 0.0, 555.0]\nu = [555.0, 0.0, 0.0]\n\
+                    v = [0.0, 555.0, 0.0]\nmaterial = \"w\"\n\
+                    [[media]]\ndensity = 1000.0\nmaterial = \"fog\"\n\
+                    box = { min = [0.0, 0.0, 0.0], max = [555.0, 555.0, 555.0] }\n";
+        let scene = Scene::parse(text, Path::new("fog.toml"), &Overrides::default()).unwrap();
+        assert!(scene.batches_paths());
+        let looks = std::cell::Cell::new(0u64);
+        let mut rays = 0u64;
+        let tile = PixelRect::full(1, 1);
+        let range = SampleRange { start: 0, end: 16 };
+        let stopped = || {
+            looks.set(looks.get() + 1);
+            false
+        };
+        let done = trace_tile(
+            crate::simd::Portable,
+            &scene,
+            &tile,
+            range,
+            stopped,
+            16,
+            |_, _, r| rays += u64::from(r),
+        );
+        assert!(done);
+        assert_eq!(rays, 16 * 65_536, "every path is max_depth long");
+        assert!(
+            looks.get() >= rays / STOP_RAYS,
+            "{} looks for {rays} rays",
+            looks.get()
+        );
     }
 
     /// A scene of one glass sphere with the default surface offset.
