@@ -394,7 +394,15 @@ def results(
         limit=_whole("limit", limit, 0, _U32_MAX),
     )
     for run in runs:
-        run["result"] = json.loads(run["result"])
+        # A database tessera did not write may hold a result that is not JSON, or nested
+        # past the interpreter's recursion limit.
+        try:
+            run["result"] = json.loads(run["result"])
+        except (ValueError, RecursionError) as e:
+            raise TesseraError(
+                f"{db or 'the results database'}: run {run['id']}: its result is not JSON ({type(e).__name__}); "
+                "tessera writes none such"
+            ) from None
     return runs
 
 

@@ -171,3 +171,41 @@ def test_results_frame_is_a_table_of_the_runs(cli, tmp_path):
     assert isinstance(frame, pandas.DataFrame) and len(frame) == 1
     assert frame.loc[0, "workload"] == "quick"
     assert str(frame["started"].dt.tz) == "UTC"
+
+
+# tessera's first schema, as a database someone else made may have it.
+FIRST_SCHEMA = """
+CREATE TABLE runs (
+    id INTEGER PRIMARY KEY, digest TEXT NOT NULL UNIQUE, added_unix_s INTEGER NOT NULL,
+    source TEXT NOT NULL, started_unix_s INTEGER NOT NULL, machine_id TEXT NOT NULL,
+    cpu_model TEXT, logical_cpus INTEGER NOT NULL, version TEXT NOT NULL,
+    commit_id TEXT NOT NULL, simd TEXT NOT NULL, workload TEXT NOT NULL,
+    workload_id TEXT NOT NULL, threads INTEGER NOT NULL, sps_median REAL NOT NULL,
+    sps_min REAL NOT NULL, sps_max REAL NOT NULL, validation TEXT NOT NULL,
+    result TEXT NOT NULL) STRICT;
+CREATE TABLE scaling (
+    run_id INTEGER NOT NULL REFERENCES runs (id) ON DELETE CASCADE,
+    threads INTEGER NOT NULL, sps_median REAL NOT NULL, sps_min REAL NOT NULL,
+    sps_max REAL NOT NULL, PRIMARY KEY (run_id, threads)) STRICT;
+CREATE INDEX runs_by_machine ON runs (machine_id, workload_id, started_unix_s);
+PRAGMA user_version = 1;
+"""
+
+
+@pytest.mark.parametrize("result", ["{not json", "[" * 100_000 + "]" * 100_000])
+def test_results_with_a_result_that_is_not_json_raise_tessera_error(tmp_path, result):
+    # Once a JSONDecodeError, or a RecursionError, rather than tessera's own.
+    import sqlite3
+
+    db = tmp_path / "made.db"
+    conn = sqlite3.connect(db)
+    conn.executescript(FIRST_SCHEMA)
+    conn.execute(
+        "INSERT INTO runs VALUES (1, 'd', 1, 'import', 1700000000, 'm-0', 'Old CPU', 4, "
+        "'0.1.0', 'abc', 'avx2', 'cover', 'id', 4, 1e6, 9e5, 1.1e6, 'valid', ?)",
+        (result,),
+    )
+    conn.commit()
+    conn.close()
+    with pytest.raises(tessera.TesseraError, match="run 1: its result is not JSON"):
+        tessera.results(db)

@@ -462,6 +462,40 @@ CREATE TABLE scaling (
 CREATE INDEX runs_by_machine ON runs (machine_id, workload_id, started_unix_s);
 PRAGMA user_version = 1;";
 
+/// A database someone else made may hold a result that is not JSON, or JSON over several
+/// lines: export once wrote it out as it was, lines that are no results, and exited 0.
+#[test]
+fn export_refuses_a_result_that_is_not_one_line_of_json() {
+    let dir = temp_dir("results-export-not-json");
+    for (name, result, says) in [
+        (
+            "garbage",
+            "{not json",
+            "result 1 (oldest first) is not one line of JSON (not JSON:",
+        ),
+        (
+            "lines",
+            "{\"a\":\n1}",
+            "result 1 (oldest first) is not one line of JSON (it spans",
+        ),
+    ] {
+        let db = dir.join(format!("{name}.db"));
+        let conn = rusqlite::Connection::open(&db).unwrap();
+        conn.execute_batch(FIRST_SCHEMA).unwrap();
+        conn.execute(
+            "INSERT INTO runs VALUES (1, 'd', 1, 'import', 1700000000, 'm-0', 'Old CPU', 4,
+             '0.1.0', 'abc', 'avx2', 'cover', 'id', 4, 1e6, 9e5, 1.1e6, 'valid', ?1)",
+            [result],
+        )
+        .unwrap();
+        drop(conn);
+        let o = results(&dir, &db, &["export", "--jsonl"]);
+        assert_eq!(o.status.code(), Some(2), "{name}: {}", stderr(&o));
+        assert!(stderr(&o).contains(says), "{name}: {}", stderr(&o));
+        assert!(o.stdout.is_empty(), "{name}: {}", stdout(&o));
+    }
+}
+
 #[test]
 fn a_database_of_the_first_schema_still_opens_with_its_runs() {
     let dir = temp_dir("results-first-schema");

@@ -496,12 +496,29 @@ fn report(path: &Path, output: &Path, workload: Option<&str>, all: bool) -> Resu
     Ok(())
 }
 
-/// `results export --jsonl`: every result, oldest first.
+/// `results export --jsonl`: every result, oldest first. A database tessera did not write may
+/// hold a result that is not JSON, or JSON over several lines, which would make lines that
+/// are not results: it is refused, and nothing is written.
 fn export(path: &Path) -> Result<()> {
     let db = ResultsDb::open_to_read(path)?;
     let mut text = String::new();
-    for json in db.results_json()? {
-        text.push_str(&tessera::text::ascii_json(&json));
+    for (n, json) in db.results_json()?.iter().enumerate() {
+        let not = if json.contains(['\n', '\r']) {
+            Some("it spans lines".to_owned())
+        } else {
+            serde_json::from_str::<serde::de::IgnoredAny>(json)
+                .err()
+                .map(|e| format!("not JSON: {e}"))
+        };
+        if let Some(not) = not {
+            bail!(
+                "{}: result {} (oldest first) is not one line of JSON ({not}); tessera writes \
+                 none such: nothing exported",
+                path.display(),
+                n + 1
+            );
+        }
+        text.push_str(&tessera::text::ascii_json(json));
         text.push('\n');
     }
     out(&text)
