@@ -37,10 +37,18 @@ pyo3::create_exception!(
      error is not at one value) say where, as the command line's message does."
 );
 
+/// A message as the command line prints it: what a stranger wrote that it quotes (a scene's
+/// key, a recipe, a database's path) with its control, bidirectional and other unsafe
+/// characters, line ends too, as `\u{…}` escapes, since Python prints an exception's text
+/// to the terminal as it is.
+fn safe(message: &str) -> String {
+    tessera::text::terminal_safe(message, usize::MAX)
+}
+
 /// A tessera error as the Python exception a user expects, with the command line's message.
 fn to_py(py: Python<'_>, e: tessera::Error) -> PyErr {
     use tessera::Error;
-    let message = e.to_string();
+    let message = safe(&e.to_string());
     match e {
         Error::SceneSyntax { path, at, .. } => scene_error(py, message, &path, at, None),
         Error::SceneValue {
@@ -447,10 +455,10 @@ impl Failed {
                 TesseraError::new_err(format!("could not start the thread pool: {e}"))
             }
             Failed::Raised(e) => e,
-            Failed::Other(message) => TesseraError::new_err(message),
-            Failed::Panicked(message) => TesseraError::new_err(format!(
+            Failed::Other(message) => TesseraError::new_err(safe(&message)),
+            Failed::Panicked(message) => TesseraError::new_err(safe(&format!(
                 "internal error (a bug of tessera's; please report it): {message}"
-            )),
+            ))),
             // Python's own handler saw the signal too: on the main thread it raises now.
             Failed::Interrupted => py
                 .check_signals()
@@ -506,7 +514,7 @@ fn reproduce<'py>(
     if let Some(refusal) = work.refusal(&image, "any_cost=True")
         && !any_cost
     {
-        return Err(TesseraError::new_err(refusal));
+        return Err(TesseraError::new_err(safe(&refusal)));
     }
     let d = PyDict::new(py);
     d.set_item("image", image.display().to_string())?;
@@ -619,7 +627,7 @@ fn results<'py>(
     commit: Option<String>,
     limit: Option<u32>,
 ) -> PyResult<Vec<Bound<'py, PyDict>>> {
-    let fail = |e: anyhow::Error| TesseraError::new_err(format!("{e:#}"));
+    let fail = |e: anyhow::Error| TesseraError::new_err(safe(&format!("{e:#}")));
     let filter = db::Filter {
         workload,
         machine,

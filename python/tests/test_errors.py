@@ -157,6 +157,21 @@ def test_hostile_scene_text_raises_and_the_interpreter_goes_on(text):
     assert tessera.render("scenes/cover.toml", width=8, spp=1).width == 8
 
 
+def test_what_a_stranger_wrote_reaches_an_exception_escaped(tmp_path):
+    # A scene's unknown key is quoted in the message, which Python prints to the terminal
+    # as it is: once the escape sequence and the override themselves.
+    hostile = "\u202e\x1b[2J\x1b]0;title\x07\n"
+    scene = tmp_path / "hostile.toml"
+    # As TOML's escapes, since a raw control character is no TOML.
+    scene.write_text('"\\u202E\\u001B[2J\\u001B]0;title\\u0007\\n" = 1\n')
+    for given in (scene, {hostile: 1}):
+        with pytest.raises(tessera.SceneError) as e:
+            tessera.render(given)
+        message = str(e.value)
+        assert not any(c in message for c in "\u202e\x1b\x07\n"), repr(message)
+        assert "\\u{1b}[2J" in message and "\\u{202e}" in message, message
+
+
 def test_a_panic_is_an_exception_and_the_interpreter_survives():
     with pytest.raises(tessera.TesseraError, match="internal error .* a panic on purpose"):
         tessera._native._panic_for_tests()
