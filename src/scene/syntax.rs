@@ -1,0 +1,112 @@
+//! What the TOML parser says of a scene file, in the scene's own terms: the keys to a value
+//! as the file names them, the table a missing key is missing from, plain type names.
+
+/// The keys to a value as a scene file names them (`spheres[2].center`), without the
+/// wrappers that keep each value's place in the file.
+pub(super) fn key_path(path: &serde_path_to_error::Path) -> String {
+    use serde_path_to_error::Segment;
+    let mut named = String::new();
+    for segment in path.iter() {
+        match segment {
+            Segment::Seq { index } => named.push_str(&format!("[{index}]")),
+            Segment::Map { key } | Segment::Enum { variant: key } => {
+                if key.starts_with("$__serde_spanned") {
+                    continue;
+                }
+                if !named.is_empty() {
+                    named.push('.');
+                }
+                named.push_str(key);
+            }
+            Segment::Unknown => {}
+        }
+    }
+    named
+}
+
+/// The tables a scene file holds at its top level (`desc::SceneDesc`'s fields).
+const TOP_LEVEL: [&str; 14] = [
+    "image",
+    "render",
+    "camera",
+    "background",
+    "textures",
+    "materials",
+    "spheres",
+    "quads",
+    "rects",
+    "boxes",
+    "media",
+    "random_spheres",
+    "random_boxes",
+    "random_sphere_clouds",
+];
+
+/// A missing key's message with the table it is missing from: for a whole table, the
+/// file's top level; else the table whose header starts the line at `start` (where the
+/// parser points), `[[spheres]]` counted (`#2`), or the key of an inline table on it.
+pub(super) fn name_the_table(text: &str, start: usize, message: &str) -> String {
+    let Some(key) = message
+        .strip_prefix("missing field `")
+        .and_then(|m| m.strip_suffix('`'))
+    else {
+        return message.to_owned();
+    };
+    if TOP_LEVEL.contains(&key) {
+        return format!(
+            "missing table [{key}] at the top level of the file; docs/scene-format.md lists \
+             every key"
+        );
+    }
+    let line_start = text
+        .get(..start)
+        .map_or(0, |t| t.rfind('\n').map_or(0, |i| i + 1));
+    let line = text
+        .get(line_start..)
+        .unwrap_or("")
+        .lines()
+        .next()
+        .unwrap_or("");
+    let header = line.split('#').next().unwrap_or("").trim();
+    let inline = header
+        .split_once('=')
+        .filter(|(_, value)| value.trim_start().starts_with(['{', '[']))
+        .map(|(name, _)| name.trim());
+    if let Some(name) = inline {
+        return format!("`{name}`: missing key `{key}`; docs/scene-format.md lists every key");
+    }
+    let Some(name) = header
+        .strip_prefix('[')
+        .and_then(|h| h.strip_suffix(']'))
+        .map(|h| h.trim_matches(['[', ']']).trim())
+    else {
+        return format!("missing key `{key}`; docs/scene-format.md lists every key");
+    };
+    let table = if header.starts_with("[[") {
+        // Which of the array's tables: count the headers of the same name up to here.
+        let nth = text[..line_start]
+            .lines()
+            .filter(|l| l.split('#').next().unwrap_or("").trim() == header)
+            .count()
+            + 1;
+        format!("{header} #{nth}")
+    } else {
+        header.to_owned()
+    };
+    let hint = match (name, key) {
+        ("image", "max_depth") => " (the most ray segments per path: the book uses 50)",
+        ("image", "samples_per_pixel") => " (samples per pixel: the book uses 100)",
+        ("image", "width" | "height") => " (the image's size in pixels)",
+        _ => "",
+    };
+    format!("{table}: missing key `{key}`{hint}; docs/scene-format.md lists every key")
+}
+
+/// Serde names Rust types in its messages; a scene author knows TOML's.
+pub(super) fn plain_types(message: &str) -> String {
+    message
+        .replace("expected i64", "expected an integer")
+        .replace("expected u64", "expected a non-negative integer")
+        .replace("expected f64", "expected a number")
+        .replace("a spanned value", "a value")
+}
