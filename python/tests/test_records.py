@@ -6,6 +6,7 @@ import json
 import pytest
 
 import tessera
+from conftest import ROOT
 
 
 def test_reproduce_says_identical_for_its_own_image_and_the_cli_agrees(cli, tmp_path):
@@ -173,23 +174,9 @@ def test_results_frame_is_a_table_of_the_runs(cli, tmp_path):
     assert str(frame["started"].dt.tz) == "UTC"
 
 
-# tessera's first schema, as a database someone else made may have it.
-FIRST_SCHEMA = """
-CREATE TABLE runs (
-    id INTEGER PRIMARY KEY, digest TEXT NOT NULL UNIQUE, added_unix_s INTEGER NOT NULL,
-    source TEXT NOT NULL, started_unix_s INTEGER NOT NULL, machine_id TEXT NOT NULL,
-    cpu_model TEXT, logical_cpus INTEGER NOT NULL, version TEXT NOT NULL,
-    commit_id TEXT NOT NULL, simd TEXT NOT NULL, workload TEXT NOT NULL,
-    workload_id TEXT NOT NULL, threads INTEGER NOT NULL, sps_median REAL NOT NULL,
-    sps_min REAL NOT NULL, sps_max REAL NOT NULL, validation TEXT NOT NULL,
-    result TEXT NOT NULL) STRICT;
-CREATE TABLE scaling (
-    run_id INTEGER NOT NULL REFERENCES runs (id) ON DELETE CASCADE,
-    threads INTEGER NOT NULL, sps_median REAL NOT NULL, sps_min REAL NOT NULL,
-    sps_max REAL NOT NULL, PRIMARY KEY (run_id, threads)) STRICT;
-CREATE INDEX runs_by_machine ON runs (machine_id, workload_id, started_unix_s);
-PRAGMA user_version = 1;
-"""
+# tessera's first schema, as a database someone else made may have it (the file the Rust
+# tests read too).
+FIRST_SCHEMA = (ROOT / "tests" / "data" / "results-schema-1.sql").read_text()
 
 
 @pytest.mark.parametrize("result", ["{not json", "[" * 100_000 + "]" * 100_000])
