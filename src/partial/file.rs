@@ -64,14 +64,31 @@ impl<R: Read> PartReader<R> {
                 "is truncated ({len} bytes, its header alone claims {header_len})"
             ));
         }
-        let mut text = vec![0u8; header_len as usize];
-        if read_up_to(&mut reader, &mut text, path)? < text.len() {
-            return fail(format!("is truncated ({len} bytes)"));
-        }
-        let header: Part = match serde_json::from_slice(&text) {
+        // The header is parsed as it is read, never read into a buffer of the length it
+        // claims: a sparse file claims any length on a few KiB of disk, and its zeros end
+        // the parse at the first one. Memory follows the bytes the file really holds.
+        let mut checksum = Xxh3::new();
+        checksum.update(&preamble);
+        let mut text = Hashing {
+            inner: (&mut reader).take(header_len),
+            checksum: &mut checksum,
+        };
+        let header: Part = match serde_json::from_reader(&mut text) {
             Ok(h) => h,
+            Err(e) if e.is_io() => {
+                return Err(Error::Io {
+                    path: path.to_owned(),
+                    cause: e.into(),
+                });
+            }
+            Err(e) if e.is_eof() => return fail(format!("is truncated ({len} bytes)")),
             Err(e) => return fail(format!("has a corrupt header: {e}")),
         };
+        // The parse reads to the end of what the header claims, so bytes left unread mean
+        // the file ended early (it changed while being read).
+        if text.inner.limit() > 0 {
+            return fail(format!("is truncated ({len} bytes)"));
+        }
         header.check_claims(path)?;
         let expected = header.file_len(header_len);
         if len != expected {
@@ -79,9 +96,6 @@ impl<R: Read> PartReader<R> {
                 "is truncated or padded ({len} bytes, expected {expected})"
             ));
         }
-        let mut checksum = Xxh3::new();
-        checksum.update(&preamble);
-        checksum.update(&text);
         Ok(Self {
             path: path.to_owned(),
             header,
@@ -149,6 +163,20 @@ impl<R: Read> PartReader<R> {
             ));
         }
         Ok(())
+    }
+}
+
+/// A reader that adds what it reads to a checksum.
+struct Hashing<'a, R> {
+    inner: R,
+    checksum: &'a mut Xxh3,
+}
+
+impl<R: Read> Read for Hashing<'_, R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        self.checksum.update(&buf[..n]);
+        Ok(n)
     }
 }
 

@@ -1412,3 +1412,43 @@ fn a_scene_of_many_noise_textures_is_refused_at_the_one_over_the_bound() {
     );
     assert!(!dir.join("over.png").exists());
 }
+
+/// A part file is read by `merge` and by a resumed checkpoint. A sparse one takes a few KiB
+/// of disk whatever length it has, so its header may claim a terabyte: a reader that sized a
+/// buffer by the claim once aborted (the allocation failed). The header is parsed as it is
+/// read, and the hole's zeros end the parse at once.
+#[test]
+fn a_sparse_part_whose_header_claims_a_terabyte_is_refused_without_reading_it() {
+    use std::io::Write;
+    let dir = temp_dir("hostile-sparse-part");
+    let len: u64 = 1 << 40;
+    let mut file = std::fs::File::create(dir.join("sparse.part")).unwrap();
+    file.write_all(b"TESSERA-PARTIAL\n").unwrap();
+    file.write_all(&(len - 64).to_le_bytes()).unwrap();
+    file.set_len(len).unwrap();
+    std::fs::write(dir.join("out.png"), b"precious").unwrap();
+    let cover = cover();
+    for args in [
+        vec!["merge", "sparse.part", "-o", "out.png"],
+        vec![
+            "render",
+            &cover,
+            "-q",
+            "--width",
+            "40",
+            "--spp",
+            "1",
+            "--checkpoint",
+            "sparse.part",
+            "-o",
+            "out.png",
+        ],
+    ] {
+        refused(
+            &run_capped(&args, &dir, 1024),
+            "sparse.part: has a corrupt header",
+            &args.join(" "),
+        );
+    }
+    assert_eq!(std::fs::read(dir.join("out.png")).unwrap(), b"precious");
+}
