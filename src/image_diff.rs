@@ -10,6 +10,18 @@ use std::path::Path;
 /// anything is decoded.
 pub const MAX_COMPARED_PIXELS: u64 = 1 << 24;
 
+/// The longest file `compare` reads: 20 bytes a pixel of `MAX_COMPARED_PIXELS` and 1 MiB,
+/// more than an image of that many pixels takes in any format it reads (16 bytes a pixel as
+/// float RGBA EXR without compression, 18 as PPM text of 16-bit values). Reading takes time
+/// that follows the file's length, whatever the size its header claims: a PPM whose header
+/// is a comment of 100 GiB (a sparse file, a few KiB of disk) was once read for 12 minutes.
+pub const MAX_COMPARED_BYTES: u64 = MAX_COMPARED_PIXELS * 20 + (1 << 20);
+
+/// The longest JPEG `compare` reads: its decoder holds the whole file in memory, so a sparse
+/// JPEG of 4 GiB once took 4.2 GB. 8 bytes a pixel of `MAX_COMPARED_PIXELS` and 1 MiB, more
+/// than twice the 3 bytes a pixel its pixels hold uncompressed.
+pub const MAX_COMPARED_JPEG_BYTES: u64 = MAX_COMPARED_PIXELS * 8 + (1 << 20);
+
 /// Difference statistics of two images, over all pixels and RGB channels, values in [0, 1].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Difference {
@@ -65,7 +77,11 @@ impl RgbImage {
             path: path.to_owned(),
             cause,
         })?;
-        let len = file.metadata().map(|m| m.len()).unwrap_or(0);
+        let len = file.metadata().map_err(|cause| Error::Io {
+            path: path.to_owned(),
+            cause,
+        })?;
+        let len = len.len();
         let mut reader = image::ImageReader::new(std::io::BufReader::new(file));
         match image::ImageFormat::from_path(path) {
             Ok(format) => reader.set_format(format),
@@ -75,18 +91,33 @@ impl RgbImage {
                     .map_err(|e| fail(e.to_string()))?
             }
         }
-        if let Some(format @ (image::ImageFormat::OpenExr | image::ImageFormat::Png)) =
-            reader.format()
+        let most = match reader.format() {
+            Some(image::ImageFormat::Jpeg) => MAX_COMPARED_JPEG_BYTES,
+            _ => MAX_COMPARED_BYTES,
+        };
+        if len > most {
+            return Err(fail(format!(
+                "is {len} bytes long, more than the {most} an image of at most \
+                 {MAX_COMPARED_PIXELS} pixels (4096x4096) takes in its format"
+            )));
+        }
+        if let Some(
+            format @ (image::ImageFormat::OpenExr
+            | image::ImageFormat::Png
+            | image::ImageFormat::Pnm),
+        ) = reader.format()
         {
-            // The `exr` crate keeps every attribute of a header and the PNG decoder every
-            // text chunk, whatever their count: the chunks or attributes are walked within
-            // bounds first, and the file read again from its start.
+            // The `exr` crate keeps every attribute of a header, the PNG decoder every text
+            // chunk, whatever their count, and the PNM decoder every line of a PAM header,
+            // whatever its length: the chunks, attributes or lines are walked within bounds
+            // first, and the file read again from its start.
             let mut file = reader.into_inner();
-            if format == image::ImageFormat::Png {
-                crate::png_header::read(&mut file, len).map_err(fail)?;
-            } else {
-                crate::exr_header::check_bounds(&mut file, len).map_err(fail)?;
-            }
+            let walked = match format {
+                image::ImageFormat::Png => crate::png_header::read(&mut file, len).map(drop),
+                image::ImageFormat::Pnm => crate::pnm_header::check_bounds(&mut file),
+                _ => crate::exr_header::check_bounds(&mut file, len),
+            };
+            walked.map_err(fail)?;
             file.seek(std::io::SeekFrom::Start(0))
                 .map_err(|cause| Error::Io {
                     path: path.to_owned(),

@@ -19,8 +19,8 @@
 //!   text, the settings and the hash of its sums, written into the image's metadata.
 //! - Reading what a stranger made: [`input_file`] opens only regular files, [`exr_header`]
 //!   reads an EXR header within limits before any EXR library sees it, and [`png_header`] a
-//!   PNG's chunks the same way (for image files and image textures alike); [`metadata`] says
-//!   where an image carries its recipe.
+//!   PNG's chunks the same way (for image files and image textures alike), [`pnm_header`] a
+//!   PNM's header; [`metadata`] says where an image carries its recipe.
 //!
 //! - [`preview`] watches a running job from the folding thread (a picture kept tile by
 //!   tile, published about once a second) and serves it to a browser.
@@ -59,6 +59,7 @@ pub mod math;
 pub mod metadata;
 pub mod partial;
 pub mod png_header;
+pub mod pnm_header;
 pub mod preview;
 pub mod ray;
 pub mod recipe;

@@ -181,6 +181,10 @@ pub fn decode(bytes: &[u8], pixels_left: u64) -> Result<ImageTexture, String> {
         Some(image::ImageFormat::OpenExr) => {
             crate::exr_header::check_bounds(bytes, bytes.len() as u64)?;
         }
+        // The PNM decoder keeps each line of a PAM header, whatever its length.
+        Some(image::ImageFormat::Pnm) => {
+            crate::pnm_header::check_bounds(std::io::Cursor::new(bytes))?;
+        }
         Some(_) => {}
     }
     // What a decoder keeps of the file before its pixels (a PNG's colour profile, inflated):
@@ -247,6 +251,22 @@ mod tests {
         let mut appended = whole.to_vec();
         appended.extend(b"appended");
         assert!(decode(&appended, MAX_TEXTURE_PIXELS).is_ok());
+    }
+
+    #[test]
+    fn a_pam_whose_header_does_not_end_within_its_bound_is_refused() {
+        let pam = |comment: usize| {
+            let mut bytes = b"P7\n#".to_vec();
+            bytes.extend(vec![b'a'; comment]);
+            bytes.extend(
+                b"\nWIDTH 1\nHEIGHT 1\nDEPTH 3\nMAXVAL 255\nTUPLTYPE RGB\nENDHDR\n\x01\x02\x03",
+            );
+            bytes
+        };
+        let texture = decode(&pam(10), MAX_TEXTURE_PIXELS).unwrap();
+        assert_eq!((texture.width, texture.height), (1, 1));
+        let e = decode(&pam(1 << 16), MAX_TEXTURE_PIXELS).err().unwrap();
+        assert!(e.contains("does not end within its first 64 KiB"), "{e}");
     }
 
     #[test]

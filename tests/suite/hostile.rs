@@ -289,6 +289,49 @@ fn compare_checks_the_sizes_images_claim_before_decoding_them() {
     assert!(stdout(&o).contains("inf dB (identical)"), "{}", stdout(&o));
 }
 
+/// A file far longer than any image of `compare`'s 2^24 pixels takes: a JPEG followed by 4 GiB
+/// (its decoder reads the whole file: 4.2 GB and 22 s before), a PPM whose header is a comment
+/// of 100 GiB (12 minutes of reading), each sparse, on a few KiB of disk; and a PAM within that
+/// length whose header is one line of 300 MiB (the decoder kept the line: an allocation failed
+/// under the cap and ended tessera). Each is refused before its pixels, or the line, are read.
+#[test]
+fn compare_refuses_a_file_longer_than_its_images_take_and_a_pnm_header_without_end() {
+    let dir = temp_dir("hostile-compare-length");
+    let jpeg = std::fs::read(scene_path("earthmap.jpg")).unwrap();
+    std::fs::write(dir.join("a.jpg"), &jpeg).unwrap();
+    let sparse = |name: &str, start: &[u8], len: u64| {
+        let mut file = std::fs::File::create(dir.join(name)).unwrap();
+        std::io::Write::write_all(&mut file, start).unwrap();
+        file.set_len(len).unwrap();
+    };
+    sparse("long.jpg", &jpeg, 4 << 30);
+    sparse("comment.ppm", b"P6\n#", 100 << 30);
+    sparse("line.pam", b"P7\n#", 300 << 20);
+    let o = run_capped(&["compare", "a.jpg", "long.jpg"], &dir, 256);
+    refused(
+        &o,
+        "long.jpg: is 4294967296 bytes long, more than the",
+        "jpeg",
+    );
+    let started = std::time::Instant::now();
+    let o = run_capped(&["compare", "a.jpg", "comment.ppm"], &dir, 256);
+    refused(&o, "comment.ppm: is 107374182400 bytes long", "ppm");
+    assert!(started.elapsed().as_secs() < 10, "{:?}", started.elapsed());
+    let o = run_capped(&["compare", "a.jpg", "line.pam"], &dir, 256);
+    refused(
+        &o,
+        "line.pam: has a PNM header that does not end within its first 64 KiB",
+        "pam",
+    );
+    let o = run(&["compare", "a.jpg", "a.jpg"], &dir);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("inf dB (identical)"), "{}", stdout(&o));
+    // Files of 100 GiB, if only in name, are not left for whoever sums the sizes of /tmp.
+    for name in ["long.jpg", "comment.ppm", "line.pam"] {
+        std::fs::remove_file(dir.join(name)).unwrap();
+    }
+}
+
 #[test]
 fn a_png_whose_chunks_change_its_display_differs_naming_the_chunk() {
     let dir = temp_dir("hostile-png-display");
