@@ -72,6 +72,30 @@ pub fn terminal_safe(text: &str, width: usize) -> String {
     out
 }
 
+/// The most characters of an error message printed: a message quotes what a stranger wrote
+/// (a scene's key, a material's name) whole, and a scene file's key of 60 MiB once made a
+/// message of 120 MB, one line on the terminal.
+pub const MAX_MESSAGE_CHARS: usize = 4096;
+
+/// An error message as one line safe to print (`terminal_safe`), of at most
+/// `MAX_MESSAGE_CHARS` of its characters: a longer one keeps its start and its end, which
+/// say where and why, and says how many characters between them are left out.
+pub fn message_safe(text: &str) -> String {
+    let count = text.chars().count();
+    if count <= MAX_MESSAGE_CHARS {
+        return terminal_safe(text, usize::MAX);
+    }
+    let half = MAX_MESSAGE_CHARS / 2;
+    let tail = (text.char_indices().nth(count - half)).map_or(text.len(), |(at, _)| at);
+    let head: String = text.chars().take(half).collect();
+    format!(
+        "{} … ({} characters left out) … {}",
+        terminal_safe(&head, usize::MAX),
+        count - 2 * half,
+        terminal_safe(&text[tail..], usize::MAX)
+    )
+}
+
 /// `text` of many lines safe to print: newlines and tabs kept, other unsafe characters
 /// escaped.
 pub fn terminal_safe_lines(text: &str) -> String {
@@ -132,6 +156,26 @@ pub fn significant(x: f64, digits: usize) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_long_message_keeps_its_start_and_end() {
+        assert_eq!(message_safe("short\u{1b}"), "short\\u{1b}");
+        let key = "k".repeat(3 * MAX_MESSAGE_CHARS);
+        let long = format!("s.toml:2:1: field `{key}`: unknown field, expected `width`\u{1b}");
+        let said = message_safe(&long);
+        assert!(said.starts_with("s.toml:2:1: field `kkk"), "{said}");
+        assert!(
+            said.ends_with("kkk`: unknown field, expected `width`\\u{1b}"),
+            "{said}"
+        );
+        let left_out = long.chars().count() - MAX_MESSAGE_CHARS;
+        assert!(said.contains(&format!(" … ({left_out} characters left out) … ")));
+        assert!(
+            said.chars().count() < MAX_MESSAGE_CHARS + 60,
+            "{}",
+            said.len()
+        );
+    }
 
     #[test]
     fn controls_and_bidi_are_escaped() {

@@ -8,7 +8,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::{IsTerminal, Write};
 use std::process::ExitCode;
 use tessera::render::RenderStats;
-use tessera::text::{terminal_safe, terminal_safe_lines};
+use tessera::text::{message_safe, terminal_safe_lines};
 
 /// The exit status of a verdict that is not an error: `reproduce` found a difference,
 /// `bench` an invalid image.
@@ -26,8 +26,9 @@ pub fn exit_code(outcome: Result<ExitCode>) -> ExitCode {
         Err(e) if is_broken_pipe(&e) => ExitCode::SUCCESS,
         Err(e) => {
             // One line, whatever the message quotes: a newline in a stranger's key or name
-            // would otherwise start a line of its own, such as a forged `identical:`.
-            let message = terminal_safe(&format!("{e:#}"), usize::MAX);
+            // would otherwise start a line of its own, such as a forged `identical:`; and of
+            // bounded length, whatever the length of what it quotes.
+            let message = message_safe(&format!("{e:#}"));
             note(format_args!("tessera: error: {message}"));
             ExitCode::from(ERROR)
         }

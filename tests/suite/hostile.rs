@@ -1495,3 +1495,42 @@ fn a_sparse_part_whose_header_claims_a_terabyte_is_refused_without_reading_it() 
     }
     assert_eq!(std::fs::read(dir.join("out.png")).unwrap(), b"precious");
 }
+
+/// An error message quotes what a stranger wrote whole: a scene's unknown key of 60 MiB made
+/// a message of 120 MB, one line on the terminal. A message keeps its start (the file, line
+/// and field) and its end (why), and says how much between them it leaves out.
+#[test]
+fn a_message_quoting_a_long_key_or_name_keeps_its_start_and_end() {
+    let dir = temp_dir("hostile-long-message");
+    let key = "k".repeat(1 << 20);
+    let scene = format!(
+        "[image]\nwidth = 8\nheight = 8\nsamples_per_pixel = 1\nmax_depth = 1\n{key} = 1\n"
+    );
+    std::fs::write(dir.join("key.toml"), scene).unwrap();
+    let o = run(&["render", "key.toml", "-o", "k.png"], &dir);
+    refused(&o, "key.toml:6:1: field `image.kkkk", "long key");
+    let err = stderr(&o);
+    assert!(err.len() < 5000, "a message of {} bytes", err.len());
+    assert!(err.contains("characters left out) … kkkk"), "{err}");
+    assert!(err.trim_end().ends_with("`seed`, `crop`"), "{err}");
+    let name = "m".repeat(1 << 20);
+    let cover = std::fs::read_to_string(scene_path("cover.toml")).unwrap();
+    let named = cover.replacen(
+        "material = \"ground\"",
+        &format!("material = \"{name}\""),
+        1,
+    );
+    assert_ne!(named, cover);
+    std::fs::write(dir.join("name.toml"), named).unwrap();
+    let o = run(&["render", "name.toml", "-o", "n.png"], &dir);
+    refused(
+        &o,
+        "field `spheres[0].material`: unknown material `mmmm",
+        "long name",
+    );
+    assert!(
+        stderr(&o).len() < 5000,
+        "a message of {} bytes",
+        stderr(&o).len()
+    );
+}
