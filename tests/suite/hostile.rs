@@ -1534,3 +1534,25 @@ fn a_message_quoting_a_long_key_or_name_keeps_its_start_and_end() {
         stderr(&o).len()
     );
 }
+
+/// A scene file that does not exist has the nearest names beside it suggested, by an edit
+/// distance that takes the product of the lengths: a name of 100,000 characters (a script's
+/// argument) beside 2,000 scene files of 250 took minutes. Names too unlike in length to be
+/// near are not measured.
+#[test]
+fn a_long_missing_scene_name_beside_many_scene_files_is_answered_at_once() {
+    let dir = temp_dir("hostile-missing-scene");
+    for i in 0..2000 {
+        let name = format!("{i:05}{}.toml", "x".repeat(240));
+        std::fs::write(dir.join(name), "").unwrap();
+    }
+    let long = format!("{}.toml", "y".repeat(100_000));
+    let started = std::time::Instant::now();
+    let o = run(&["render", &long], &dir);
+    refused(&o, "yyyy.toml: no such scene file", "long name");
+    assert!(started.elapsed().as_secs() < 10, "{:?}", started.elapsed());
+    // A name near one of them is still suggested.
+    let near = format!("00007{}.toml", "x".repeat(239));
+    let o = run(&["render", &near], &dir);
+    refused(&o, "did you mean 00007xxx", "near name");
+}
