@@ -11,6 +11,7 @@ use tessera::film::Film;
 use tessera::image_file::Format;
 use tessera::partial::RenderId;
 use tessera::recipe::{Recipe, Source};
+use tessera::text::message_safe;
 
 /// `tessera merge` as typed.
 #[derive(clap::Args)]
@@ -46,9 +47,11 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let recipe = match render.recipe.as_ref().filter(|_| !no_provenance) {
         Some(source) => {
             let recipe = merged_recipe(source, &render, &film, &paths[0], textures.as_deref());
+            // The reason quotes the parts' scene, a stranger's text: of bounded length.
             if let Err(why) = &recipe {
                 note(format_args!(
-                    "tessera: warning: {why}; {} carries no recipe",
+                    "tessera: warning: {}; {} carries no recipe",
+                    message_safe(why),
                     output.display()
                 ));
             }

@@ -1556,3 +1556,37 @@ fn a_long_missing_scene_name_beside_many_scene_files_is_answered_at_once() {
     let o = run(&["render", &near], &dir);
     refused(&o, "did you mean 00007xxx", "near name");
 }
+
+/// A part whose recipe's scene (a stranger's text, within the part's checksum) holds a key of
+/// 1 MiB: `merge` warns that its image carries no recipe, saying why in a bounded line, not
+/// in 2 MB quoting the key twice.
+#[test]
+fn merge_s_warning_on_a_stranger_s_recipe_is_of_bounded_length() {
+    let dir = temp_dir("hostile-merge-warning");
+    let scene = scene_path("img-1.12-metal-fuzz.toml");
+    let scene = scene.to_str().unwrap();
+    let args = ["render", scene, "--width", "16", "--spp", "2", "-q"];
+    ok(
+        &[&args[..], &["--samples", "0..2", "-o", "a.part"]].concat(),
+        &dir,
+    );
+    let bytes = std::fs::read(dir.join("a.part")).unwrap();
+    let header_len = u64::from_le_bytes(bytes[16..24].try_into().unwrap()) as usize;
+    let mut header: serde_json::Value =
+        serde_json::from_slice(&bytes[24..24 + header_len]).unwrap();
+    let text = &mut header["render"]["recipe"]["scene"]["text"];
+    *text = format!("{}\n{} = 1\n", text.as_str().unwrap(), "k".repeat(1 << 20)).into();
+    let json = serde_json::to_vec(&header).unwrap();
+    let mut part = bytes[..16].to_vec();
+    part.extend((json.len() as u64).to_le_bytes());
+    part.extend(&json);
+    part.extend(&bytes[24 + header_len..bytes.len() - 8]);
+    part.extend(xxhash_rust::xxh3::xxh3_64(&part).to_le_bytes());
+    std::fs::write(dir.join("b.part"), part).unwrap();
+    let o = run(&["merge", "b.part", "-o", "m.png"], &dir);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let err = stderr(&o);
+    assert!(err.len() < 5000, "a warning of {} bytes", err.len());
+    assert!(err.contains("characters left out"), "{err}");
+    assert!(err.contains("m.png carries no recipe"), "{err}");
+}
