@@ -40,9 +40,10 @@ pyo3::create_exception!(
 /// A message as the command line prints it: what a stranger wrote that it quotes (a scene's
 /// key, a recipe, a database's path) with its control, bidirectional and other unsafe
 /// characters, line ends too, as `\u{…}` escapes, since Python prints an exception's text
-/// to the terminal as it is.
+/// to the terminal as it is; and of at most `text::MAX_MESSAGE_CHARS` characters, its start
+/// and end kept, whatever the length of what it quotes.
 fn safe(message: &str) -> String {
-    tessera::text::terminal_safe(message, usize::MAX)
+    tessera::text::message_safe(message)
 }
 
 /// A tessera error as the Python exception a user expects, with the command line's message.

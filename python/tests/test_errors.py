@@ -172,6 +172,19 @@ def test_what_a_stranger_wrote_reaches_an_exception_escaped(tmp_path):
         assert "\\u{1b}[2J" in message and "\\u{202e}" in message, message
 
 
+def test_a_message_quoting_a_long_key_keeps_its_start_and_end(tmp_path):
+    # A key of 1 MiB is quoted twice (the field and the unknown key): a message of 2 MB once.
+    key = "k" * (1 << 20)
+    scene = tmp_path / "long.toml"
+    scene.write_text(f"[image]\n{key} = 1\n")
+    for given in (scene, {"image": {key: 1}}):
+        with pytest.raises(tessera.SceneError) as e:
+            tessera.render(given)
+        message = str(e.value)
+        assert len(message) < 5000, len(message)
+        assert "field `image.kkkk" in message and "characters left out) … kkkk" in message
+
+
 def test_a_panic_is_an_exception_and_the_interpreter_survives():
     with pytest.raises(tessera.TesseraError, match="internal error .* a panic on purpose"):
         tessera._native._panic_for_tests()
