@@ -194,8 +194,10 @@ impl<'a> Checker<'a> {
         field: &str,
     ) -> Result<(f64, f64)> {
         let [a, b] = v.get_ref().0;
-        let limit = f64::from(MAX_LENGTH);
-        let ok = |x: f64| x.is_finite() && x.abs() <= limit;
+        // Rounded to f32 as a point's coordinates and a length are: the bound as the message
+        // writes it, 1e18, is within it (as f64 it lies above `MAX_LENGTH`, 1e18 rounded to
+        // f32, and was refused with a message saying it must be within ±1e18).
+        let ok = |x: f64| x.is_finite() && (x as f32).abs() <= MAX_LENGTH;
         if !(ok(a) && ok(b) && a <= b) {
             return Err(self.error(
                 v.span(),

@@ -205,6 +205,28 @@ fn nan_and_infinity_are_rejected() {
     );
 }
 
+/// A range's bound is the one its message writes, as a point's: 1e18 itself is within it.
+#[test]
+fn a_range_at_the_bound_its_message_writes_is_within_it() {
+    let moving = |times: &str| {
+        GOOD.replace(
+            "radius = 0.5",
+            &format!("radius = 0.5\ncenter2 = [0.0, 1.0, -1.0]\nmove_times = {times}"),
+        )
+    };
+    let dir = dir_with_scene("range-at-bound", moving("[-1e18, 1e18]"));
+    let o = run(&["render", "scene.toml", "-o", "out.png", "-q"], &dir);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_rejected(
+        "range-past-bound",
+        &moving("[0.0, 2e18]"),
+        &[
+            "spheres[0].move_times",
+            "within ±1e18, low at most high, got [0, 2e18]",
+        ],
+    );
+}
+
 #[test]
 fn malformed_toml_is_located() {
     assert_rejected(
