@@ -16,6 +16,7 @@ const LAYERS: &[&str] = &[
     "metadata",
     "png_header",
     "exr_header",
+    "pnm_header",
     "confinement",
     "ray",
     "sampling",
