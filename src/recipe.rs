@@ -329,9 +329,9 @@ impl Recipe {
                      name without `..`: refused"
                 )));
             }
-            let found = crate::scene::find_texture(dirs, Path::new(&t.name))
+            let found = crate::scene::open_texture(dirs, Path::new(&t.name))
                 .map_err(|why| refuse(format!("its scene's {}", terminal_safe(&why, 400))))?;
-            let Some(found) = found else {
+            let Some((file, found)) = found else {
                 return Err(Error::Image {
                     path: image.to_owned(),
                     message: format!(
@@ -349,12 +349,9 @@ impl Recipe {
             let hash = match hashed.get(&key) {
                 Some(hash) => hash.clone(),
                 None => {
-                    let file = crate::input_file::open_regular(&found).map_err(io)?;
-                    let mut bytes = Vec::new();
-                    use std::io::Read;
-                    file.take(crate::scene::MAX_TEXTURE_BYTES + 1)
-                        .read_to_end(&mut bytes)
-                        .map_err(io)?;
+                    let bytes = crate::scene::read_texture(file, &found).map_err(|why| {
+                        refuse(format!("its scene's {}", terminal_safe(&why, 400)))
+                    })?;
                     let hash = format!("xxh3-128:{:032x}", xxhash_rust::xxh3::xxh3_128(&bytes));
                     hashed.insert(key, hash.clone());
                     hash

@@ -17,7 +17,7 @@ mod values;
 pub use build::{MAX_PIXELS, Overrides};
 pub use check::{MAX_LENGTH, MIN_RADIUS};
 pub use textures::{
-    MAX_TEXTURE_BYTES, MAX_TEXTURE_PIXELS, TextureSource, find_texture, is_plain_name,
+    MAX_TEXTURE_BYTES, MAX_TEXTURE_PIXELS, TextureSource, is_plain_name, open_texture, read_texture,
 };
 
 /// The longest scene file tessera reads: the cover's is 3 KiB, 20,000 spheres written out

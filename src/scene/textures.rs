@@ -8,6 +8,7 @@
 use super::TextureFile;
 use crate::input_file::open_regular;
 use crate::texture::ImageTexture;
+use std::fs::File;
 use std::io::Read;
 use std::path::{Component, Path, PathBuf};
 
@@ -62,7 +63,7 @@ pub(super) fn load(
             None => return Err(format!("no texture `{name}` is compiled in")),
         },
         TextureSource::Dirs(dirs) => {
-            let Some(path) = find_texture(dirs, relative)? else {
+            let Some((file, path)) = open_texture(dirs, relative)? else {
                 let looked: Vec<String> = dirs
                     .iter()
                     .map(|d| {
@@ -75,7 +76,7 @@ pub(super) fn load(
                     looked.join(", ")
                 ));
             };
-            (read_limited(&path)?, path.display().to_string())
+            (read_texture(file, &path)?, path.display().to_string())
         }
     };
     let hash = xxhash_rust::xxh3::xxh3_128(&bytes);
@@ -103,8 +104,8 @@ pub(super) fn identity(name: &str, source: &TextureSource) -> Option<String> {
             .any(|(n, _)| *n == name)
             .then(|| format!("compiled in: {name}")),
         TextureSource::Dirs(dirs) => {
-            let path = find_texture(dirs, Path::new(name)).ok()??;
-            Some(path.canonicalize().ok()?.display().to_string())
+            let found = locate(dirs, Path::new(name)).ok()??;
+            Some(found.real.display().to_string())
         }
     }
 }
@@ -117,10 +118,20 @@ pub fn is_plain_name(name: &str) -> bool {
             .all(|c| matches!(c, Component::Normal(_) | Component::CurDir))
 }
 
+/// A texture file found in one of the directories looked in.
+struct Found {
+    /// As the directory and the name make it.
+    path: PathBuf,
+    /// Its canonical path, when it was found.
+    real: PathBuf,
+    /// The canonical path of the directory it lies in.
+    base: PathBuf,
+}
+
 /// The texture file `name` (a plain name) in the first of `dirs` that holds it. A file
 /// that a symbolic link leads out of its directory is refused: a scene or recipe from a
 /// stranger reads only what lies in the directories it is given.
-pub fn find_texture(dirs: &[PathBuf], name: &Path) -> Result<Option<PathBuf>, String> {
+fn locate(dirs: &[PathBuf], name: &Path) -> Result<Option<Found>, String> {
     for dir in dirs {
         let path = dir.join(name);
         let Ok(real) = path.canonicalize() else {
@@ -132,23 +143,58 @@ pub fn find_texture(dirs: &[PathBuf], name: &Path) -> Result<Option<PathBuf>, St
         } else {
             dir.as_path()
         };
-        let inside = base.canonicalize().is_ok_and(|base| real.starts_with(base));
-        if !inside {
-            return Err(format!(
-                "texture file {} leads out of {} (a symbolic link): refused",
-                path.display(),
-                base.display()
-            ));
+        match base.canonicalize() {
+            Ok(base) if real.starts_with(&base) => return Ok(Some(Found { path, real, base })),
+            _ => return Err(leads_out(&path, base)),
         }
-        return Ok(Some(path));
     }
     Ok(None)
 }
 
-/// The bytes of the regular file `path`, at most `MAX_TEXTURE_BYTES`.
-fn read_limited(path: &Path) -> Result<Vec<u8>, String> {
-    let shown = path.display();
-    let file = open_regular(path).map_err(|e| format!("{shown}: {e}"))?;
+fn leads_out(path: &Path, base: &Path) -> String {
+    format!(
+        "texture file {} leads out of {} (a symbolic link): refused",
+        path.display(),
+        base.display()
+    )
+}
+
+/// The texture file `name` in the first of `dirs` that holds it (`locate`), opened:
+/// None when no directory holds it. Checked before it is opened (a link out of the
+/// directory, to a device say, is not opened), and the file opened checked again: whoever
+/// can write in the directory could otherwise swap a link in between the check and the
+/// opening, and have tessera read a file outside.
+pub fn open_texture(dirs: &[PathBuf], name: &Path) -> Result<Option<(File, PathBuf)>, String> {
+    let Some(found) = locate(dirs, name)? else {
+        return Ok(None);
+    };
+    let path = found.path.clone();
+    let file = open_regular(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+    if !opened_inside(&file, &found) {
+        return Err(leads_out(&path, &found.base));
+    }
+    Ok(Some((file, path)))
+}
+
+/// Whether the file `file`, opened after `found` was checked, lies in `found`'s directory:
+/// as the kernel knows the file opened (its `/proc/self/fd` link), not by a path that may
+/// since lead elsewhere. Without `/proc`, the file at the canonical path checked must be the
+/// one opened (the same device and inode, a link there not followed).
+fn opened_inside(file: &File, found: &Found) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    use std::os::unix::io::AsRawFd;
+    if let Ok(opened) = std::fs::read_link(format!("/proc/self/fd/{}", file.as_raw_fd())) {
+        return opened.starts_with(&found.base);
+    }
+    match (file.metadata(), std::fs::symlink_metadata(&found.real)) {
+        (Ok(opened), Ok(checked)) => (opened.dev(), opened.ino()) == (checked.dev(), checked.ino()),
+        _ => false,
+    }
+}
+
+/// The bytes of the regular file `file` (`shown` in messages), at most `MAX_TEXTURE_BYTES`.
+pub fn read_texture(file: File, shown: &Path) -> Result<Vec<u8>, String> {
+    let shown = shown.display();
     let mut bytes = Vec::new();
     file.take(MAX_TEXTURE_BYTES + 1)
         .read_to_end(&mut bytes)
@@ -237,6 +283,40 @@ fn jpeg_ends(bytes: &[u8]) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A link swapped in between the check of a texture's path and its opening: the file
+    /// opened is checked again, by what was opened, and refused when it lies outside.
+    #[test]
+    fn a_texture_opened_is_checked_again_by_what_was_opened() {
+        let root = std::env::temp_dir().join(format!("tessera-swap-{}", std::process::id()));
+        let (dir, outside) = (root.join("scenes"), root.join("secret"));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::create_dir_all(&outside).unwrap();
+        std::fs::write(dir.join("earth.jpg"), b"inside").unwrap();
+        std::fs::write(outside.join("key"), b"outside").unwrap();
+        let dirs = [dir.clone()];
+        // The path as checked: inside.
+        let found = locate(&dirs, Path::new("earth.jpg")).unwrap().unwrap();
+        let inside = open_regular(&found.path).unwrap();
+        assert!(opened_inside(&inside, &found));
+        // What an attacker's swap would have opened in its place: refused.
+        let swapped = open_regular(&outside.join("key")).unwrap();
+        assert!(!opened_inside(&swapped, &found));
+        // Opened whole, a file that lies inside reads; a link out is refused unopened.
+        let (file, path) = open_texture(&dirs, Path::new("earth.jpg"))
+            .unwrap()
+            .unwrap();
+        assert_eq!(read_texture(file, &path).unwrap(), b"inside");
+        std::os::unix::fs::symlink(outside.join("key"), dir.join("key.jpg")).unwrap();
+        let e = open_texture(&dirs, Path::new("key.jpg")).err().unwrap();
+        assert!(e.contains("leads out of"), "{e}");
+        assert!(
+            open_texture(&dirs, Path::new("none.jpg"))
+                .unwrap()
+                .is_none()
+        );
+        std::fs::remove_dir_all(&root).unwrap();
+    }
 
     #[test]
     fn a_truncated_jpeg_is_refused_and_the_whole_one_decodes() {
