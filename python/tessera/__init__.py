@@ -171,21 +171,28 @@ _MAX_SCENE_VALUES = 1 << 20
 _MAX_SCENE_CHARS = 64 << 20
 
 
+#: The whole numbers a scene file holds: TOML's, 64-bit signed.
+_SCENE_INT_RANGE = (-(1 << 63), (1 << 63) - 1)
+
+
 def _string_keys(scene: Mapping) -> None:
     """Refuses a dict, at any depth, with a key that is not a string (JSON would turn `1`
-    into `"1"` without a word), one that holds itself, and one larger, written out, than a
-    scene file may be: a list held many times over is as many lists in the JSON, and a walk
-    without bounds never ends on a dict that holds itself (a YAML anchor and its alias)."""
+    into `"1"` without a word), a whole number beyond a scene file's (named by its keys,
+    not by a place in the JSON the user never wrote), one that holds itself, and one larger,
+    written out, than a scene file may be: a list held many times over is as many lists in
+    the JSON, and a walk without bounds never ends on a dict that holds itself (a YAML
+    anchor and its alias)."""
     values = chars = 0
-    # The dicts and lists to walk, each followed by None once its items are walked, to
-    # leave it; those being walked, by id.
-    pending: list = [scene]
+    # The dicts and lists to walk, with where they are, each followed by None once its
+    # items are walked, to leave it; those being walked, by id.
+    pending: list = [(scene, "")]
     inside: dict = {}
     while pending:
-        value = pending.pop()
-        if value is None:
+        entry = pending.pop()
+        if entry is None:
             inside.popitem()
             continue
+        value, where = entry
         if id(value) in inside:
             raise ValueError("scene: a dict or list holds itself")
         inside[id(value)] = None
@@ -199,13 +206,28 @@ def _string_keys(scene: Mapping) -> None:
             if isinstance(item, str):
                 chars += len(item)
             elif isinstance(item, (Mapping, list, tuple)):
-                pending.append(item)
+                pending.append((item, _place(where, value, key)))
+            elif isinstance(item, (int, np.integer)) and not isinstance(item, bool):
+                low, high = _SCENE_INT_RANGE
+                if not low <= int(item) <= high:
+                    raise ValueError(
+                        f"scene: {_place(where, value, key)} is {int(item)}, beyond the whole "
+                        f"numbers a scene file holds ({low} to {high})"
+                    )
             values += 1
         if values > _MAX_SCENE_VALUES or chars > _MAX_SCENE_CHARS:
             raise ValueError(
                 f"scene: more than {_MAX_SCENE_VALUES} values or {_MAX_SCENE_CHARS >> 20} MiB "
                 "of text written out, more than a scene file may hold"
             )
+
+
+def _place(where: str, value: Any, key: Any) -> str:
+    """The place of item `key` of `value`, which is at `where`: `image.width`,
+    `spheres[2].center`."""
+    if isinstance(value, Mapping):
+        return f"{where}.{key}" if where else str(key)
+    return f"{where}[{key}]"
 
 
 def _scene_input(scene: SceneLike) -> "tuple[str, str]":

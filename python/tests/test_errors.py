@@ -6,6 +6,7 @@ import subprocess
 import sys
 import textwrap
 
+import numpy as np
 import pytest
 
 import tessera
@@ -86,6 +87,10 @@ def test_a_missing_or_odd_scene_is_refused(tmp_path):
         ({"image": {"width": object()}}, "object is none of them"),
         ({"spheres": "many"}, "spheres"),
         ({"image": {"width": 10**30, "height": 2}}, "image.width"),
+        # Beyond TOML's whole numbers: named by the keys, not by a place in JSON.
+        ({"image": {"width": 2**63}}, "image.width is 9223372036854775808, beyond"),
+        ({"spheres": [{"center": [0, 2**64, 0]}]}, "spheres[0].center[1] is 1844"),
+        ({"image": {"width": np.uint64(2**64 - 1)}}, "image.width is 1844"),
     ],
 )
 def test_a_bad_dict_is_refused(scene, says):
