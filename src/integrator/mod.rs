@@ -147,30 +147,27 @@ impl FullPath {
         hit: Option<Hit>,
         rng: &mut Sampler,
     ) -> Option<(Ray, Interval, RayHints)> {
-        let (here, raw) = self.scatter(scene, hit, rng)?;
+        let raw = self.scatter(scene, hit.as_ref(), rng)?;
+        // `scatter` goes on only from a hit.
+        let here = hit?;
         Some(self.leave(scene, &here, raw))
     }
 
     /// `advance`'s first half: takes the hit, adds what it emits and scatters there; the
-    /// hit and the (not necessarily unit) direction the path goes on in, or `None` when it
-    /// has ended. Every random number a segment needs is drawn here.
+    /// (not necessarily unit) direction the path goes on in, or `None` when it has ended.
+    /// Every random number a segment needs is drawn here.
     #[inline(always)]
-    pub fn scatter(
-        &mut self,
-        scene: &Scene,
-        hit: Option<Hit>,
-        rng: &mut Sampler,
-    ) -> Option<(Hit, Vec3)> {
+    pub fn scatter(&mut self, scene: &Scene, hit: Option<&Hit>, rng: &mut Sampler) -> Option<Vec3> {
         let Some(here) = hit else {
             self.radiance += self.throughput * scene.background.radiance(self.ray.dir);
             return None;
         };
-        let material = scene.material(&here);
-        let texture = scene.texture_at(&here, self.moment.time);
+        let material = scene.material(here);
+        let texture = scene.texture_at(here, self.moment.time);
         let tint = |c: Color| texture.map_or(c, |t| c * t);
         self.radiance += self.throughput * tint(material.emitted());
         let settings = &scene.settings;
-        let scatter = material.scatter(self.ray.dir, &here, settings.diffuse, rng)?;
+        let scatter = material.scatter(self.ray.dir, here, settings.diffuse, rng)?;
         if self.rays >= settings.max_depth {
             return None;
         }
@@ -178,7 +175,7 @@ impl FullPath {
         if scene.has_media() {
             self.moment.medium_key = rng.word();
         }
-        Some((here, scatter.dir))
+        Some(scatter.dir)
     }
 
     /// `advance`'s second half: the segment leaving `here` along `raw` (what `scatter`
