@@ -606,8 +606,16 @@ fn text(status: StatusCode, message: &'static str) -> Response<Body> {
     r
 }
 
-/// Headers that keep the page to its own resources and out of other sites' frames.
+/// Headers that keep the page to its own resources, out of other sites' frames, and every
+/// answer out of other origins' pages: without `Cross-Origin-Resource-Policy`, a page of any
+/// site can load the frame or the finished image as an `<img>` (the browser sends a loopback
+/// Host, so the Host check lets it through), learn its size and hold its pixels in its own
+/// process.
 fn secure(h: &mut hyper::HeaderMap) {
+    h.insert(
+        header::HeaderName::from_static("cross-origin-resource-policy"),
+        HeaderValue::from_static("same-origin"),
+    );
     h.insert(
         header::CONTENT_SECURITY_POLICY,
         HeaderValue::from_static(

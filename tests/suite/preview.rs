@@ -367,6 +367,52 @@ fn the_page_its_assets_and_the_event_stream_are_served() {
     assert_eq!(viewer.interrupt_held().0, 0);
 }
 
+/// A page of another origin that names the viewer in an `<img>` gets the image (the
+/// browser sends the viewer's own loopback Host): measured with Chromium, a page on
+/// `http://localhost:PORT2` loaded `/download` and read its 300x200 size. Every answer says
+/// `Cross-Origin-Resource-Policy: same-origin`, so browsers refuse such loads.
+#[test]
+fn every_answer_keeps_other_origins_pages_from_loading_it() {
+    let dir = temp_dir("preview-corp");
+    let mut args = cover_args(64, 8);
+    args.extend(["-o", "a.png", "--preview=127.0.0.1:0", "--preview-hold"].map(String::from));
+    let viewer = Viewer::start(&strs(&args), &dir);
+    viewer.wait_for("the end", |s| s["state"] == "finished");
+    let answers = [
+        ("/", viewer.get("/")),
+        ("/viewer.js", viewer.get("/viewer.js")),
+        ("/status", viewer.get("/status")),
+        ("/frame.png", viewer.get("/frame.png")),
+        ("/download", viewer.get("/download")),
+        ("/nothing", viewer.get("/nothing")),
+        (
+            "HEAD /events",
+            request(
+                viewer.addr,
+                &format!("HEAD /events HTTP/1.1\r\n{}", viewer.host()),
+            ),
+        ),
+        (
+            "a foreign Host",
+            request(
+                viewer.addr,
+                "GET /download HTTP/1.1\r\nHost: evil.example\r\nConnection: close\r\n\r\n",
+            ),
+        ),
+    ];
+    for (what, answer) in &answers {
+        assert_eq!(
+            answer.header("cross-origin-resource-policy"),
+            Some("same-origin"),
+            "{what}: {} {:?}",
+            answer.code,
+            answer.headers
+        );
+    }
+    assert_eq!(answers[4].1.code, 200, "the download is served");
+    assert_eq!(viewer.interrupt_held().0, 0);
+}
+
 #[test]
 fn the_server_refuses_what_it_does_not_serve_while_the_render_goes_on() {
     let dir = temp_dir("preview-limits");
