@@ -431,15 +431,23 @@ fn host_allowed(addr: SocketAddr, request: &Request<Incoming>) -> bool {
     if is_public(&addr) {
         return true;
     }
-    let Some(host) = request
-        .headers()
-        .get(header::HOST)
-        .and_then(|h| h.to_str().ok())
-    else {
+    // One Host only: with two, the check would read the first and a proxy in front might
+    // route by the other.
+    let mut hosts = request.headers().get_all(header::HOST).iter();
+    let (Some(host), None) = (hosts.next(), hosts.next()) else {
         return false;
     };
-    let Ok(authority) = host.parse::<hyper::http::uri::Authority>() else {
+    let Ok(host) = host.to_str() else {
         return false;
+    };
+    // A request for an absolute URL (`GET http://name/ HTTP/1.1`) names its host in the URL,
+    // which then counts rather than the Host header (RFC 9112, 3.2.2).
+    let authority = match request.uri().authority() {
+        Some(authority) => authority.clone(),
+        None => match host.parse::<hyper::http::uri::Authority>() {
+            Ok(authority) => authority,
+            Err(_) => return false,
+        },
     };
     if authority.port_u16().is_some_and(|p| p != addr.port()) {
         return false;

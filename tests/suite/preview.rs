@@ -413,6 +413,48 @@ fn every_answer_keeps_other_origins_pages_from_loading_it() {
     assert_eq!(viewer.interrupt_held().0, 0);
 }
 
+/// The Host check reads the request's one host: a second Host header after a loopback
+/// one, or an absolute URL naming another host, was answered 200 with the status (measured
+/// by hand: `Host: 127.0.0.1` then `Host: evil.com`, and `GET http://evil.example/status`).
+#[test]
+fn a_second_host_or_a_foreign_absolute_url_is_misdirected() {
+    let dir = temp_dir("preview-hosts");
+    let mut args = cover_args(64, 8);
+    args.extend(["-o", "a.png", "--preview=127.0.0.1:0", "--preview-hold"].map(String::from));
+    let viewer = Viewer::start(&strs(&args), &dir);
+    viewer.wait_for("the end", |s| s["state"] == "finished");
+    let addr = viewer.addr;
+    let ask = |raw: String| request(addr, &raw).code;
+    assert_eq!(
+        ask(format!(
+            "GET /status HTTP/1.1\r\nHost: {addr}\r\nHost: evil.example\r\nConnection: close\r\n\r\n"
+        )),
+        421,
+        "two Host headers"
+    );
+    assert_eq!(
+        ask(format!(
+            "GET http://evil.example/status HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
+        )),
+        421,
+        "an absolute URL of another host"
+    );
+    assert_eq!(
+        ask(format!(
+            "GET http://{addr}/status HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
+        )),
+        200,
+        "an absolute URL of the viewer itself"
+    );
+    assert_eq!(
+        ask(format!(
+            "GET /status HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
+        )),
+        200
+    );
+    assert_eq!(viewer.interrupt_held().0, 0);
+}
+
 #[test]
 fn the_server_refuses_what_it_does_not_serve_while_the_render_goes_on() {
     let dir = temp_dir("preview-limits");
