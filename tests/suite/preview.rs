@@ -784,6 +784,64 @@ fn ctrl_c_in_a_watched_render_saves_the_checkpoint_and_resumes_to_the_same_bytes
     assert!(preview == image, "the last preview is the final image");
 }
 
+/// A client that asks for frames and never reads them holds the viewer's close for seconds;
+/// an interrupted render's progress is saved before that, not after (a container has a few
+/// seconds between SIGTERM and SIGKILL): the checkpoint is there while tessera still waits.
+#[test]
+fn an_interrupted_render_saves_its_checkpoint_before_a_stuck_viewer_lets_go() {
+    use std::io::Write;
+    let dir = temp_dir("preview-stuck-checkpoint");
+    let mut args = cover_args(400, 256);
+    // No save before the interruption: the checkpoint's appearing is the one at the end.
+    args.extend(
+        [
+            "--threads",
+            "1",
+            "-o",
+            "out.png",
+            "--checkpoint",
+            "c.part",
+            "--checkpoint-every",
+            "3600",
+            "--preview",
+        ]
+        .map(String::from),
+    );
+    let mut viewer = Viewer::start(&strs(&args), &dir);
+    viewer.wait_for("the second pass", |s| s["spp_done"].as_u64() >= Some(4));
+    // Frames asked for two hundred times over one connection, none read: tens of MB the
+    // server cannot send.
+    let mut stuck = std::net::TcpStream::connect(viewer.addr).unwrap();
+    let ask = format!("GET /frame.png HTTP/1.1\r\nHost: {}\r\n\r\n", viewer.addr);
+    stuck.write_all(ask.repeat(200).as_bytes()).unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    let _ = std::process::Command::new("kill")
+        .args(["-INT", &viewer.child.id().to_string()])
+        .status();
+    let start = Instant::now();
+    while !dir.join("c.part").exists() {
+        if viewer.child.try_wait().unwrap().is_some() {
+            break;
+        }
+        assert!(start.elapsed() < PATIENCE, "no checkpoint");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    if viewer.child.try_wait().unwrap().is_some() && !dir.join("c.part").exists() {
+        // The render ended before the signal came: nothing to save.
+        return skip(
+            "an_interrupted_render_saves_its_checkpoint",
+            "the render ended first",
+        );
+    }
+    assert!(
+        viewer.child.try_wait().unwrap().is_none(),
+        "the checkpoint came only as tessera ended, after the viewer let go"
+    );
+    drop(stuck);
+    let code = viewer.wait();
+    assert_eq!(code, 130, "{}", viewer.stderr.lock().unwrap());
+}
+
 #[test]
 fn watched_renders_of_the_cover_and_every_figure_are_byte_identical() {
     let dir = temp_dir("preview-bytes");

@@ -265,11 +265,15 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let stats = render::render_job(&scene, &options, &mut state, control)
         .context("could not start the thread pool")?;
     bar.finish_and_clear();
+    // An interrupted render's progress is saved before the viewer is closed: closing waits
+    // up to 5 s for its clients (a hostile one holds it that long), which would eat into the
+    // few seconds a container is given between SIGTERM and SIGKILL.
+    let saved = saver.as_ref().map(|saver| saver.save_at_end(&state));
     if let Some(preview) = preview.take_if(|_| !state.is_complete()) {
         preview.end(&state, RunState::Interrupted).close();
     }
     if let Some(saver) = &saver {
-        saver.save_at_end(&state)?;
+        saved.transpose()?;
         if !state.is_complete() {
             note(format_args!(
                 "tessera: interrupted at {:.1}%; progress is saved in {}. Run the same command again to resume.",
