@@ -42,9 +42,7 @@ impl Scene {
         hints: RayHints,
     ) -> Option<Hit> {
         if self.accel.choice() == AcceleratorChoice::StillSpheres {
-            self.accel
-                .hit_spheres(isa, ray, interval, stack, hints)
-                .map(|(t, id)| self.sphere_surface(ray, t, id))
+            self.hit_still_on(isa, ray, interval, stack, hints)
         } else {
             self.hit_at(isa, ray, Moment::default(), interval, stack, hints)
         }
