@@ -710,9 +710,9 @@ fn a_recipe_whose_paths_cost_more_than_it_claims_is_refused_once_they_are_traced
     );
     // One pixel of 400 million samples: the probe draws its samples' indices, and the
     // budget stops a pixel within 4,096 of them. (At one cover path's cost a sample it is
-    // 0.83 covers' work, under the 4 reproduce renders unasked even when a busy machine
-    // skews the probe's timing: four billion samples were once refused up front in CI, their
-    // paths measured at 3.0 times the cover's.)
+    // 0.83 covers' work, under the 4 reproduce renders unasked with room to spare: four
+    // billion samples were once refused up front in CI, when the probe timed paths by the
+    // wall clock and a busy machine had them at 3.0 times the cover's.)
     std::fs::write(
         dir.join("dot.toml"),
         "[image]\nwidth = 1\nheight = 1\nsamples_per_pixel = 400000000\nmax_depth = 1\n",
