@@ -440,6 +440,65 @@ fn a_closed_pipe_ends_quietly() {
 }
 
 #[test]
+fn a_checkpoint_naming_the_image_or_the_preview_is_refused_before_rendering() {
+    let dir = dir_with_scene("ckpt-same-file", GOOD);
+    std::fs::write(dir.join("out.png"), b"an earlier image").unwrap();
+    std::fs::write(dir.join("c.ckpt"), b"an earlier checkpoint").unwrap();
+    std::os::unix::fs::symlink("c.ckpt", dir.join("link.ckpt")).unwrap();
+    std::os::unix::fs::symlink("c.ckpt", dir.join("link.png")).unwrap();
+    let cases: [(&[&str], &str); 4] = [
+        (
+            &["-o", "out.png", "--checkpoint", "./out.png"],
+            "--checkpoint ./out.png names the same file as -o",
+        ),
+        (
+            &[
+                "-o",
+                "a.png",
+                "--preview-file",
+                "p.png",
+                "--checkpoint",
+                "p.png",
+            ],
+            "--checkpoint p.png names the same file as --preview-file",
+        ),
+        // One file by two names: the link to the checkpoint as the preview.
+        (
+            &[
+                "-o",
+                "a.png",
+                "--preview-file",
+                "link.ckpt",
+                "--checkpoint",
+                "c.ckpt",
+            ],
+            "--checkpoint c.ckpt names the same file as --preview-file",
+        ),
+        (
+            &["-o", "link.png", "--checkpoint", "c.ckpt"],
+            "--checkpoint c.ckpt names the same file as -o",
+        ),
+    ];
+    for (flags, said) in cases {
+        let mut args = vec!["render", "scene.toml", "--checkpoint-every", "0"];
+        args.extend_from_slice(flags);
+        let o = run(&args, &dir);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{flags:?}: {err}");
+        assert!(err.contains(said), "{flags:?}: {err}");
+        assert!(!dir.join("a.png").exists() && !dir.join("p.png").exists());
+        assert_eq!(
+            std::fs::read(dir.join("out.png")).unwrap(),
+            b"an earlier image"
+        );
+        assert_eq!(
+            std::fs::read(dir.join("c.ckpt")).unwrap(),
+            b"an earlier checkpoint"
+        );
+    }
+}
+
+#[test]
 fn an_unwritable_checkpoint_is_refused_before_rendering() {
     let dir = dir_with_scene("ckpt-missing-dir", GOOD);
     let o = run(

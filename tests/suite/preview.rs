@@ -663,7 +663,7 @@ fn bad_preview_addresses_are_errors_before_the_render() {
     );
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(
-        stderr(&o).contains("--preview-file ./x.png names the render's output"),
+        stderr(&o).contains("--preview-file ./x.png names the same file as -o"),
         "{}",
         stderr(&o)
     );

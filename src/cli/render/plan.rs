@@ -243,15 +243,30 @@ impl RenderPlan {
         {
             check_output(&c.path)?;
         }
-        // A preview written where the image goes would replace an earlier image with part of
-        // a render, and leave it so if the render stops.
-        if let Some(path) = &args.preview.preview_file
-            && same_file(path, output.path())
-        {
-            bail!(
-                "--preview-file {} names the render's output: give the preview a file of its own",
-                path.display()
-            );
+        // No two of the render's files may be one: a preview written where the image goes
+        // would replace an earlier image with part of a render, and leave it so if the render
+        // stops; a checkpoint written where the image or the preview goes would be replaced
+        // by it, and a resume would then read an image as a checkpoint.
+        let files = [
+            ("-o", Some(output.path())),
+            ("--preview-file", args.preview.preview_file.as_deref()),
+            (
+                "--checkpoint",
+                checkpoint.as_ref().map(|c| c.path.as_path()),
+            ),
+        ];
+        for (i, (flag, path)) in files.iter().enumerate() {
+            for (earlier, earlier_path) in &files[..i] {
+                if let (Some(path), Some(earlier_path)) = (path, earlier_path)
+                    && same_file(path, earlier_path)
+                {
+                    bail!(
+                        "{flag} {} names the same file as {earlier}: give each of the render's \
+                         files a name of its own",
+                        path.display()
+                    );
+                }
+            }
         }
         // Last, so that the port is taken only once everything else is known to be right.
         let preview = PreviewSettings::new(&args.preview)?;
@@ -389,8 +404,10 @@ fn default_output(scene: &Path) -> PathBuf {
 }
 
 /// Whether `a` and `b` name one file, whether or not it exists yet: the same name in the
-/// same directory, however the directory is spelt.
+/// same directory, however the directory is spelt, or, where both exist, one file by two
+/// names (a link).
 fn same_file(a: &Path, b: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
     let place = |p: &Path| {
         let dir = match p.parent() {
             Some(d) if !d.as_os_str().is_empty() => d,
@@ -398,7 +415,9 @@ fn same_file(a: &Path, b: &Path) -> bool {
         };
         Some((dir.canonicalize().ok()?, p.file_name()?.to_owned()))
     };
+    let inode = |p: &Path| std::fs::metadata(p).ok().map(|m| (m.dev(), m.ino()));
     matches!((place(a), place(b)), (Some(a), Some(b)) if a == b)
+        || matches!((inode(a), inode(b)), (Some(a), Some(b)) if a == b)
 }
 
 #[cfg(test)]
