@@ -49,7 +49,7 @@ impl RgbImage {
         let decoder = Self::decoder(path)?;
         let img = image::DynamicImage::from_decoder(decoder).map_err(|e| Error::Image {
             path: path.to_owned(),
-            message: e.to_string(),
+            message: decode_failure(&e),
         })?;
         let rgb = img.to_rgb32f();
         Ok(Self {
@@ -147,6 +147,18 @@ impl RgbImage {
             height,
             data: bytes.iter().map(|&b| f32::from(b) / 255.0).collect(),
         }
+    }
+}
+
+/// What a decoder's failure says of the file: a file that ends within its pixels says so
+/// (the decoders' own words for it are "failed to fill whole buffer").
+fn decode_failure(e: &image::ImageError) -> String {
+    match e {
+        image::ImageError::IoError(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
+            "ends before its image does (a truncated file?)".to_owned()
+        }
+        image::ImageError::IoError(io) => format!("could not be read: {io}"),
+        e => format!("has pixels that do not decode: {e}"),
     }
 }
 

@@ -326,6 +326,25 @@ fn compare_refuses_a_file_longer_than_its_images_take_and_a_pnm_header_without_e
     let o = run(&["compare", "a.jpg", "a.jpg"], &dir);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stdout(&o).contains("inf dB (identical)"), "{}", stdout(&o));
+    // A file that ends within its pixels says so, not the decoder's "failed to fill whole
+    // buffer".
+    let pixels = [7u8; 4 * 4 * 3];
+    let pam = b"P7\nWIDTH 4\nHEIGHT 4\nDEPTH 3\nMAXVAL 255\nTUPLTYPE RGB\nENDHDR\n";
+    std::fs::write(dir.join("whole.pam"), [&pam[..], &pixels].concat()).unwrap();
+    std::fs::write(dir.join("cut.pam"), [&pam[..], &pixels[..20]].concat()).unwrap();
+    std::fs::write(
+        dir.join("cut.ppm"),
+        [&b"P6\n4 4\n255\n"[..], &pixels[..20]].concat(),
+    )
+    .unwrap();
+    for cut in ["cut.pam", "cut.ppm"] {
+        let o = run(&["compare", "whole.pam", cut], &dir);
+        refused(
+            &o,
+            &format!("{cut}: ends before its image does (a truncated file?)"),
+            cut,
+        );
+    }
     // Files of 100 GiB, if only in name, are not left for whoever sums the sizes of /tmp.
     for name in ["long.jpg", "comment.ppm", "line.pam"] {
         std::fs::remove_file(dir.join(name)).unwrap();
