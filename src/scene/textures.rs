@@ -6,7 +6,7 @@
 //! is decoded.
 
 use super::TextureFile;
-use crate::input_file::open_regular;
+use crate::input_file::{LinkOr, open_regular_without_links};
 use crate::texture::ImageTexture;
 use std::fs::File;
 use std::io::Read;
@@ -168,12 +168,28 @@ pub fn open_texture(dirs: &[PathBuf], name: &Path) -> Result<Option<(File, PathB
     let Some(found) = locate(dirs, name)? else {
         return Ok(None);
     };
-    let path = found.path.clone();
-    let file = open_regular(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-    if !opened_inside(&file, &found) {
-        return Err(leads_out(&path, &found.base));
+    let file = open_found(&found)?;
+    Ok(Some((file, found.path)))
+}
+
+/// The file `found`, opened by its canonical path with no link followed at any step
+/// (`open_regular_without_links`): a link swapped in since the check is refused unopened.
+/// What was opened is checked again, for systems where only the last step is guarded.
+fn open_found(found: &Found) -> Result<File, String> {
+    let file = match open_regular_without_links(&found.real) {
+        Ok(file) => file,
+        Err(LinkOr::LinkFound) => {
+            return Err(format!(
+                "texture file {} became a symbolic link as it was opened: refused, not followed",
+                found.path.display()
+            ));
+        }
+        Err(LinkOr::Other(e)) => return Err(format!("{}: {e}", found.path.display())),
+    };
+    if !opened_inside(&file, found) {
+        return Err(leads_out(&found.path, &found.base));
     }
-    Ok(Some((file, path)))
+    Ok(file)
 }
 
 /// Whether the file `file`, opened after `found` was checked, lies in `found`'s directory:
@@ -283,6 +299,7 @@ fn jpeg_ends(bytes: &[u8]) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::input_file::open_regular;
 
     /// A link swapped in between the check of a texture's path and its opening: the file
     /// opened is checked again, by what was opened, and refused when it lies outside.
@@ -310,6 +327,13 @@ mod tests {
         std::os::unix::fs::symlink(outside.join("key"), dir.join("key.jpg")).unwrap();
         let e = open_texture(&dirs, Path::new("key.jpg")).err().unwrap();
         assert!(e.contains("leads out of"), "{e}");
+        // The race's other half: checked while it was a file, a link put in its place
+        // before the opening is refused, not followed.
+        let checked = locate(&dirs, Path::new("earth.jpg")).unwrap().unwrap();
+        std::fs::remove_file(dir.join("earth.jpg")).unwrap();
+        std::os::unix::fs::symlink(outside.join("key"), dir.join("earth.jpg")).unwrap();
+        let e = open_found(&checked).err().unwrap();
+        assert!(e.contains("became a symbolic link as it was opened"), "{e}");
         assert!(
             open_texture(&dirs, Path::new("none.jpg"))
                 .unwrap()
