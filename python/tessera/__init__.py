@@ -205,6 +205,12 @@ def _string_keys(scene: Mapping) -> None:
                 raise ValueError(f"scene: a dict's keys must be strings, not {key!r}")
             if isinstance(item, str):
                 chars += len(item)
+            elif isinstance(item, np.ndarray):
+                # Written out as a list of its elements, each a value: counted before it is,
+                # as its shape may claim far more than it holds (`np.broadcast_to` of one
+                # number to 2^26 took 15 s and 3 GB to write out, then to be refused).
+                values += item.size - 1
+                chars += _array_chars(item, _place(where, value, key), values)
             elif isinstance(item, (Mapping, list, tuple)):
                 pending.append((item, _place(where, value, key)))
             elif isinstance(item, (int, np.integer)) and not isinstance(item, bool):
@@ -220,6 +226,33 @@ def _string_keys(scene: Mapping) -> None:
                 f"scene: more than {_MAX_SCENE_VALUES} values or {_MAX_SCENE_CHARS >> 20} MiB "
                 "of text written out, more than a scene file may hold"
             )
+
+
+def _array_chars(array: np.ndarray, where: str, values: int) -> int:
+    """Checks a NumPy array in a scene dict, whose elements bring the values counted to
+    `values`: within the bound on values (before any element is read), of numbers, booleans
+    or strings (an array of objects would write out what no check here saw), its whole
+    numbers within a scene file's; the characters its strings hold."""
+    if values > _MAX_SCENE_VALUES:
+        raise ValueError(
+            f"scene: {where} is a NumPy array of {array.size} values, more than the "
+            f"{_MAX_SCENE_VALUES} a scene file may hold"
+        )
+    if array.dtype.kind not in "biufU":
+        raise ValueError(
+            f"scene: {where} is a NumPy array of {array.dtype}; a scene dict holds arrays "
+            "of numbers, booleans or strings"
+        )
+    if array.dtype.kind in "iu" and array.size:
+        low, high = _SCENE_INT_RANGE
+        least, most = int(array.min()), int(array.max())
+        if least < low or most > high:
+            beyond = least if least < low else most
+            raise ValueError(
+                f"scene: {where} holds {beyond}, beyond the whole numbers a scene file "
+                f"holds ({low} to {high})"
+            )
+    return array.size * (array.dtype.itemsize // 4) if array.dtype.kind == "U" else 0
 
 
 def _place(where: str, value: Any, key: Any) -> str:

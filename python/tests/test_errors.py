@@ -91,6 +91,15 @@ def test_a_missing_or_odd_scene_is_refused(tmp_path):
         ({"image": {"width": 2**63}}, "image.width is 9223372036854775808, beyond"),
         ({"spheres": [{"center": [0, 2**64, 0]}]}, "spheres[0].center[1] is 1844"),
         ({"image": {"width": np.uint64(2**64 - 1)}}, "image.width is 1844"),
+        # NumPy arrays: counted as the values they write out before they are (one number
+        # broadcast to 2^26 once took 15 s and 3 GB to write out, then to be refused), their
+        # whole numbers checked, their objects (unchecked dicts) refused.
+        (
+            {"spheres": [{"center": np.broadcast_to(np.float64(0.5), (1 << 40,))}]},
+            "spheres[0].center is a NumPy array of 1099511627776 values, more than",
+        ),
+        ({"image": {"width": np.array([2**64 - 1], dtype=np.uint64)}}, "holds 1844"),
+        ({"spheres": [{"center": np.array([{1: 2}], dtype=object)}]}, "array of object"),
     ],
 )
 def test_a_bad_dict_is_refused(scene, says):
