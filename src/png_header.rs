@@ -26,7 +26,7 @@ const PNG_SIGNATURE: [u8; 8] = [0x89, b'P', b'N', b'G', 0x0d, 0x0a, 0x1a, 0x0a];
 pub const MAX_PNG_CHUNKS: u64 = 1 << 16;
 
 /// PNG chunks tessera does not write that change how a viewer shows the picture, and how.
-const DISPLAY_CHUNKS: [(&[u8; 4], &str); 13] = [
+const DISPLAY_CHUNKS: [(&[u8; 4], &str); 14] = [
     (b"acTL", "an animation"),
     (b"fcTL", "an animation frame"),
     (b"fdAT", "an animation frame's pixels"),
@@ -42,6 +42,13 @@ const DISPLAY_CHUNKS: [(&[u8; 4], &str); 13] = [
     (
         b"pHYs",
         "a pixel aspect ratio, which can stretch the picture",
+    ),
+    // Apple's decoders decode the rows after the place an iDOT chunk points to as a zlib
+    // stream of their own, in parallel: a file can hold pixels that every other decoder
+    // reads and, for those rows, others that macOS and iOS show (an "ambiguous PNG").
+    (
+        b"iDOT",
+        "Apple's index for parallel decoding, with which macOS and iOS can show other pixels",
     ),
 ];
 

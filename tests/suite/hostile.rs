@@ -362,7 +362,7 @@ fn a_png_whose_chunks_change_its_display_differs_naming_the_chunk() {
         png_chunk(b"fcTL", &[0; 26]),
     ]
     .concat();
-    let cases: [(&str, Vec<u8>, &str); 5] = [
+    let cases: [(&str, Vec<u8>, &str); 6] = [
         ("apng", animation, "acTL chunk"),
         (
             "trns",
@@ -380,6 +380,9 @@ fn a_png_whose_chunks_change_its_display_differs_naming_the_chunk() {
             png_chunk(b"eXIf", b"MM\0*\0\0\0\x08\0\0"),
             "eXIf chunk",
         ),
+        // Apple's decoders decode the rows from the IDAT chunk it points to as a stream of
+        // their own: an "ambiguous PNG" shows other pixels on macOS and iOS only.
+        ("idot", png_chunk(b"iDOT", &[0; 28]), "iDOT chunk"),
     ];
     for (name, chunks, why) in cases {
         let file = format!("{name}.png");
