@@ -49,7 +49,7 @@ pub struct ExrHeader {
 }
 
 /// Attributes that change what a viewer shows, and how.
-const DISPLAY_ATTRIBUTES: [(&str, &str); 7] = [
+const DISPLAY_ATTRIBUTES: [(&str, &str); 8] = [
     ("chromaticities", "other primaries and white point"),
     ("whiteLuminance", "another white luminance"),
     ("adoptedNeutral", "another neutral colour"),
@@ -57,6 +57,12 @@ const DISPLAY_ATTRIBUTES: [(&str, &str); 7] = [
     ("lookModTransform", "a look transform"),
     ("envmap", "shown as an environment map"),
     ("multiView", "shown as several views"),
+    // A small 8-bit image of its own, which file browsers show without decoding the pixels:
+    // it can show anything.
+    (
+        "preview",
+        "a preview image, which file browsers show as its thumbnail",
+    ),
 ];
 
 /// Reads a bounded amount, saying what was being read when the file ends early.

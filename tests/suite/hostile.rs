@@ -215,12 +215,23 @@ fn an_exr_whose_attributes_change_its_display_differs() {
     let (ratio, _) = exr_attribute(&stretched, "pixelAspectRatio");
     stretched[ratio..ratio + 4].copy_from_slice(&2f32.to_le_bytes());
     let chromaticities = exr_attr("chromaticities", "chromaticities", &[0; 32]);
+    // A thumbnail of one red pixel, which a file browser shows for the image.
+    let preview = exr_attr(
+        "preview",
+        "preview",
+        &[1, 0, 0, 0, 1, 0, 0, 0, 255, 0, 0, 255],
+    );
     let cases = [
         ("stretched", stretched, "pixelAspectRatio is 2"),
         (
             "primaries",
             exr_with_attributes(&exr, &chromaticities),
             "the attribute chromaticities",
+        ),
+        (
+            "thumbnail",
+            exr_with_attributes(&exr, &preview),
+            "the attribute preview",
         ),
     ];
     for (name, bytes, why) in cases {
