@@ -72,6 +72,13 @@ pub fn terminal_safe(text: &str, width: usize) -> String {
     out
 }
 
+/// A file's path as one line safe to print (`terminal_safe`, whole): a name a stranger chose
+/// (`a\nidentical: b.png`) must not start a line of its own in a verdict, such as a forged
+/// `identical:` under a real `differs:`.
+pub fn path_safe(path: &std::path::Path) -> String {
+    terminal_safe(&path.display().to_string(), usize::MAX)
+}
+
 /// The most characters of an error message printed: a message quotes what a stranger wrote
 /// (a scene's key, a material's name) whole, and a scene file's key of 60 MiB once made a
 /// message of 120 MB, one line on the terminal.

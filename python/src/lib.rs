@@ -565,7 +565,10 @@ fn reproduce<'py>(
             d.set_item("verdict", "identical")?;
             d.set_item(
                 "summary",
-                format!("{} is bit for bit what its recipe makes", image.display()),
+                format!(
+                    "{} is bit for bit what its recipe makes",
+                    tessera::text::path_safe(&image)
+                ),
             )?;
             d.set_item("details", Vec::<String>::new())?;
         }

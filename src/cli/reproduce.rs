@@ -12,7 +12,7 @@ use tessera::image_file::ImageHeader;
 use tessera::recipe::{self, Recipe, describe};
 use tessera::record::workload::Workload;
 use tessera::render::{self, RenderOptions};
-use tessera::text::{terminal_safe, terminal_safe_lines};
+use tessera::text::{path_safe, terminal_safe, terminal_safe_lines};
 use tessera::verify;
 
 /// `tessera info` as typed.
@@ -80,7 +80,7 @@ pub fn info(args: InfoArgs) -> Result<ExitCode> {
     let text = &recipe.scene.text;
     let mut t = format!(
         "{}: {} {}x{}, with a recipe ({})\n",
-        path.display(),
+        path_safe(path),
         format!("{:?}", header.format).to_uppercase(),
         header.width,
         header.height,
@@ -119,7 +119,7 @@ pub fn info(args: InfoArgs) -> Result<ExitCode> {
     }
     t.push_str(&format!(
         "  check      tessera reproduce {}\n",
-        path.display()
+        path_safe(path)
     ));
     t.push_str(&format!(
         "--- {} ---\n",
@@ -152,8 +152,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
         })?;
         note(format_args!(
             "{}: the scene of {}'s recipe ({} bytes)",
-            file.display(),
-            image.display(),
+            path_safe(file),
+            path_safe(image),
             recipe.scene.text.len()
         ));
         return Ok(ExitCode::SUCCESS);
@@ -240,7 +240,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         None => {
             out(&format!(
                 "identical: {} is bit for bit what its recipe makes ({}; {how})\n",
-                image.display(),
+                path_safe(image),
                 recipe.sums
             ))?;
             Ok(ExitCode::SUCCESS)

@@ -8,7 +8,7 @@ use crate::film::Film;
 use crate::image_diff::{self, RgbImage};
 use crate::image_file::{self, ImageHeader, Pixels};
 use crate::recipe::{self, Recipe};
-use crate::text::{significant, terminal_safe};
+use crate::text::{path_safe, significant, terminal_safe};
 use std::path::Path;
 
 mod cost;
@@ -50,7 +50,7 @@ pub fn differs_unrendered(image: &Path, header: &ImageHeader, recipe: &Recipe) -
         return Some(Differs {
             summary: format!(
                 "{} is {}x{}, its recipe makes {}x{}",
-                image.display(),
+                path_safe(image),
                 header.width,
                 header.height,
                 window.width,
@@ -62,7 +62,7 @@ pub fn differs_unrendered(image: &Path, header: &ImageHeader, recipe: &Recipe) -
     (!header.display_changes.is_empty()).then(|| Differs {
         summary: format!(
             "{} holds what tessera does not write and what changes how it is shown",
-            image.display()
+            path_safe(image)
         ),
         details: header.display_changes.clone(),
     })
@@ -94,7 +94,7 @@ pub fn differs_rendered(
         Err(why) => lines.push(format!("pixels: {why}")),
     }
     Ok((!lines.is_empty()).then(|| Differs {
-        summary: format!("{} is not what its recipe makes", image.display()),
+        summary: format!("{} is not what its recipe makes", path_safe(image)),
         details: lines,
     }))
 }

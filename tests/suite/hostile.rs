@@ -622,6 +622,39 @@ fn escapes_in_a_recipe_never_reach_the_terminal() {
     }
 }
 
+/// A file name a stranger chose, with a newline and a verdict in it, once printed as it is
+/// in the verdict's line: `differs: a` and then a line of its own, `identical: b.png is bit
+/// for bit what its recipe makes`. The name is one line wherever a verdict or `info` shows
+/// it.
+#[test]
+fn a_file_name_with_a_newline_cannot_forge_a_verdict_line() {
+    let dir = temp_dir("hostile-name-newline");
+    let png = std::fs::read(rendered(&dir, "a.png")).unwrap();
+    let name = "a\nidentical: b.png is bit for bit what its recipe makes\u{1b}[2J\nx.png";
+    let gamma = png_chunk(b"gAMA", &100_000u32.to_be_bytes());
+    std::fs::write(dir.join(name), png_with_chunks(&png, &gamma)).unwrap();
+    let o = run(&["reproduce", name, "-q"], &dir);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let said = stdout(&o);
+    assert!(
+        said.lines()
+            .next()
+            .is_some_and(|l| l.starts_with("differs: a\\u{a}identical")),
+        "{said}"
+    );
+    assert!(!said.lines().any(|l| l.starts_with("identical")), "{said}");
+    // The same pixels without the chunk: identical, the name still on one line.
+    std::fs::write(dir.join(name), &png).unwrap();
+    let o = run(&["reproduce", name, "-q"], &dir);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_eq!(stdout(&o).lines().count(), 1, "{}", stdout(&o));
+    let o = run(&["info", name], &dir);
+    let said = stdout(&o);
+    assert!(said.starts_with("a\\u{a}identical"), "{said}");
+    assert!(!said.contains('\u{1b}'), "{said}");
+    assert!(!said.lines().any(|l| l.starts_with("identical")), "{said}");
+}
+
 #[test]
 fn a_recipe_asking_for_days_of_work_is_refused_unless_asked() {
     let dir = temp_dir("hostile-cost");
