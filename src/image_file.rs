@@ -167,7 +167,7 @@ pub enum Pixels {
 }
 
 /// What an image file says of itself: its size and its recipe's text, if it has one.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct ImageHeader {
     pub format: Format,
     pub width: u32,
@@ -225,23 +225,28 @@ fn read_any_header(path: &Path) -> Result<ImageHeader> {
         path: path.to_owned(),
         cause,
     };
-    match format {
-        Format::Ppm => Err(image_error(
+    if format == Format::Ppm {
+        return Err(image_error(
             path,
             "is a PPM file, which has no metadata to carry a recipe",
-        )),
-        Format::Png => {
-            let file = open_regular(path).map_err(io)?;
-            let len = file.metadata().map_err(io)?.len();
-            png_header::read(file, len)
-                .map(ImageHeader::of_png)
-                .map_err(|message| image_error(path, message))
-        }
+        ));
+    }
+    let mut file = open_regular(path).map_err(io)?;
+    let len = file.metadata().map_err(io)?.len();
+    header_of(&mut file, len, format).map_err(|message| image_error(path, message))
+}
+
+/// The header of the `len`-byte PNG or EXR file `file` (`format`), read from its start.
+fn header_of(
+    file: &mut std::fs::File,
+    len: u64,
+    format: Format,
+) -> std::result::Result<ImageHeader, String> {
+    match format {
+        Format::Ppm => Err("is a PPM file, which has no metadata to carry a recipe".to_owned()),
+        Format::Png => png_header::read(file, len).map(ImageHeader::of_png),
         Format::Exr => {
-            let file = open_regular(path).map_err(io)?;
-            let len = file.metadata().map_err(io)?.len();
-            let h = exr_header::read(std::io::BufReader::new(file), len)
-                .map_err(|message| image_error(path, message))?;
+            let h = exr_header::read(std::io::BufReader::new(file), len)?;
             Ok(ImageHeader {
                 format,
                 width: h.width,
@@ -254,6 +259,31 @@ fn read_any_header(path: &Path) -> Result<ImageHeader> {
     }
 }
 
+/// Opens the image at `path` whose pixels are to be read, and reads its header again from
+/// that handle: it must be `header` whole (size, sample type, recipe, what changes how it is
+/// shown). A render takes minutes, and whoever can write where the image lies could put
+/// another file at `path` meanwhile, of the same size but with another recipe or an
+/// animation; the verdict is then on the file whose header was checked, or on none.
+fn open_as_checked(path: &Path, header: &ImageHeader) -> Result<std::fs::File> {
+    let io = |cause| Error::Io {
+        path: path.to_owned(),
+        cause,
+    };
+    let mut file = open_regular(path).map_err(io)?;
+    let len = file.metadata().map_err(io)?.len();
+    let again =
+        header_of(&mut file, len, header.format).map_err(|message| image_error(path, message))?;
+    if again != *header {
+        return Err(image_error(
+            path,
+            "changed while it was checked: its header, recipe or chunks are no longer those \
+             read before the render",
+        ));
+    }
+    file.seek(SeekFrom::Start(0)).map_err(io)?;
+    Ok(file)
+}
+
 /// `read_header` of PNG bytes in memory.
 pub fn png_header_of(bytes: &[u8]) -> std::result::Result<ImageHeader, String> {
     png_header::read(std::io::Cursor::new(bytes), bytes.len() as u64).map(ImageHeader::of_png)
@@ -261,12 +291,9 @@ pub fn png_header_of(bytes: &[u8]) -> std::result::Result<ImageHeader, String> {
 
 /// Decodes the pixels of the image at `path`, which `header` describes: as 8-bit RGB for
 /// PNG, linear float RGB for EXR, or the name of another layout. Nothing larger than the
-/// header's size (already checked by the caller) is allocated.
+/// header's size (already checked by the caller) is allocated. The pixels are read from a
+/// handle whose header is `header` whole (`open_as_checked`).
 pub fn read_pixels(path: &Path, header: &ImageHeader) -> Result<Pixels> {
-    let io = |cause| Error::Io {
-        path: path.to_owned(),
-        cause,
-    };
     let count = u64::from(header.width) * u64::from(header.height);
     if count > crate::scene::MAX_PIXELS {
         return Err(image_error(
@@ -280,7 +307,7 @@ pub fn read_pixels(path: &Path, header: &ImageHeader) -> Result<Pixels> {
     match header.format {
         Format::Ppm => Err(image_error(path, "is a PPM file")),
         Format::Png => {
-            let file = open_regular(path).map_err(io)?;
+            let file = open_as_checked(path, header)?;
             let budget = count as usize * 8 + (1 << 24);
             let mut decoder = png::Decoder::new_with_limits(
                 std::io::BufReader::new(file),
@@ -315,18 +342,7 @@ pub fn read_pixels(path: &Path, header: &ImageHeader) -> Result<Pixels> {
                     .map_or("mixed".to_owned(), |s| format!("{s:?}"));
                 return Ok(Pixels::Other(format!("{} samples", samples.to_lowercase())));
             }
-            let mut file = open_regular(path).map_err(io)?;
-            // The header again, from the handle that is decoded: the file checked is the
-            // file read.
-            let len = file.metadata().map_err(io)?.len();
-            let again = exr_header::read(std::io::BufReader::new(&mut file), len)
-                .map_err(|message| image_error(path, message))?;
-            if (again.width, again.height, again.samples)
-                != (header.width, header.height, header.samples)
-            {
-                return Err(image_error(path, "changed while it was read"));
-            }
-            file.seek(SeekFrom::Start(0)).map_err(io)?;
+            let file = open_as_checked(path, header)?;
             let width = header.width as usize;
             let image = read()
                 .no_deep_data()
@@ -366,6 +382,48 @@ mod tests {
         film.sums[0] = [to_fixed(1.0), 0, to_fixed(0.25)];
         let text = String::from_utf8(film.encode(Format::Ppm, 1.0).unwrap()).unwrap();
         assert_eq!(text, "P3\n2 1\n255\n255 0 64\n0 0 0\n");
+    }
+
+    /// A file put at the image's path while its recipe renders, of the same size and
+    /// pixels but with another recipe or a chunk that changes how it is shown, once passed
+    /// for the file checked: only the size (and an EXR's sample type) was read again.
+    #[test]
+    fn pixels_are_read_only_from_a_file_whose_header_is_the_one_checked() {
+        use crate::scene::{Overrides, Scene};
+        let dir = std::env::temp_dir().join(format!("tessera-swapped-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut film = Film::new(4, 2, 1);
+        film.sums[3] = [to_fixed(0.5), 0, to_fixed(1.0)];
+        let recipe_of = |seed: u64| {
+            let text = format!(
+                "[image]\nwidth = 4\nheight = 2\nsamples_per_pixel = 1\nmax_depth = 1\nseed = {seed}\n"
+            );
+            let scene = Scene::parse(&text, Path::new("s.toml"), &Overrides::default()).unwrap();
+            let source = recipe::Source::new(Path::new("s.toml"), &text, Overrides::default());
+            Recipe::new(&source, &scene, &film)
+        };
+        for name in ["a.png", "a.exr"] {
+            let path = dir.join(name);
+            film.save(&path, 2.0, Some(&recipe_of(1))).unwrap();
+            let header = read_header(&path).unwrap();
+            assert!(read_pixels(&path, &header).is_ok(), "{name}");
+            // Another recipe, the same pixels.
+            film.save(&path, 2.0, Some(&recipe_of(2))).unwrap();
+            let e = read_pixels(&path, &header).unwrap_err().to_string();
+            assert!(e.contains("changed while it was checked"), "{name}: {e}");
+        }
+        // The same recipe and pixels, with an animation's chunk after the header.
+        let path = dir.join("a.png");
+        film.save(&path, 2.0, Some(&recipe_of(1))).unwrap();
+        let header = read_header(&path).unwrap();
+        let png = std::fs::read(&path).unwrap();
+        let mut actl = 8u32.to_be_bytes().to_vec();
+        actl.extend(b"acTL\0\0\0\x01\0\0\0\0");
+        actl.extend(crc32fast::hash(&actl[4..]).to_be_bytes());
+        std::fs::write(&path, [&png[..33], &actl[..], &png[33..]].concat()).unwrap();
+        let e = read_pixels(&path, &header).unwrap_err().to_string();
+        assert!(e.contains("changed while it was checked"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
