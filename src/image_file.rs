@@ -271,6 +271,21 @@ fn open_as_checked(path: &Path, header: &ImageHeader) -> Result<std::fs::File> {
     };
     let mut file = open_regular(path).map_err(io)?;
     let len = file.metadata().map_err(io)?.len();
+    // A decoder reads all that comes before the pixels, whatever its length, which a sparse
+    // file makes as large as it likes on little disk (65,536 text chunks of 1 MiB: 64 GiB).
+    // An image of its size takes at most 16 bytes a pixel (float RGB EXR and its offsets),
+    // and its recipe.
+    let most = u64::from(header.width) * u64::from(header.height) * 16 + (64 << 20);
+    if len > most {
+        return Err(image_error(
+            path,
+            format!(
+                "is {len} bytes long, more than the {most} an image of {}x{} takes: its pixels \
+                 are not read",
+                header.width, header.height
+            ),
+        ));
+    }
     let again =
         header_of(&mut file, len, header.format).map_err(|message| image_error(path, message))?;
     if again != *header {

@@ -119,35 +119,37 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
                 let h = u32::from_be_bytes(data[4..8].try_into().expect("4 bytes"));
                 size = Some((w, h));
             }
-            b"iTXt" if length <= MAX_BYTES as u64 + 1024 => {
-                let mut data = vec![0u8; length as usize];
-                r.read_exact(&mut data).map_err(|e| e.to_string())?;
-                let mut crc = [0u8; 4];
-                r.read_exact(&mut crc).map_err(|e| e.to_string())?;
-                let mut hasher = crc32fast::Hasher::new();
-                hasher.update(&kind);
-                hasher.update(&data);
-                if hasher.finalize() != u32::from_be_bytes(crc) {
-                    return Err(format!("has a damaged iTXt chunk at byte {at} (bad CRC)"));
-                }
-                if let Some(text) = recipe_of_itxt(&data)? {
-                    if found.is_some() {
-                        return Err("has two recipes".to_owned());
-                    }
-                    found = Some(text);
-                }
-            }
             b"iTXt" => {
-                // Too long to be a recipe; a recipe so long is refused, not skipped.
-                let mut start = [0u8; 15];
-                let n = (length as usize).min(start.len());
-                r.read_exact(&mut start[..n]).map_err(|e| e.to_string())?;
-                if start[..n].starts_with(KEY.as_bytes()) {
+                // Its keyword first: only tessera's recipe chunk is read further. Another is
+                // skipped unread, as every other chunk is: 65,536 text chunks of 1 MiB, a
+                // sparse file of 64 GiB on 256 MiB of disk, were once read whole, minutes.
+                let (keyword, n, is_recipe) = read_keyword(&mut r, length)?;
+                if !is_recipe {
+                    skip(&mut r, length as i64 - n as i64 + 4)?;
+                } else if length > MAX_BYTES as u64 + 1024 {
+                    // Too long to be a recipe; a recipe so long is refused, not skipped.
                     return Err(format!(
                         "has a recipe chunk of {length} bytes, more than a recipe may have"
                     ));
+                } else {
+                    let mut data = keyword.to_vec();
+                    data.resize(length as usize, 0);
+                    r.read_exact(&mut data[n..]).map_err(|e| e.to_string())?;
+                    let mut crc = [0u8; 4];
+                    r.read_exact(&mut crc).map_err(|e| e.to_string())?;
+                    let mut hasher = crc32fast::Hasher::new();
+                    hasher.update(&kind);
+                    hasher.update(&data);
+                    if hasher.finalize() != u32::from_be_bytes(crc) {
+                        return Err(format!("has a damaged iTXt chunk at byte {at} (bad CRC)"));
+                    }
+                    if let Some(text) = recipe_of_itxt(&data)? {
+                        if found.is_some() {
+                            return Err("has two recipes".to_owned());
+                        }
+                        found = Some(text);
+                    }
                 }
-                skip(&mut r, length as i64 - n as i64 + 4)?;
             }
             b"IEND" => break,
             _ => skip(&mut r, length as i64 + 4)?,
@@ -161,6 +163,20 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
         recipe: found,
         display_changes,
     })
+}
+
+/// The start of a text chunk of `length` bytes, as far as tessera's keyword and the zero
+/// byte that ends it: those bytes, how many were read, and whether the keyword is tessera's.
+fn read_keyword<R: Read>(
+    r: &mut R,
+    length: u64,
+) -> Result<([u8; KEY.len() + 1], usize, bool), String> {
+    let mut keyword = [0u8; KEY.len() + 1];
+    let n = (length as usize).min(keyword.len());
+    r.read_exact(&mut keyword[..n]).map_err(|e| e.to_string())?;
+    let is_recipe =
+        n == keyword.len() && keyword[..KEY.len()] == *KEY.as_bytes() && keyword[KEY.len()] == 0;
+    Ok((keyword, n, is_recipe))
 }
 
 /// The recipe in an iTXt chunk's `data`, when the chunk is tessera's.
@@ -201,4 +217,103 @@ fn recipe_of_itxt(data: &[u8]) -> Result<Option<String>, String> {
     String::from_utf8(bytes)
         .map(Some)
         .map_err(|_| "has a recipe that is not UTF-8 text".to_owned())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::{Cursor, SeekFrom};
+
+    /// A file of `len` bytes, zero but where `written` says, that counts the bytes read from
+    /// it: a sparse file, without the disk.
+    struct Sparse {
+        written: Vec<(u64, Vec<u8>)>,
+        len: u64,
+        at: u64,
+        read: u64,
+    }
+
+    impl Read for Sparse {
+        fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+            let n = (buf.len() as u64).min(self.len.saturating_sub(self.at)) as usize;
+            buf[..n].fill(0);
+            for (start, bytes) in &self.written {
+                for (i, b) in bytes.iter().enumerate() {
+                    let p = start + i as u64;
+                    if p >= self.at && p < self.at + n as u64 {
+                        buf[(p - self.at) as usize] = *b;
+                    }
+                }
+            }
+            self.at += n as u64;
+            self.read += n as u64;
+            Ok(n)
+        }
+    }
+
+    impl Seek for Sparse {
+        fn seek(&mut self, to: SeekFrom) -> std::io::Result<u64> {
+            self.at = match to {
+                SeekFrom::Start(n) => n,
+                SeekFrom::Current(d) => self.at.checked_add_signed(d).expect("in the file"),
+                SeekFrom::End(d) => self.len.checked_add_signed(d).expect("in the file"),
+            };
+            Ok(self.at)
+        }
+    }
+
+    fn chunk(kind: &[u8; 4], data: &[u8]) -> Vec<u8> {
+        let mut c = (data.len() as u32).to_be_bytes().to_vec();
+        c.extend(kind);
+        c.extend(data);
+        c.extend(crc32fast::hash(&c[4..]).to_be_bytes());
+        c
+    }
+
+    /// Text chunks that are not the recipe are skipped past their keyword, unread, as every
+    /// other chunk is: 4,096 of 1 MiB once read 4 GiB (and 65,536 of them 64 GiB, minutes).
+    #[test]
+    fn text_chunks_other_than_the_recipe_are_skipped_unread() {
+        let mut written = vec![(0, PNG_SIGNATURE.to_vec())];
+        let mut at = 8u64;
+        let ihdr = chunk(b"IHDR", &[0, 0, 0, 4, 0, 0, 0, 2, 8, 2, 0, 0, 0]);
+        written.push((at, ihdr.clone()));
+        at += ihdr.len() as u64;
+        let length = MAX_BYTES as u64 + 1024;
+        let mut hasher = crc32fast::Hasher::new();
+        hasher.update(b"iTXt");
+        hasher.update(b"comment");
+        hasher.update(&vec![0u8; length as usize - 7]);
+        let crc = hasher.finalize().to_be_bytes();
+        for _ in 0..4096 {
+            let mut head = (length as u32).to_be_bytes().to_vec();
+            head.extend(b"iTXtcomment");
+            written.push((at, head));
+            written.push((at + 8 + length, crc.to_vec()));
+            at += 12 + length;
+        }
+        let end = chunk(b"IEND", &[]);
+        written.push((at, end.clone()));
+        at += end.len() as u64;
+        let mut file = Sparse {
+            written,
+            len: at,
+            at: 0,
+            read: 0,
+        };
+        let header = read(&mut file, at).unwrap();
+        assert_eq!((header.width, header.height, header.recipe), (4, 2, None));
+        // What a buffered reader reads ahead of each chunk's head, not the chunks.
+        assert!(file.read < 4096 * 16 * 1024, "{} bytes read", file.read);
+        // The recipe's chunk is read whole, and its CRC checked.
+        let mut recipe = format!("{KEY}\0\0\0\0\0").into_bytes();
+        recipe.extend(b"{}");
+        let png = [&PNG_SIGNATURE[..], &ihdr, &chunk(b"iTXt", &recipe), &end].concat();
+        let header = read(Cursor::new(&png), png.len() as u64).unwrap();
+        assert_eq!(header.recipe.as_deref(), Some("{}"));
+        let mut damaged = png.clone();
+        damaged[33 + 8 + recipe.len() - 1] ^= 1;
+        let e = read(Cursor::new(&damaged), png.len() as u64).unwrap_err();
+        assert!(e.contains("bad CRC"), "{e}");
+    }
 }

@@ -413,6 +413,34 @@ fn a_png_whose_chunks_change_its_display_differs_naming_the_chunk() {
     assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
 }
 
+/// Text chunks are skipped unread by the header's reader, but the pixels' decoder reads all
+/// that comes before the pixels: a sparse file of 65,536 text chunks of 1 MiB (64 GiB on
+/// 256 MiB of disk) took minutes. A file longer than an image of its size takes (16 bytes a
+/// pixel and 64 MiB) has its pixels left unread: an error, not a verdict.
+#[test]
+fn a_png_longer_than_its_image_takes_has_its_pixels_left_unread() {
+    use std::io::{Seek, SeekFrom, Write};
+    let dir = temp_dir("hostile-png-long");
+    let png = std::fs::read(rendered(&dir, "a.png")).unwrap();
+    // One tEXt chunk of 80 MiB of zeros before the pixels, sparse.
+    let length = 80u32 << 20;
+    let mut crc = crc32fast::Hasher::new();
+    crc.update(b"tEXt");
+    crc.update(&vec![0u8; length as usize]);
+    let mut file = std::fs::File::create(dir.join("long.png")).unwrap();
+    file.write_all(&png[..33]).unwrap();
+    file.write_all(&length.to_be_bytes()).unwrap();
+    file.write_all(b"tEXt").unwrap();
+    file.seek(SeekFrom::Current(i64::from(length))).unwrap();
+    file.write_all(&crc.finalize().to_be_bytes()).unwrap();
+    file.write_all(&png[33..]).unwrap();
+    drop(file);
+    let o = run(&["info", "long.png"], &dir);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let o = run(&["reproduce", "long.png", "-q"], &dir);
+    refused(&o, "bytes long, more than the", "a PNG of 80 MiB of text");
+}
+
 /// A PNG has one IHDR chunk, first, of 13 bytes: another layout would let the size a header
 /// reader reports be another than the pixels' (a decoder takes the first).
 #[test]
