@@ -1,7 +1,8 @@
 //! A PNG file's header read as a stranger's: its chunks walked within bounds (at most
 //! `MAX_PNG_CHUNKS`, every length inside the file, one IHDR first, an IEND last) for its size,
-//! tessera's recipe (an iTXt chunk, inflated no further than a recipe may be) and the chunks
-//! that change how a viewer shows it, the others skipped unread. Below the scene, whose
+//! tessera's recipe (an iTXt chunk, inflated no further than a recipe may be; one in a tEXt
+//! or zTXt chunk is refused) and the chunks that change how a viewer shows it, the others
+//! skipped unread (a text chunk past its keyword). Below the scene, whose
 //! image textures are walked so before a decoder keeps their chunks, and the image files.
 
 use crate::metadata::{KEY, MAX_BYTES};
@@ -150,6 +151,19 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
                         found = Some(text);
                     }
                 }
+            }
+            b"tEXt" | b"zTXt" => {
+                // A recipe where tessera writes none: a reader of PNG text could show it for
+                // the image in place of the one checked (Python's PIL keeps a keyword's last).
+                let (_, n, is_recipe) = read_keyword(&mut r, length)?;
+                if is_recipe {
+                    return Err(format!(
+                        "has a recipe in a {} chunk, where tessera writes none: readers of PNG \
+                         text may show it in place of the one checked",
+                        String::from_utf8_lossy(&kind)
+                    ));
+                }
+                skip(&mut r, length as i64 - n as i64 + 4)?;
             }
             b"IEND" => break,
             _ => skip(&mut r, length as i64 + 4)?,
@@ -315,5 +329,34 @@ mod tests {
         damaged[33 + 8 + recipe.len() - 1] ^= 1;
         let e = read(Cursor::new(&damaged), png.len() as u64).unwrap_err();
         assert!(e.contains("bad CRC"), "{e}");
+    }
+
+    /// A recipe in a tEXt or zTXt chunk beside the iTXt one checked: Python's PIL showed the
+    /// last of them (another scene) for an image `reproduce` called identical.
+    #[test]
+    fn a_recipe_in_a_text_chunk_tessera_does_not_write_is_refused() {
+        let ihdr = chunk(b"IHDR", &[0, 0, 0, 4, 0, 0, 0, 2, 8, 2, 0, 0, 0]);
+        let mut itxt = format!("{KEY}\0\0\0\0\0").into_bytes();
+        itxt.extend(b"{}");
+        let end = chunk(b"IEND", &[]);
+        for kind in [b"tEXt", b"zTXt"] {
+            let other = chunk(kind, format!("{KEY}\0{{\"other\": 1}}").as_bytes());
+            let png = [
+                &PNG_SIGNATURE[..],
+                &ihdr,
+                &chunk(b"iTXt", &itxt),
+                &other,
+                &end,
+            ]
+            .concat();
+            let e = read(Cursor::new(&png), png.len() as u64).unwrap_err();
+            assert!(e.contains("has a recipe in a"), "{e}");
+            // Another keyword, or one that only begins as tessera's, is text like any other.
+            for keyword in ["Comment", "tessera-recipes"] {
+                let text = chunk(kind, format!("{keyword}\0x").as_bytes());
+                let png = [&PNG_SIGNATURE[..], &ihdr, &text, &end].concat();
+                assert!(read(Cursor::new(&png), png.len() as u64).is_ok());
+            }
+        }
     }
 }
