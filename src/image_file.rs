@@ -273,9 +273,10 @@ fn open_as_checked(path: &Path, header: &ImageHeader) -> Result<std::fs::File> {
     let len = file.metadata().map_err(io)?.len();
     // A decoder reads all that comes before the pixels, whatever its length, which a sparse
     // file makes as large as it likes on little disk (65,536 text chunks of 1 MiB: 64 GiB).
-    // An image of its size takes at most 16 bytes a pixel (float RGB EXR and its offsets),
-    // and its recipe.
-    let most = u64::from(header.width) * u64::from(header.height) * 16 + (64 << 20);
+    // An image of its size takes at most 16 bytes a pixel (float RGB EXR), 32 a row (an
+    // EXR's offset and block header for each scan line, a PNG's filter byte) and its recipe.
+    let (width, height) = (u64::from(header.width), u64::from(header.height));
+    let most = width * height * 16 + height * 32 + (64 << 20);
     if len > most {
         return Err(image_error(
             path,

@@ -416,7 +416,7 @@ fn a_png_whose_chunks_change_its_display_differs_naming_the_chunk() {
 /// Text chunks are skipped unread by the header's reader, but the pixels' decoder reads all
 /// that comes before the pixels: a sparse file of 65,536 text chunks of 1 MiB (64 GiB on
 /// 256 MiB of disk) took minutes. A file longer than an image of its size takes (16 bytes a
-/// pixel and 64 MiB) has its pixels left unread: an error, not a verdict.
+/// pixel, 32 a row and 64 MiB) has its pixels left unread: an error, not a verdict.
 #[test]
 fn a_png_longer_than_its_image_takes_has_its_pixels_left_unread() {
     use std::io::{Seek, SeekFrom, Write};
