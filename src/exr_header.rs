@@ -211,9 +211,19 @@ fn walk<R: Read>(r: R, len: u64, visit: &mut Visit<'_>) -> Result<(), String> {
         ));
     }
     let mut seen = std::collections::HashSet::new();
+    let tiled = version & TILED != 0;
     loop {
         let name = r.name("attribute name")?;
         if name.is_empty() {
+            // A tiled file's tile description must be there; a scan-line file's must not.
+            if seen.contains("tiles") != tiled {
+                return Err(format!(
+                    "has {} tile description where its version flags say {}: readers would \
+                     decode it differently",
+                    if tiled { "no" } else { "a" },
+                    if tiled { "tiles" } else { "scan lines" }
+                ));
+            }
             return Ok(());
         }
         if seen.len() == MAX_ATTRIBUTES {
@@ -233,6 +243,19 @@ fn walk<R: Read>(r: R, len: u64, visit: &mut Visit<'_>) -> Result<(), String> {
             ));
         }
         let value = r.bytes(u64::from(size), "attribute")?;
+        // A part's `type`, optional in a single-part file, where readers differ on which
+        // to believe when it disagrees with the version flags (the `exr` crate takes a
+        // `tiledimage` type for tiles whatever the flags say): it must agree with them.
+        if name == "type" {
+            let expected = if tiled { "tiledimage" } else { "scanlineimage" };
+            if kind != "string" || value != expected.as_bytes() {
+                return Err(format!(
+                    "has the part type `{}` where its version flags say `{expected}`: readers \
+                     would decode it differently",
+                    String::from_utf8_lossy(&value).escape_debug()
+                ));
+            }
+        }
         visit(&name, &kind, value)?;
     }
 }

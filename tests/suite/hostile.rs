@@ -205,6 +205,52 @@ fn an_exr_texture_or_compared_image_of_many_attributes_is_refused_within_bounds(
     assert!(stdout(&o).contains("identical"), "{}", stderr(&o));
 }
 
+/// The `exr` crate takes a single part whose `type` says `tiledimage` for tiles whatever the
+/// version flags say, where other readers go by the flags: one file, two pictures. A part
+/// type or tile description that disagrees with the flags is refused, by every reader of
+/// EXR headers (`info`, `reproduce`, `compare`).
+#[test]
+fn an_exr_whose_part_type_disagrees_with_its_version_flags_is_refused() {
+    let dir = temp_dir("hostile-exr-type");
+    let exr = std::fs::read(rendered(&dir, "a.exr")).unwrap();
+    let o = run(&["reproduce", "a.exr", "-q"], &dir);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    // tessera writes tiles: the flag (bit 9 of the version) cleared says scan lines.
+    assert_eq!(exr[5] & 0x02, 0x02, "tessera's EXR is tiled");
+    let mut scan_lines = exr.clone();
+    scan_lines[5] &= !0x02;
+    // The tile description renamed away, the flag and type still saying tiles.
+    let mut untiled = exr.clone();
+    let (tiles, _) = exr_attribute(&untiled, "tiles");
+    let name = tiles - "tiles\0tiledesc\0".len() - 4;
+    assert_eq!(&untiled[name..name + 5], b"tiles");
+    untiled[name..name + 5].copy_from_slice(b"tilez");
+    let cases = [
+        (
+            "flags.exr",
+            scan_lines,
+            "has the part type `tiledimage` where its version flags say `scanlineimage`",
+        ),
+        (
+            "untiled.exr",
+            untiled,
+            "has no tile description where its version flags say tiles",
+        ),
+    ];
+    for (file, bytes, why) in cases {
+        std::fs::write(dir.join(file), &bytes).unwrap();
+        for command in [
+            &["info", file][..],
+            &["reproduce", file, "-q"],
+            &["compare", "a.exr", file],
+        ] {
+            let o = run(command, &dir);
+            assert_eq!(o.status.code(), Some(2), "{command:?}: {}", stderr(&o));
+            assert!(stderr(&o).contains(why), "{command:?}: {}", stderr(&o));
+        }
+    }
+}
+
 #[test]
 fn an_exr_whose_attributes_change_its_display_differs() {
     let dir = temp_dir("hostile-exr-display");
