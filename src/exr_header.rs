@@ -176,6 +176,37 @@ pub fn check_bounds<R: Read>(r: R, len: u64) -> Result<(), String> {
     walk(r, len, &mut |_, _, _| Ok(()))
 }
 
+/// `check_bounds`, and what the header holds that changes how a viewer shows the picture
+/// (`ExrHeader::display_changes`), whatever its channels: for `compare`.
+pub fn display_changes<R: Read>(r: R, len: u64) -> Result<Vec<String>, String> {
+    let mut changes = Vec::new();
+    walk(r, len, &mut |name, kind, value| {
+        changes.extend(display_change(name, kind, &value)?);
+        Ok(())
+    })?;
+    Ok(changes)
+}
+
+/// How the attribute `name` of type `kind` holding `value` changes how a viewer shows the
+/// picture, if it does: a pixel aspect ratio other than 1, or one of `DISPLAY_ATTRIBUTES`.
+fn display_change(name: &str, kind: &str, value: &[u8]) -> Result<Option<String>, String> {
+    if (name, kind) == ("pixelAspectRatio", "float") {
+        let ratio = f32::from_le_bytes(
+            value
+                .get(..4)
+                .and_then(|v| v.try_into().ok())
+                .ok_or("has a pixelAspectRatio that is not a number")?,
+        );
+        return Ok((ratio != 1.0).then(|| {
+            format!("the attribute pixelAspectRatio is {ratio}, not 1: viewers stretch it")
+        }));
+    }
+    Ok(DISPLAY_ATTRIBUTES
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map(|(_, how)| format!("the attribute {name}, which tessera does not write: {how}")))
+}
+
 /// What is done with each attribute of a header walked: its name, type and value.
 type Visit<'a> = dyn FnMut(&str, &str, Vec<u8>) -> Result<(), String> + 'a;
 
@@ -270,17 +301,7 @@ pub fn read<R: Read>(r: R, len: u64) -> Result<ExrHeader, String> {
             ("displayWindow", "box2i") => display = Some(box2i(&value, "displayWindow")?),
             ("channels", "chlist") => list = Some(channels(&value)?),
             ("pixelAspectRatio", "float") => {
-                let ratio = f32::from_le_bytes(
-                    value
-                        .get(..4)
-                        .and_then(|v| v.try_into().ok())
-                        .ok_or("has a pixelAspectRatio that is not a number")?,
-                );
-                if ratio != 1.0 {
-                    display_changes.push(format!(
-                        "the attribute pixelAspectRatio is {ratio}, not 1: viewers stretch it"
-                    ));
-                }
+                display_changes.extend(display_change(name, kind, &value)?);
             }
             ("tiles", "tiledesc") => {
                 let mode = value.get(8).ok_or("has a tile description cut short")?;
@@ -305,13 +326,7 @@ pub fn read<R: Read>(r: R, len: u64) -> Result<ExrHeader, String> {
                     kind.escape_debug()
                 ));
             }
-            (key, _) => {
-                if let Some((_, how)) = DISPLAY_ATTRIBUTES.iter().find(|(n, _)| *n == key) {
-                    display_changes.push(format!(
-                        "the attribute {key}, which tessera does not write: {how}"
-                    ));
-                }
-            }
+            (_, _) => display_changes.extend(display_change(name, kind, &value)?),
         }
         Ok(())
     })?;

@@ -23,13 +23,17 @@ pub const MAX_COMPARED_BYTES: u64 = MAX_COMPARED_PIXELS * 20 + (1 << 20);
 pub const MAX_COMPARED_JPEG_BYTES: u64 = MAX_COMPARED_PIXELS * 8 + (1 << 20);
 
 /// Difference statistics of two images, over all pixels and RGB channels, values in [0, 1].
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Difference {
     pub rmse: f64,
     /// Mean absolute error.
     pub mean_abs: f64,
     /// Peak signal-to-noise ratio in dB for peak 1.0; infinite for identical images.
     pub psnr_db: f64,
+    /// What either file's header holds that changes how a viewer shows the picture, beyond
+    /// the values measured (a PNG's transparency or animation chunks, an EXR's thumbnail),
+    /// with the file's path; empty for files measured in memory.
+    pub display_changes: Vec<(std::path::PathBuf, String)>,
 }
 
 /// An RGB image as floats in [0, 1]: 8-bit formats scaled, EXR's linear values clamped (NaN
@@ -46,7 +50,7 @@ impl RgbImage {
     /// else its content), once the size its header claims is found within
     /// `MAX_COMPARED_PIXELS`.
     pub fn load(path: &Path) -> Result<Self> {
-        let decoder = Self::decoder(path)?;
+        let (decoder, _) = Self::decoder(path)?;
         let img = image::DynamicImage::from_decoder(decoder).map_err(|e| Error::Image {
             path: path.to_owned(),
             message: decode_failure(&e),
@@ -62,12 +66,20 @@ impl RgbImage {
     /// The width and height the header of the image at `path` claims, checked against
     /// `MAX_COMPARED_PIXELS`; nothing else is decoded.
     pub fn size(path: &Path) -> Result<(u32, u32)> {
-        use image::ImageDecoder;
-        Ok(Self::decoder(path)?.dimensions())
+        Ok(Self::size_and_display(path)?.0)
     }
 
-    /// A decoder of the image at `path` with its header read and its size checked.
-    fn decoder(path: &Path) -> Result<impl image::ImageDecoder> {
+    /// `size`, and what the header holds that changes how a viewer shows the picture.
+    pub fn size_and_display(path: &Path) -> Result<((u32, u32), Vec<String>)> {
+        use image::ImageDecoder;
+        let (decoder, display_changes) = Self::decoder(path)?;
+        Ok((decoder.dimensions(), display_changes))
+    }
+
+    /// A decoder of the image at `path` with its header read and its size checked, and
+    /// what the header holds that changes how a viewer shows the picture (a PNG's or an
+    /// EXR's `display_changes`).
+    fn decoder(path: &Path) -> Result<(impl image::ImageDecoder, Vec<String>)> {
         use image::ImageDecoder;
         let fail = |message: String| Error::Image {
             path: path.to_owned(),
@@ -83,6 +95,7 @@ impl RgbImage {
         })?;
         let len = len.len();
         let mut reader = image::ImageReader::new(std::io::BufReader::new(file));
+        let mut display_changes = Vec::new();
         match image::ImageFormat::from_path(path) {
             Ok(format) => reader.set_format(format),
             Err(_) => {
@@ -113,11 +126,15 @@ impl RgbImage {
             // first, and the file read again from its start.
             let mut file = reader.into_inner();
             let walked = match format {
-                image::ImageFormat::Png => crate::png_header::read(&mut file, len).map(drop),
-                image::ImageFormat::Pnm => crate::pnm_header::check_bounds(&mut file),
-                _ => crate::exr_header::check_bounds(&mut file, len),
+                image::ImageFormat::Png => {
+                    crate::png_header::read(&mut file, len).map(|h| h.display_changes)
+                }
+                image::ImageFormat::Pnm => {
+                    crate::pnm_header::check_bounds(&mut file).map(|()| Vec::new())
+                }
+                _ => crate::exr_header::display_changes(&mut file, len),
             };
-            walked.map_err(fail)?;
+            display_changes = walked.map_err(fail)?;
             file.seek(std::io::SeekFrom::Start(0))
                 .map_err(|cause| Error::Io {
                     path: path.to_owned(),
@@ -137,7 +154,7 @@ impl RgbImage {
                  an image may have to be compared"
             )));
         }
-        Ok(decoder)
+        Ok((decoder, display_changes))
     }
 
     /// Wraps 8-bit RGB values.
@@ -193,23 +210,31 @@ pub fn difference(a: &RgbImage, b: &RgbImage) -> std::result::Result<Difference,
         } else {
             -20.0 * rmse.log10()
         },
+        display_changes: Vec::new(),
     })
 }
 
 /// Loads two image files and gives their difference; their sizes are compared, and checked,
 /// before either is decoded.
 pub fn difference_of_files(a: &Path, b: &Path) -> Result<Difference> {
-    if let Some(message) = sizes_differ(RgbImage::size(a)?, RgbImage::size(b)?) {
+    let (size_a, shown_a) = RgbImage::size_and_display(a)?;
+    let (size_b, shown_b) = RgbImage::size_and_display(b)?;
+    if let Some(message) = sizes_differ(size_a, size_b) {
         return Err(Error::Image {
             path: b.to_owned(),
             message,
         });
     }
     let (ia, ib) = (RgbImage::load(a)?, RgbImage::load(b)?);
-    difference(&ia, &ib).map_err(|message| Error::Image {
+    let mut d = difference(&ia, &ib).map_err(|message| Error::Image {
         path: b.to_owned(),
         message,
-    })
+    })?;
+    d.display_changes = [(a, shown_a), (b, shown_b)]
+        .into_iter()
+        .flat_map(|(path, changes)| changes.into_iter().map(move |c| (path.to_owned(), c)))
+        .collect();
+    Ok(d)
 }
 
 #[cfg(test)]

@@ -290,6 +290,12 @@ fn an_exr_whose_attributes_change_its_display_differs() {
             said.starts_with("differs:") && said.contains(why),
             "{name}: {said}"
         );
+        let o = run(&["compare", &file, "a.exr"], &dir);
+        let said = stdout(&o);
+        assert!(
+            !said.contains("identical") && said.contains(why),
+            "{name}: {said}"
+        );
     }
 }
 
@@ -451,12 +457,30 @@ fn a_png_whose_chunks_change_its_display_differs_naming_the_chunk() {
             said.starts_with("differs:") && said.contains(why),
             "{name}: {said}"
         );
+        // compare measures the same values, but does not call them identical: it lists
+        // what changes how the file is shown. (The animation's frame control of zeros is
+        // one the decoder refuses.)
+        if name == "apng" {
+            continue;
+        }
+        let o = run(&["compare", "a.png", &file], &dir);
+        assert_eq!(o.status.code(), Some(0), "{name}: {}", stderr(&o));
+        let said = stdout(&o);
+        assert!(
+            said.contains("RMSE 0 ")
+                && !said.contains("identical")
+                && said.contains(&format!("\n{file}: ")),
+            "{name}: {said}"
+        );
+        assert!(said.contains(why), "{name}: {said}");
     }
     // Text that changes nothing a viewer shows leaves it identical.
     let text = png_chunk(b"tEXt", b"Comment\0made by a friend");
     std::fs::write(dir.join("text.png"), png_with_chunks(&png, &text)).unwrap();
     let o = run(&["reproduce", "text.png", "-q"], &dir);
     assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    let o = run(&["compare", "text.png", "a.png"], &dir);
+    assert!(stdout(&o).contains("inf dB (identical)"), "{}", stdout(&o));
 }
 
 /// Text chunks are skipped unread by the header's reader, but the pixels' decoder reads all
