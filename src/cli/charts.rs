@@ -17,10 +17,17 @@ pub const COLOURS: [&str; 8] = [
 /// The plot area inside a chart: left, top, right, bottom.
 type Plot = (f64, f64, f64, f64);
 
+/// The most intervals an axis is drawn with, whatever the values: `round_ticks` gives three
+/// or four, and a result may come from anyone.
+const MAX_TICKS: usize = 10;
+
 /// Round ticks from 0 to at least `max`: a step of 1, 2, 2.5 or 5 times a power of ten,
-/// giving three or four intervals, and the top of the axis (a whole number of steps).
+/// giving three or four intervals, and the top of the axis (a whole number of steps). Both
+/// are finite and positive whatever `max` is: near the largest `f64`, where a round top would
+/// overflow to infinity, the top is `max` itself in four steps; below any speed (1e-300,
+/// subnormals) the axis is that of 1.
 pub fn round_ticks(max: f64) -> (f64, f64) {
-    let max = if max.is_finite() && max > 0.0 {
+    let max = if max.is_finite() && max >= 1e-300 {
         max
     } else {
         1.0
@@ -33,7 +40,11 @@ pub fn round_ticks(max: f64) -> (f64, f64) {
         .find(|&s| s >= rough)
         .unwrap_or(10.0 * power);
     let top = (max / step).ceil() * step;
-    (step, top)
+    if top.is_finite() {
+        (step, top)
+    } else {
+        (max / 4.0, max)
+    }
 }
 
 /// A tick's value with the decimals its step needs, the same for every tick of an axis:
@@ -56,10 +67,12 @@ fn axes(s: &mut String, plot: Plot, y_top: f64, y_step: f64, x_labels: &[(f64, S
         "<line x1=\"{left}\" y1=\"{bottom}\" x2=\"{right}\" y2=\"{bottom}\" stroke=\"#888\"/>\
          <line x1=\"{left}\" y1=\"{top}\" x2=\"{left}\" y2=\"{bottom}\" stroke=\"#888\"/>"
     );
-    let ticks = (y_top / y_step).round() as usize;
+    let ticks = ((y_top / y_step).round() as usize).min(MAX_TICKS);
     for k in 0..=ticks {
         let v = y_step * k as f64;
-        let y = bottom - (bottom - top) * v / y_top;
+        // Divided first, here and in the charts: 220 × a speed near the largest `f64` is
+        // infinite.
+        let y = bottom - (bottom - top) * (v / y_top);
         let _ = write!(
             s,
             "<text x=\"{}\" y=\"{:.1}\" text-anchor=\"end\">{}</text>\
@@ -111,7 +124,7 @@ pub fn scaling_svg(lines: &[(String, Scaling)]) -> String {
             (plot.0 + plot.2) / 2.0
         }
     };
-    let y = |v: f64| plot.3 - (plot.3 - plot.1) * v / y_top;
+    let y = |v: f64| plot.3 - (plot.3 - plot.1) * (v / y_top);
     let mut s = "<svg width=\"480\" height=\"272\" viewBox=\"0 0 480 272\" role=\"img\" \
                  aria-label=\"samples per second against threads\">"
         .to_owned();
@@ -189,7 +202,7 @@ pub fn history_svg(steps: &[(String, Pooled, bool)]) -> String {
         0 | 1 => (plot.0 + plot.2) / 2.0,
         _ => plot.0 + 30.0 + (plot.2 - plot.0 - 60.0) * i as f64 / (n - 1) as f64,
     };
-    let y = |v: f64| plot.3 - (plot.3 - plot.1) * v / y_top;
+    let y = |v: f64| plot.3 - (plot.3 - plot.1) * (v / y_top);
     let mut s = "<svg width=\"480\" height=\"215\" viewBox=\"0 0 480 215\" role=\"img\" \
                  aria-label=\"samples per second over commits\">"
         .to_owned();
@@ -234,6 +247,26 @@ mod tests {
         assert_eq!(round_ticks(1.0e6), (0.25e6, 1.0e6));
         assert_eq!(round_ticks(0.0), (0.25, 1.0));
         assert_eq!(round_ticks(f64::NAN), (0.25, 1.0));
+        // Speeds no run makes, from an imported result: a round top of 1.7e308 is 2e308,
+        // infinity, and an axis of infinitely many ticks took memory until it ran out.
+        for max in [
+            f64::MAX,
+            1.7e308,
+            1.5e308,
+            1e-310,
+            5e-324,
+            f64::MIN_POSITIVE,
+        ] {
+            let (step, top) = round_ticks(max);
+            assert!(
+                step > 0.0 && top.is_finite() && top >= max,
+                "{max}: {step}, {top}"
+            );
+            assert!(
+                (top / step).round() <= MAX_TICKS as f64,
+                "{max}: {step}, {top}"
+            );
+        }
         assert_eq!(tick_label(15.0, 5.0), "15");
         assert_eq!(tick_label(0.4, 0.2), "0.4");
         assert_eq!(tick_label(0.75, 0.25), "0.75");

@@ -299,6 +299,49 @@ fn what_a_result_says_is_shown_escaped_in_the_terminal() {
     assert!(text.contains("Evil\\u{1b}[2J"), "{text}");
 }
 
+/// Runs `results ARGS` on `db`, killing it after a minute: an answer, not a hang.
+fn results_within_a_minute(dir: &Path, db: &Path, args: &[&str]) -> Output {
+    let mut child = tessera()
+        .arg("results")
+        .args(args)
+        .env("TESSERA_DB", db)
+        .current_dir(dir)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    while child.try_wait().unwrap().is_none() {
+        if std::time::Instant::now() > deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("results {args:?} ran for a minute");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.wait_with_output().unwrap()
+}
+
+/// A speed near the largest `f64` is positive and finite, so an import takes it; the
+/// report's axis rounded its top up to infinity and drew ticks without end (2.1 GB in 10 s,
+/// until memory ran out).
+#[test]
+fn a_report_of_speeds_near_the_largest_number_ends() {
+    let dir = temp_dir("results-huge-speed");
+    let db = dir.join("r.db");
+    let mut v = json(&root().join("fuzz/corpus/result/quick-one-thread.json"));
+    v["result"]["samples_per_sec"]["max"] = Value::from(1.7e308);
+    v["scaling"][0]["samples_per_sec"]["max"] = Value::from(1.7e308);
+    write_json(&dir.join("huge.json"), &v);
+    let o = results(&dir, &db, &["import", "huge.json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = results_within_a_minute(&dir, &db, &["report", "-o", "r.html"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let page = std::fs::read_to_string(dir.join("r.html")).unwrap();
+    assert!(page.len() < 1 << 20, "a page of {} bytes", page.len());
+    assert!(!page.contains("inf"), "an axis reaches infinity");
+}
+
 /// Bytes of `path`, to check a refused database was left as it was.
 fn bytes(path: &Path) -> Vec<u8> {
     std::fs::read(path).unwrap()

@@ -220,7 +220,8 @@ fn bars(ranked: &[Line]) -> String {
         .map(|l| l.score.max)
         .fold(0.0, f64::max)
         .max(1.0);
-    let pc = |v: f64| 100.0 * v / max;
+    // Divided first: 100 × a speed near the largest `f64` would be infinite.
+    let pc = |v: f64| v / max * 100.0;
     let mut h = "<div class=\"bars\">".to_owned();
     for (i, line) in ranked.iter().enumerate() {
         let p = line.score;
