@@ -43,6 +43,41 @@ impl PartReader<BufReader<std::fs::File>> {
         let len = file.metadata().map_err(io)?.len();
         PartReader::new(BufReader::new(file), len, path)
     }
+
+    /// Opens the checkpoint at `path` to resume from, as `open` does, refusing one that
+    /// another user owns. A render takes a checkpoint's finished tiles as they are, so the
+    /// user who wrote it chooses those pixels: in a directory others may write to (`/tmp`),
+    /// another user could leave a checkpoint of the same scene under the name a render will
+    /// use, with sums of their choosing (its checksum is no secret), and the image would
+    /// carry them, recipe and all. The file's owner is read from the opened file, so nothing
+    /// swapped in after the check is read; a file of root's is taken (root can write any).
+    pub fn open_own(path: &Path) -> Result<Self> {
+        use std::os::unix::fs::MetadataExt;
+        let io = |cause| Error::Io {
+            path: path.to_owned(),
+            cause,
+        };
+        let file = crate::input_file::open_regular(path).map_err(io)?;
+        let meta = file.metadata().map_err(io)?;
+        // This process's user: the owner of its /proc entry (where there is no /proc,
+        // nobody can be told apart, and the file is taken).
+        let me = std::fs::metadata("/proc/self").map(|m| m.uid());
+        if let Ok(me) = me
+            && meta.uid() != me
+            && meta.uid() != 0
+        {
+            return Err(part_error(
+                path,
+                format!(
+                    "belongs to another user (uid {}; this is uid {me}): a render resumes only \
+                     from a checkpoint of its own user's; remove it or choose another \
+                     --checkpoint file",
+                    meta.uid()
+                ),
+            ));
+        }
+        PartReader::new(BufReader::new(file), meta.len(), path)
+    }
 }
 
 impl<R: Read> PartReader<R> {
@@ -257,6 +292,12 @@ impl Part {
 
     pub fn load(path: &Path) -> Result<Part> {
         PartReader::open(path)?.read_part()
+    }
+
+    /// A checkpoint to resume from: `load`, refusing a file another user owns
+    /// (`PartReader::open_own`).
+    pub fn load_own(path: &Path) -> Result<Part> {
+        PartReader::open_own(path)?.read_part()
     }
 }
 

@@ -1757,3 +1757,55 @@ fn merge_s_warning_on_a_stranger_s_recipe_is_of_bounded_length() {
     assert!(err.contains("characters left out"), "{err}");
     assert!(err.contains("m.png carries no recipe"), "{err}");
 }
+
+/// A render takes a checkpoint's finished tiles as they are, so whoever wrote the file chose
+/// those pixels. In a directory others may write to (`/tmp`), another user could leave a
+/// checkpoint of the same scene, with sums of their choosing, under the name a render uses:
+/// the render resumed from it ("resuming ... (50.0% done)") and its image carried the
+/// stranger's pixels under its own recipe. A checkpoint of another user's is refused; the
+/// same file, the user's own again, resumes. Changing a file's owner needs root: elsewhere
+/// the test is skipped.
+#[test]
+fn a_checkpoint_another_user_owns_is_not_resumed() {
+    let dir = temp_dir("hostile-strangers-checkpoint");
+    let cover = cover();
+    let render = |spp: &str| {
+        run(
+            &[
+                "render",
+                &cover,
+                "-q",
+                "--width",
+                "24",
+                "--spp",
+                spp,
+                "--checkpoint",
+                "ck.part",
+                "-o",
+                "out.png",
+            ],
+            &dir,
+        )
+    };
+    let o = render("2");
+    assert!(o.status.success(), "{}", stderr(&o));
+    std::fs::remove_file(dir.join("out.png")).unwrap();
+    let me = std::fs::metadata("/proc/self").map(|m| std::os::unix::fs::MetadataExt::uid(&m));
+    let ck = dir.join("ck.part");
+    if std::os::unix::fs::chown(&ck, Some(65534), Some(65534)).is_err() {
+        return skip(
+            "a_checkpoint_another_user_owns_is_not_resumed",
+            "changing a file's owner needs root",
+        );
+    }
+    refused(
+        &render("4"),
+        "ck.part: belongs to another user (uid 65534",
+        "another user's checkpoint",
+    );
+    assert!(!dir.join("out.png").exists(), "an image was written");
+    std::os::unix::fs::chown(&ck, me.ok(), None).unwrap();
+    let o = render("4");
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(dir.join("out.png").exists());
+}
