@@ -42,8 +42,36 @@ fn is_special(path: &Path) -> bool {
     std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir())
 }
 
+/// Refuses a pipe (FIFO) at `path` that another user owns (neither this user nor root). In
+/// a directory others may write to (`/tmp`), another user can make one under the name an
+/// output will have: writing it in place sent the image to whoever reads it, with no file
+/// made and exit 0, or, with nobody reading, waited forever. The kernel's
+/// `fs.protected_fifos` guards only opens that may create the file, which this is not.
+fn refuse_foreign_pipe(path: &Path) -> std::io::Result<()> {
+    use std::os::unix::fs::{FileTypeExt, MetadataExt};
+    let Ok(meta) = std::fs::metadata(path) else {
+        return Ok(());
+    };
+    // This process's user: the owner of its /proc entry (without /proc, nobody can be told
+    // apart).
+    let me = std::fs::metadata("/proc/self").map(|m| m.uid());
+    if meta.file_type().is_fifo()
+        && let Ok(me) = me
+        && meta.uid() != me
+        && meta.uid() != 0
+    {
+        return Err(std::io::Error::other(format!(
+            "is a pipe (FIFO) of another user's (uid {}; this is uid {me}): what is written \
+             there goes to whoever reads it, not to a file; remove it or choose another name",
+            meta.uid()
+        )));
+    }
+    Ok(())
+}
+
 /// Checks, before any work is spent on it, that `write_atomically` can write `path`: its
-/// directory exists and takes a new file, and `path` is not a directory.
+/// directory exists and takes a new file, and `path` is not a directory (nor another user's
+/// pipe).
 pub fn check_writable(path: &Path) -> Result<()> {
     let io = |cause| Error::Io {
         path: path.to_owned(),
@@ -57,7 +85,7 @@ pub fn check_writable(path: &Path) -> Result<()> {
     }
     if is_special(path) {
         // Written in place; opening a pipe now would wait for its reader.
-        return Ok(());
+        return refuse_foreign_pipe(path).map_err(io);
     }
     // Created and removed again: the directory takes a new file.
     temporary_beside(path)
@@ -85,6 +113,7 @@ pub fn write_atomically_with(
         cause,
     };
     if is_special(path) {
+        refuse_foreign_pipe(path).map_err(io)?;
         let file = std::fs::OpenOptions::new()
             .write(true)
             .open(path)

@@ -1809,3 +1809,49 @@ fn a_checkpoint_another_user_owns_is_not_resumed() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(dir.join("out.png").exists());
 }
+
+/// An output written in place because it is a pipe (`-o /dev/stdout`, a FIFO) may be a pipe
+/// another user made under the name in a shared directory (`/tmp`): the render then waited
+/// forever for a reader (killed after 20 s), or, with the other user reading, sent them the
+/// image and exited 0 with no file made. Another user's pipe is refused before the render
+/// starts. Changing a pipe's owner needs root: elsewhere the test is skipped.
+#[test]
+fn an_output_name_that_is_another_users_pipe_is_refused() {
+    let dir = temp_dir("hostile-strangers-fifo");
+    let made = Command::new("mkfifo").arg(dir.join("out.png")).status();
+    if !made.is_ok_and(|s| s.success()) {
+        return skip(
+            "an_output_name_that_is_another_users_pipe",
+            "mkfifo is missing",
+        );
+    }
+    if std::os::unix::fs::chown(dir.join("out.png"), Some(65534), Some(65534)).is_err() {
+        return skip(
+            "an_output_name_that_is_another_users_pipe",
+            "changing a file's owner needs root",
+        );
+    }
+    let cover = cover();
+    let mut child = tessera()
+        .args([
+            "render", &cover, "-q", "--width", "16", "--spp", "1", "-o", "out.png",
+        ])
+        .current_dir(&dir)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    while child.try_wait().unwrap().is_none() {
+        if std::time::Instant::now() > deadline {
+            let _ = child.kill();
+            panic!("the render waited on another user's pipe");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    refused(
+        &child.wait_with_output().unwrap(),
+        "out.png: is a pipe (FIFO) of another user's (uid 65534",
+        "another user's pipe",
+    );
+}
