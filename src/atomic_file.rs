@@ -52,14 +52,8 @@ fn refuse_foreign_pipe(path: &Path) -> std::io::Result<()> {
     let Ok(meta) = std::fs::metadata(path) else {
         return Ok(());
     };
-    // This process's user: the owner of its /proc entry (without /proc, nobody can be told
-    // apart).
-    let me = std::fs::metadata("/proc/self").map(|m| m.uid());
-    if meta.file_type().is_fifo()
-        && let Ok(me) = me
-        && meta.uid() != me
-        && meta.uid() != 0
-    {
+    let me = rustix::process::geteuid().as_raw();
+    if meta.file_type().is_fifo() && meta.uid() != me && meta.uid() != 0 {
         return Err(std::io::Error::other(format!(
             "is a pipe (FIFO) of another user's (uid {}; this is uid {me}): what is written \
              there goes to whoever reads it, not to a file; remove it or choose another name",

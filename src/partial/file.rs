@@ -59,13 +59,8 @@ impl PartReader<BufReader<std::fs::File>> {
         };
         let file = crate::input_file::open_regular(path).map_err(io)?;
         let meta = file.metadata().map_err(io)?;
-        // This process's user: the owner of its /proc entry (where there is no /proc,
-        // nobody can be told apart, and the file is taken).
-        let me = std::fs::metadata("/proc/self").map(|m| m.uid());
-        if let Ok(me) = me
-            && meta.uid() != me
-            && meta.uid() != 0
-        {
+        let me = rustix::process::geteuid().as_raw();
+        if meta.uid() != me && meta.uid() != 0 {
             return Err(part_error(
                 path,
                 format!(
