@@ -19,6 +19,14 @@ pub const MAX_FILE: u64 = 1 << 20;
 const MAX_TEXT: usize = 256;
 /// The most threads a result may claim; more is no machine's.
 const MAX_THREADS: usize = 1 << 16;
+/// The fastest rate a result may claim, in samples (or million rays) a second: a thousand
+/// times the quick workload on 65,536 of today's cores. A rate near the largest number
+/// ranked first everywhere, and once drew an axis without end in the report.
+const MAX_SAMPLES_PER_SEC: f64 = 1e12;
+/// The longest a result's run may claim to have taken, in seconds: a year.
+const MAX_WALL_SECONDS: f64 = 3.2e7;
+/// The largest of the other measures (rays per sample, speedups, efficiencies).
+const MAX_MEASURE: f64 = 1e9;
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -217,24 +225,30 @@ impl BenchResult {
             if row.runs.len() > 1_000_000 {
                 return Err("a row has more runs than any bench makes".into());
             }
-            let positive = |name: &str, x: f64| {
-                if x.is_finite() && x > 0.0 {
-                    Ok(())
-                } else {
+            let within = |name: &str, x: f64, most: f64| {
+                if !(x.is_finite() && x > 0.0) {
                     Err(format!(
                         "{} threads: {name} is {x}, not a positive number",
                         row.threads
                     ))
+                } else if x > most {
+                    Err(format!(
+                        "{} threads: {name} is {x}, more than any run makes (at most {most:e})",
+                        row.threads
+                    ))
+                } else {
+                    Ok(())
                 }
             };
-            for (name, s) in [
-                ("samples/s", row.samples_per_sec),
-                ("Mrays/s", row.mrays_per_sec),
-                ("wall time", row.wall_s),
+            let positive = |name: &str, x: f64| within(name, x, MAX_MEASURE);
+            for (name, s, most) in [
+                ("samples/s", row.samples_per_sec, MAX_SAMPLES_PER_SEC),
+                ("Mrays/s", row.mrays_per_sec, MAX_SAMPLES_PER_SEC),
+                ("wall time", row.wall_s, MAX_WALL_SECONDS),
             ] {
-                positive(name, s.min)?;
-                positive(name, s.median)?;
-                positive(name, s.max)?;
+                within(name, s.min, most)?;
+                within(name, s.median, most)?;
+                within(name, s.max, most)?;
                 if !(s.min <= s.median && s.median <= s.max) {
                     return Err(format!(
                         "{} threads: {name}'s min, median and max are out of order",
@@ -243,14 +257,11 @@ impl BenchResult {
                 }
             }
             positive("rays per sample", row.rays_per_sample)?;
-            for x in row
-                .runs
-                .iter()
-                .copied()
-                .chain(row.speedup)
-                .chain(row.efficiency)
-            {
-                positive("a run or speedup", x)?;
+            for &x in &row.runs {
+                within("a run's samples/s", x, MAX_SAMPLES_PER_SEC)?;
+            }
+            for x in row.speedup.into_iter().chain(row.efficiency) {
+                positive("a speedup or efficiency", x)?;
             }
         }
         if !self
