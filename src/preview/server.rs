@@ -449,7 +449,9 @@ fn host_allowed(addr: SocketAddr, request: &Request<Incoming>) -> bool {
             Err(_) => return false,
         },
     };
-    if authority.port_u16().is_some_and(|p| p != addr.port()) {
+    // A Host has no user part (RFC 9110, 7.2), and a URL's is never sent: either is
+    // another spelling of a name to be read, not answered.
+    if authority.as_str().contains('@') || authority.port_u16().is_some_and(|p| p != addr.port()) {
         return false;
     }
     let name = authority

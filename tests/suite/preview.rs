@@ -439,6 +439,26 @@ fn a_second_host_or_a_foreign_absolute_url_is_misdirected() {
         421,
         "an absolute URL of another host"
     );
+    let port = addr.port();
+    for host in [
+        format!("evil@localhost:{port}"),
+        format!("evil.example@{addr}"),
+    ] {
+        assert_eq!(
+            ask(format!(
+                "GET /status HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n"
+            )),
+            421,
+            "a Host with a user part: {host}"
+        );
+        assert_eq!(
+            ask(format!(
+                "GET http://{host}/status HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
+            )),
+            421,
+            "an absolute URL with a user part: {host}"
+        );
+    }
     assert_eq!(
         ask(format!(
             "GET http://{addr}/status HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
