@@ -50,7 +50,7 @@ impl RgbImage {
     /// else its content), once the size its header claims is found within
     /// `MAX_COMPARED_PIXELS`.
     pub fn load(path: &Path) -> Result<Self> {
-        let (decoder, _) = Self::decoder(path)?;
+        let (decoder, _, _) = Self::decoder(path)?;
         let img = image::DynamicImage::from_decoder(decoder).map_err(|e| Error::Image {
             path: path.to_owned(),
             message: decode_failure(&e),
@@ -69,17 +69,32 @@ impl RgbImage {
         Ok(Self::size_and_display(path)?.0)
     }
 
-    /// `size`, and what the header holds that changes how a viewer shows the picture.
+    /// `size`, and what the header holds that changes how a viewer shows the picture: a
+    /// PNG's chunks and an EXR's attributes (walked by `decoder`), an alpha channel in any
+    /// format (the values measured are the colour channels only, so a transparent image and
+    /// an opaque one of the same colours would otherwise be identical).
     pub fn size_and_display(path: &Path) -> Result<((u32, u32), Vec<String>)> {
         use image::ImageDecoder;
-        let (decoder, display_changes) = Self::decoder(path)?;
+        let (decoder, mut display_changes, _) = Self::decoder(path)?;
+        if decoder.color_type().has_alpha() {
+            display_changes.push(format!(
+                "an alpha channel ({:?}), which compare does not measure: transparency",
+                decoder.original_color_type()
+            ));
+        }
         Ok((decoder.dimensions(), display_changes))
     }
 
-    /// A decoder of the image at `path` with its header read and its size checked, and
-    /// what the header holds that changes how a viewer shows the picture (a PNG's or an
-    /// EXR's `display_changes`).
-    fn decoder(path: &Path) -> Result<(impl image::ImageDecoder, Vec<String>)> {
+    /// A decoder of the image at `path` with its header read and its size checked, what the
+    /// header holds that changes how a viewer shows the picture (a PNG's or an EXR's
+    /// `display_changes`), and the format it is read as.
+    fn decoder(
+        path: &Path,
+    ) -> Result<(
+        impl image::ImageDecoder,
+        Vec<String>,
+        Option<image::ImageFormat>,
+    )> {
         use image::ImageDecoder;
         let fail = |message: String| Error::Image {
             path: path.to_owned(),
@@ -146,6 +161,7 @@ impl RgbImage {
         let mut limits = image::Limits::default();
         limits.max_alloc = Some(MAX_COMPARED_PIXELS * 16 + (1 << 20));
         reader.limits(limits);
+        let format = reader.format();
         let decoder = reader.into_decoder().map_err(|e| fail(e.to_string()))?;
         let (width, height) = decoder.dimensions();
         if u64::from(width) * u64::from(height) > MAX_COMPARED_PIXELS {
@@ -154,7 +170,7 @@ impl RgbImage {
                  an image may have to be compared"
             )));
         }
-        Ok((decoder, display_changes))
+        Ok((decoder, display_changes, format))
     }
 
     /// Wraps 8-bit RGB values.
@@ -266,6 +282,82 @@ mod tests {
         let d = difference(&loaded, &white).unwrap();
         assert!(d.psnr_db > 0.0 && d.rmse <= 1.0, "{d:?}");
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A file's name and bytes.
+    type File<'a> = (&'a str, &'a [u8]);
+
+    /// The changes listed for `b` compared with `a`, both written into a directory of
+    /// their own.
+    fn listed(name: &str, a: File, b: File) -> Vec<String> {
+        let dir = std::env::temp_dir().join(format!("tessera-{name}-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join(a.0), a.1).unwrap();
+        std::fs::write(dir.join(b.0), b.1).unwrap();
+        let d = difference_of_files(&dir.join(a.0), &dir.join(b.0)).unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+        assert_eq!(d.rmse, 0.0, "{name}: the same colour values");
+        d.display_changes
+            .into_iter()
+            .map(|(path, change)| {
+                assert!(path.ends_with(b.0), "{name}: {path:?}: {change}");
+                change
+            })
+            .collect()
+    }
+
+    fn png(color: png::ColorType, pixels: &[u8]) -> Vec<u8> {
+        let mut out = Vec::new();
+        let mut encoder = png::Encoder::new(&mut out, 2, 1);
+        encoder.set_color(color);
+        encoder.set_depth(png::BitDepth::Eight);
+        let mut writer = encoder.write_header().unwrap();
+        writer.write_image_data(pixels).unwrap();
+        writer.finish().unwrap();
+        out
+    }
+
+    /// compare measures the colour channels only: an image with an alpha channel (a PNG of
+    /// colour type 4 or 6, an EXR with an `A` channel, a PAM of tuple type RGB_ALPHA) once
+    /// compared `identical` with an opaque one of the same colours, though a viewer shows
+    /// it transparent. It is listed, as a PNG's tRNS chunk is.
+    #[test]
+    fn an_alpha_channel_is_listed_not_called_identical() {
+        let opaque = png(png::ColorType::Rgb, &[200, 100, 50, 200, 100, 50]);
+        let clear = png(png::ColorType::Rgba, &[200, 100, 50, 0, 200, 100, 50, 0]);
+        let grey = png(png::ColorType::Grayscale, &[128, 128]);
+        let grey_clear = png(png::ColorType::GrayscaleAlpha, &[128, 0, 128, 0]);
+        let pam = b"P7\nWIDTH 2\nHEIGHT 1\nDEPTH 4\nMAXVAL 255\nTUPLTYPE RGB_ALPHA\nENDHDR\n\
+                    \xc8\x64\x32\x00\xc8\x64\x32\x00";
+        let exr = |alpha: bool| {
+            use exr::prelude::*;
+            let mut out = std::io::Cursor::new(Vec::new());
+            if alpha {
+                let rgba =
+                    SpecificChannels::rgba(|_: Vec2<usize>| (0.5f32, 0.25f32, 1.0f32, 0.0f32));
+                let image = Image::from_channels((2, 1), rgba);
+                image.write().to_buffered(&mut out).unwrap();
+            } else {
+                let rgb = SpecificChannels::rgb(|_: Vec2<usize>| (0.5f32, 0.25f32, 1.0f32));
+                let image = Image::from_channels((2, 1), rgb);
+                image.write().to_buffered(&mut out).unwrap();
+            }
+            out.into_inner()
+        };
+        let cases: [(&str, File, File); 4] = [
+            ("rgba", ("a.png", &opaque), ("clear.png", &clear)),
+            ("grey-alpha", ("a.png", &grey), ("clear.png", &grey_clear)),
+            ("pam", ("a.png", &opaque), ("clear.pam", pam)),
+            ("exr", ("a.exr", &exr(false)), ("clear.exr", &exr(true))),
+        ];
+        for (name, a, b) in cases {
+            let changes = listed(name, a, b);
+            assert!(
+                changes.len() == 1 && changes[0].contains("an alpha channel"),
+                "{name}: {changes:?}"
+            );
+            assert!(listed(name, a, a).is_empty(), "{name}: opaque");
+        }
     }
 
     #[test]
