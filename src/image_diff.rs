@@ -72,15 +72,33 @@ impl RgbImage {
     /// `size`, and what the header holds that changes how a viewer shows the picture: a
     /// PNG's chunks and an EXR's attributes (walked by `decoder`), an alpha channel in any
     /// format (the values measured are the colour channels only, so a transparent image and
-    /// an opaque one of the same colours would otherwise be identical).
+    /// an opaque one of the same colours would otherwise be identical), and a JPEG's EXIF
+    /// orientation and colour profile.
     pub fn size_and_display(path: &Path) -> Result<((u32, u32), Vec<String>)> {
         use image::ImageDecoder;
-        let (decoder, mut display_changes, _) = Self::decoder(path)?;
+        let (mut decoder, mut display_changes, format) = Self::decoder(path)?;
+        let fail = |e: image::ImageError| Error::Image {
+            path: path.to_owned(),
+            message: format!("has a header that does not decode: {e}"),
+        };
         if decoder.color_type().has_alpha() {
             display_changes.push(format!(
                 "an alpha channel ({:?}), which compare does not measure: transparency",
                 decoder.original_color_type()
             ));
+        }
+        // A PNG's EXIF and colour profile are among the chunks walked; a JPEG's are in its
+        // APP1 and APP2 segments, which its decoder reads.
+        if format == Some(image::ImageFormat::Jpeg) {
+            let orientation = decoder.orientation().map_err(fail)?;
+            if orientation != image::metadata::Orientation::NoTransforms {
+                display_changes.push(format!(
+                    "an EXIF orientation ({orientation:?}), which turns or flips the picture"
+                ));
+            }
+            if decoder.icc_profile().map_err(fail)?.is_some() {
+                display_changes.push("an ICC colour profile (an APP2 segment)".to_owned());
+            }
         }
         Ok((decoder.dimensions(), display_changes))
     }
@@ -358,6 +376,37 @@ mod tests {
             );
             assert!(listed(name, a, a).is_empty(), "{name}: opaque");
         }
+    }
+
+    /// A JPEG's EXIF orientation (an APP1 segment) turns or flips the picture in viewers,
+    /// and its ICC profile (APP2) changes its colours, as a PNG's eXIf and iCCP chunks do:
+    /// the same values were once called identical. They are listed.
+    #[test]
+    fn a_jpeg_s_orientation_and_colour_profile_are_listed() {
+        let jpeg = include_bytes!("../scenes/earthmap.jpg");
+        let with = |marker: u8, segment: &[u8]| {
+            let length = u16::try_from(segment.len() + 2).unwrap().to_be_bytes();
+            [&jpeg[..2], &[0xff, marker], &length, segment, &jpeg[2..]].concat()
+        };
+        // A little-endian TIFF header, one IFD entry: Orientation (0x0112), SHORT, 3.
+        let exif = [
+            &b"Exif\0\0II*\0\x08\0\0\0\x01\0"[..],
+            &[0x12, 0x01, 3, 0, 1, 0, 0, 0, 3, 0, 0, 0, 0, 0, 0, 0],
+        ]
+        .concat();
+        let turned = with(0xe1, &exif);
+        let profile = with(0xe2, &[&b"ICC_PROFILE\0\x01\x01"[..], &[0; 128]].concat());
+        let changes = listed("jpeg-exif", ("a.jpg", jpeg), ("b.jpg", &turned));
+        assert!(
+            changes.len() == 1 && changes[0].contains("EXIF orientation (Rotate180)"),
+            "{changes:?}"
+        );
+        let changes = listed("jpeg-icc", ("a.jpg", jpeg), ("b.jpg", &profile));
+        assert!(
+            changes.len() == 1 && changes[0].contains("ICC colour profile"),
+            "{changes:?}"
+        );
+        assert!(listed("jpeg", ("a.jpg", jpeg), ("b.jpg", jpeg)).is_empty());
     }
 
     #[test]
