@@ -117,6 +117,47 @@ impl SceneInput {
     }
 }
 
+/// The most bytes the TOML of a dict may take: a scene file's (`MAX_SCENE_BYTES`).
+const MAX_TOML_BYTES: u64 = tessera::scene::MAX_SCENE_BYTES;
+
+/// The TOML of a dict's keys, bounded: written out, a table's header (`[a.b]`, `[[a.b]]` for
+/// each table of an array) repeats every key above it, so a dict of a few MB whose long key
+/// holds an array of 10,000 empty tables once wrote 10 GB of TOML (9.7 GB of memory,
+/// 86 s) before any bound looked at it, and a float is written without an exponent (a
+/// million of 5e-324 took 330 MB). What it would take is summed first, generously (a key
+/// or string each character escaped as TOML may), and a dict over a scene file's 64 MiB is
+/// refused unwritten.
+fn toml_size(value: &toml::Value, path: u64) -> u64 {
+    use toml::Value;
+    match value {
+        Value::String(s) => quoted_size(s),
+        // A float is written out in full, without an exponent: 5e-324 takes 326 bytes.
+        Value::Float(f) => f.to_string().len() as u64 + 2,
+        Value::Integer(_) | Value::Boolean(_) => 24,
+        Value::Datetime(_) => 40,
+        Value::Array(items) => items.iter().fold(2u64, |n, item| {
+            n.saturating_add(toml_size(item, path)).saturating_add(2)
+        }),
+        Value::Table(table) => table.iter().fold(path.saturating_add(6), |n, (key, item)| {
+            let key = quoted_size(key);
+            let below = path.saturating_add(key).saturating_add(1);
+            n.saturating_add(key.saturating_add(4))
+                .saturating_add(toml_size(item, below))
+        }),
+    }
+}
+
+/// The most bytes `s` takes as a TOML key or string: quoted, each character escaped as it
+/// may be.
+fn quoted_size(s: &str) -> u64 {
+    let escaped = s.chars().map(|c| match c {
+        '"' | '\\' => 2,
+        c if c.is_control() => 6,
+        c => c.len_utf8() as u64,
+    });
+    2 + escaped.sum::<u64>()
+}
+
 /// The TOML text of a scene given as a dict (already JSON): the same dict, the same text.
 fn toml_of_json(json: &str) -> tessera::Result<String> {
     let setting = |message: String| tessera::Error::Setting {
@@ -129,6 +170,15 @@ fn toml_of_json(json: &str) -> tessera::Result<String> {
         return Err(setting(
             "a dict of the scene file's keys is expected".into(),
         ));
+    }
+    let size = toml_size(&value, 0);
+    if size > MAX_TOML_BYTES {
+        return Err(setting(format!(
+            "written as TOML (each table's header repeats every key above it, each float is \
+             written in full) it would take up to {size} bytes, more than the {} MiB a scene \
+             file may",
+            MAX_TOML_BYTES >> 20
+        )));
     }
     toml::to_string(&value).map_err(|e| setting(format!("cannot be written as TOML ({e})")))
 }
