@@ -157,6 +157,25 @@ def test_a_dict_that_holds_itself_or_writes_out_too_large_is_refused(make, says)
     assert tessera.render(scene).width == 8
 
 
+def test_a_long_key_above_many_dicts_is_not_written_out_for_each():
+    # The key check kept each dict's place written out (`image.kkk…k[3]`) until it was
+    # walked: 4,000 dicts under a key of a million characters once took 4 GB. Places are
+    # written out for a message only.
+    import tracemalloc
+
+    scene = {"image": {"k" * 1_000_000: [{}] * 500}}
+    tracemalloc.start()
+    try:
+        tessera._scene_input(scene)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 50 << 20, f"{peak >> 20} MiB"
+    # The places still name where a bad value is.
+    with pytest.raises(ValueError, match=r"spheres\[1\]\.center\[2\] is 18446744073709551616"):
+        tessera.render({"spheres": [{}, {"center": [0, 0, 2**64]}]})
+
+
 HOSTILE_TEXTS = [
     # Tall: the width of 8 asked for below keeps the aspect, 8 x 799999992 pixels.
     "[image]\nwidth = 1\nheight = 99999999\nsamples_per_pixel = 1\nmax_depth = 1\n",
