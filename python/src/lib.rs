@@ -267,9 +267,9 @@ impl NativeImage {
             "exr" => Format::Exr,
             "ppm" => Format::Ppm,
             other => {
-                return Err(PyValueError::new_err(format!(
+                return Err(PyValueError::new_err(safe(&format!(
                     "format must be png, exr or ppm, not {other:?}"
-                )));
+                ))));
             }
         };
         let bytes = py
@@ -396,9 +396,9 @@ fn render(
         "toml" => SceneInput::Toml(scene),
         "json" => SceneInput::Json(scene),
         other => {
-            return Err(PyValueError::new_err(format!(
+            return Err(PyValueError::new_err(safe(&format!(
                 "unknown scene kind {other:?}"
-            )));
+            ))));
         }
     };
     let path = simd_path(simd.as_deref())?;
@@ -445,7 +445,7 @@ fn render(
 /// The SIMD path named `simd` (None: `auto`).
 fn simd_path(simd: Option<&str>) -> PyResult<tessera::simd::Path> {
     tessera::simd::Path::choose(simd.unwrap_or("auto"))
-        .map_err(|e| PyValueError::new_err(format!("simd: {e}")))
+        .map_err(|e| PyValueError::new_err(safe(&format!("simd: {e}"))))
 }
 
 /// Renders the whole of `scene` until it is complete or `stop` is set (then `Interrupted`),
@@ -646,8 +646,8 @@ fn bench_workload(
 ) -> PyResult<String> {
     let chosen = simd.as_deref().is_some_and(|s| s != "auto");
     let path = simd_path(simd.as_deref())?;
-    let workload =
-        Workload::named(workload).map_err(|e| PyValueError::new_err(format!("workload: {e:#}")))?;
+    let workload = Workload::named(workload)
+        .map_err(|e| PyValueError::new_err(safe(&format!("workload: {e:#}"))))?;
     let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
     let plan = measure::Plan {
         workload,

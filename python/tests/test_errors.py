@@ -210,6 +210,23 @@ def test_what_a_stranger_wrote_reaches_an_exception_escaped(tmp_path):
         assert "\\u{1b}[2J" in message and "\\u{202e}" in message, message
 
 
+def test_a_simd_path_or_workload_s_name_reaches_an_exception_escaped():
+    # The name of a SIMD path or a workload is quoted in the message: once as it was given,
+    # escape sequences, bidirectional overrides and all, however long.
+    hostile = "x\x1b[2J\u202e" + "a" * 10_000
+    calls = [
+        lambda: tessera.render("scenes/cover.toml", width=4, spp=1, simd=hostile),
+        lambda: tessera.reproduce("none.png", simd=hostile),
+        lambda: tessera.bench(hostile, repeat=1, warmup=0),
+    ]
+    for call in calls:
+        with pytest.raises(ValueError) as e:
+            call()
+        message = str(e.value)
+        assert not any(c in message for c in "\u202e\x1b"), repr(message[:100])
+        assert "x\\u{1b}[2J\\u{202e}aaa" in message and len(message) < 5000, message[:100]
+
+
 def test_a_message_quoting_a_long_key_keeps_its_start_and_end(tmp_path):
     # A key of 1 MiB is quoted twice (the field and the unknown key): a message of 2 MB once.
     key = "k" * (1 << 20)
