@@ -18,11 +18,11 @@ pub const MAX_FILE: u64 = 1 << 20;
 /// The longest text field accepted (a CPU model, a commit, a scene name).
 const MAX_TEXT: usize = 256;
 /// The most threads a result may claim; more is no machine's.
-const MAX_THREADS: usize = 1 << 16;
+pub const MAX_THREADS: usize = 1 << 16;
 /// The fastest rate a result may claim, in samples (or million rays) a second: a thousand
 /// times the quick workload on 65,536 of today's cores. A rate near the largest number
 /// ranked first everywhere, and once drew an axis without end in the report.
-const MAX_SAMPLES_PER_SEC: f64 = 1e12;
+pub const MAX_SAMPLES_PER_SEC: f64 = 1e12;
 /// The longest a result's run may claim to have taken, in seconds: a year.
 const MAX_WALL_SECONDS: f64 = 3.2e7;
 /// The largest of the other measures (rays per sample, speedups, efficiencies).

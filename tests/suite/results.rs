@@ -331,7 +331,8 @@ fn results_within_a_minute(dir: &Path, db: &Path, args: &[&str]) -> Output {
 /// A speed near the largest `f64` was positive and finite, so an import took it; the
 /// report's axis rounded its top up to infinity and drew ticks without end (2.1 GB in 10 s,
 /// until memory ran out). An import now refuses it (`hostile_imports_are_refused_with_the_reason`);
-/// a database made elsewhere may still hold it, and its report ends.
+/// a database made elsewhere may still hold it, and every command that reads it refuses it
+/// at once, naming the run.
 #[test]
 fn a_report_of_speeds_near_the_largest_number_ends() {
     let dir = temp_dir("results-huge-speed");
@@ -350,10 +351,97 @@ fn a_report_of_speeds_near_the_largest_number_ends() {
     .unwrap();
     drop(conn);
     let o = results_within_a_minute(&dir, &db, &["report", "-o", "r.html"]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let page = std::fs::read_to_string(dir.join("r.html")).unwrap();
-    assert!(page.len() < 1 << 20, "a page of {} bytes", page.len());
-    assert!(!page.contains("inf"), "an axis reaches infinity");
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("run 1: sps_max is 1.7e308"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!dir.join("r.html").exists());
+}
+
+/// The columns are STRICT, so each holds a number, but any number: a database made
+/// elsewhere may say a run had 0 or -5 threads, a rate of 0, a negative one or infinity, or
+/// min above max. Every command took them: the report drew `NaN%` and `-inf` into its page,
+/// `rank` ranked a 300-digit negative rate, `compare` printed a ratio of NaN. Each is now
+/// refused (exit 2) by every command that reads the runs, naming the run and the column.
+#[test]
+fn a_database_whose_numbers_no_import_takes_is_refused() {
+    let dir = temp_dir("results-unsound-rows");
+    let v = json(&root().join("fuzz/corpus/result/quick-scaling.json"));
+    write_json(&dir.join("q.json"), &v);
+    for (name, sql, says) in [
+        (
+            "zero-rate",
+            "UPDATE runs SET sps_median = 0, sps_min = 0, sps_max = 0",
+            "sps_median is 0e0",
+        ),
+        (
+            "infinite-rate",
+            "UPDATE runs SET sps_max = 1e999",
+            "sps_max is inf",
+        ),
+        (
+            "negative-rate",
+            "UPDATE runs SET sps_min = -1e300",
+            "sps_min is -1e300",
+        ),
+        (
+            "out-of-order",
+            "UPDATE runs SET sps_min = sps_max * 2",
+            "sps_min, sps_median and sps_max are out of order",
+        ),
+        (
+            "negative-threads",
+            "UPDATE runs SET threads = -5",
+            "threads is -5",
+        ),
+        (
+            "no-cpus",
+            "UPDATE runs SET logical_cpus = 0",
+            "logical_cpus is 0",
+        ),
+        (
+            "scaling-zero-threads",
+            "UPDATE scaling SET threads = 0 WHERE threads = 1",
+            "a scaling row's threads is 0",
+        ),
+        (
+            "scaling-infinite-rate",
+            "UPDATE scaling SET sps_max = 1e999",
+            "a scaling row's sps_max is inf",
+        ),
+    ] {
+        let db = dir.join(format!("{name}.db"));
+        let o = results(&dir, &db, &["import", "q.json"]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let conn = rusqlite::Connection::open(&db).unwrap();
+        conn.execute(sql, []).unwrap();
+        drop(conn);
+        let html = dir.join(format!("{name}.html"));
+        // `rank` and `history` read no scaling rows; `report` and `compare` read both.
+        let readers = [
+            &["report", "-o", html.to_str().unwrap()][..],
+            &["compare", "1", "1"],
+            &["rank"],
+            &["history"],
+        ];
+        let readers = if name.starts_with("scaling-") {
+            &readers[..2]
+        } else {
+            &readers[..]
+        };
+        for args in readers {
+            let o = results_within_a_minute(&dir, &db, args);
+            let err = stderr(&o);
+            assert_eq!(o.status.code(), Some(2), "{name} {args:?}: {err}");
+            assert!(
+                err.contains(&format!("{name}.db: run 1: {says}")),
+                "{name} {args:?}: {err}"
+            );
+        }
+        assert!(!html.exists(), "{name}");
+    }
 }
 
 /// Copies run 1 of `db` as runs 2 to `n`, each of its own workload (`workload_id`) or its own

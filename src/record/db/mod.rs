@@ -12,7 +12,7 @@
 
 mod file;
 
-use super::result::BenchResult;
+use super::result::{BenchResult, MAX_SAMPLES_PER_SEC, MAX_THREADS};
 use anyhow::{Context, Result, anyhow, bail};
 use file::{
     cannot_open_wal_files, create, immutable_there, open_immutable, recognise,
@@ -381,7 +381,61 @@ impl ResultsDb {
                 })
             },
         )?;
-        Ok(rows.collect::<rusqlite::Result<Vec<_>>>()?)
+        let runs = rows.collect::<rusqlite::Result<Vec<Run>>>()?;
+        for run in &runs {
+            self.sound(run.id, "", run.threads, run.sps)?;
+            if !(1..=MAX_THREADS as i64).contains(&run.logical_cpus) {
+                bail!(self.unsound(
+                    run.id,
+                    format!(
+                        "logical_cpus is {}, not 1 to {MAX_THREADS}",
+                        run.logical_cpus
+                    )
+                ));
+            }
+        }
+        Ok(runs)
+    }
+
+    /// Checks that run `id`'s numbers (its headline, or the scaling row `row` names) are ones
+    /// an import takes: a thread count of 1 to 65,536 and samples/s positive, at most 1e12
+    /// and in order. The columns hold any number of their type, and a database made
+    /// elsewhere may hold 0, a negative rate or infinity, which drew `NaN%` and `-inf`
+    /// into the report and ranked nonsense: such a database is refused, naming the run.
+    fn sound(&self, id: i64, row: &str, threads: i64, sps: [f64; 3]) -> Result<()> {
+        if !(1..=MAX_THREADS as i64).contains(&threads) {
+            bail!(self.unsound(
+                id,
+                format!("{row}threads is {threads}, not 1 to {MAX_THREADS}")
+            ));
+        }
+        for (name, x) in ["sps_median", "sps_min", "sps_max"].into_iter().zip(sps) {
+            if !(x.is_finite() && x > 0.0 && x <= MAX_SAMPLES_PER_SEC) {
+                bail!(self.unsound(
+                    id,
+                    format!(
+                        "{row}{name} is {x:e}, not a rate above 0 and at most {MAX_SAMPLES_PER_SEC:e}"
+                    )
+                ));
+            }
+        }
+        let [median, min, max] = sps;
+        if !(min <= median && median <= max) {
+            bail!(self.unsound(
+                id,
+                format!("{row}sps_min, sps_median and sps_max are out of order")
+            ));
+        }
+        Ok(())
+    }
+
+    /// The error for run `id` of this database, whose `what` no import makes.
+    fn unsound(&self, id: i64, what: String) -> anyhow::Error {
+        anyhow!(
+            "{}: run {id}: {what}; tessera records none such, so the database was changed by \
+             something else",
+            self.path.display()
+        )
     }
 }
 
@@ -393,7 +447,11 @@ impl ResultsDb {
              WHERE run_id = ?1 ORDER BY threads",
         )?;
         let rows = stmt.query_map([id], |r| Ok((r.get(0)?, [r.get(1)?, r.get(2)?, r.get(3)?])))?;
-        Ok(rows.collect::<rusqlite::Result<Vec<_>>>()?)
+        let rows = rows.collect::<rusqlite::Result<Vec<(i64, [f64; 3])>>>()?;
+        for &(threads, sps) in &rows {
+            self.sound(id, "a scaling row's ", threads, sps)?;
+        }
+        Ok(rows)
     }
 
     /// How many runs it holds.
