@@ -108,7 +108,9 @@ fn part_files(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
 }
 
 /// The recipe of a merged `film` of `render`'s parts, which carry `source`, when `source`
-/// describes them: the scene it gives has their fingerprint, window and sample count.
+/// describes them: the scene it gives has their fingerprint, window and sample count, and
+/// the settings their header gives apart from the fingerprint (size, depth, seed and the
+/// gamma the image is written with), which a crafted header may set otherwise.
 /// `part` names the source in errors; its textures are looked for in `textures` first.
 fn merged_recipe(
     source: &Source,
@@ -121,10 +123,12 @@ fn merged_recipe(
     let scene = source
         .parse(part, &dirs)
         .map_err(|e| format!("the parts' scene cannot be read again ({e})"))?;
-    let s = &scene.settings;
-    let describes = format!("{:016x}", scene.fingerprint()) == render.fingerprint
-        && s.window == render.window
-        && s.samples_per_pixel == render.target;
+    let describes = scene.settings.samples_per_pixel == render.target
+        && RenderId::of(&scene, render.target)
+            == RenderId {
+                recipe: None,
+                ..render.clone()
+            };
     if describes {
         Ok(Recipe::new(source, &scene, film))
     } else {

@@ -133,6 +133,13 @@ impl Part {
                 job.region, r.window, r.width, r.height
             ));
         }
+        // The film is written with the header's gamma, so it must be one a scene takes.
+        if !(r.gamma.is_finite() && r.gamma > 0.0) {
+            return fail(format!(
+                "has an impossible gamma {} (a scene's is positive)",
+                r.gamma
+            ));
+        }
         let s = &self.state;
         let len = job.samples.len();
         if job.samples.end < job.samples.start

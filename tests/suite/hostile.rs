@@ -1758,6 +1758,61 @@ fn merge_s_warning_on_a_stranger_s_recipe_is_of_bounded_length() {
     assert!(err.contains("m.png carries no recipe"), "{err}");
 }
 
+/// Writes `from`'s part in `dir` again as `to`, its header's gamma set to `gamma` (its
+/// checksum made anew: it is no secret).
+fn part_with_gamma(dir: &Path, from: &str, to: &str, gamma: f64) {
+    let bytes = std::fs::read(dir.join(from)).unwrap();
+    let header_len = u64::from_le_bytes(bytes[16..24].try_into().unwrap()) as usize;
+    let mut header: serde_json::Value =
+        serde_json::from_slice(&bytes[24..24 + header_len]).unwrap();
+    header["render"]["gamma"] = gamma.into();
+    let json = serde_json::to_vec(&header).unwrap();
+    let mut part = bytes[..16].to_vec();
+    part.extend((json.len() as u64).to_le_bytes());
+    part.extend(&json);
+    part.extend(&bytes[24 + header_len..bytes.len() - 8]);
+    part.extend(xxhash_rust::xxh3::xxh3_64(&part).to_le_bytes());
+    std::fs::write(dir.join(to), part).unwrap();
+}
+
+/// A part's header gives the gamma its image is written with beside the fingerprint its
+/// recipe is checked against, and nothing checked the one against the other: a stranger's
+/// part of an honest recipe and sums but gamma 0.25 merged into an image written at 0.25
+/// that carried the recipe of gamma 2 (`info` said gamma 2; `reproduce` found all 144 pixels
+/// differing), and gamma 0 or -1 merged too. A recipe that does not give every setting of
+/// the header is now left out with the warning, and a gamma no scene takes is refused.
+#[test]
+fn a_part_whose_gamma_is_not_its_recipe_s_merges_without_the_recipe() {
+    let dir = temp_dir("hostile-merge-gamma");
+    let scene = scene_path("img-1.12-metal-fuzz.toml");
+    let scene = scene.to_str().unwrap();
+    let args = ["render", scene, "--width", "16", "--spp", "2", "-q"];
+    ok(
+        &[&args[..], &["--samples", "0..2", "-o", "a.part"]].concat(),
+        &dir,
+    );
+    part_with_gamma(&dir, "a.part", "quarter.part", 0.25);
+    let o = run(&["merge", "quarter.part", "-o", "q.png"], &dir);
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("does not describe them"), "{err}");
+    assert!(err.contains("q.png carries no recipe"), "{err}");
+    for (gamma, says) in [(0.0, "gamma 0 "), (-1.0, "gamma -1 ")] {
+        part_with_gamma(&dir, "a.part", "bad.part", gamma);
+        let o = run(&["merge", "bad.part", "-o", "bad.png"], &dir);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{gamma}: {err}");
+        assert!(
+            err.contains("bad.part") && err.contains(says),
+            "{gamma}: {err}"
+        );
+        assert!(!dir.join("bad.png").exists(), "{gamma}");
+    }
+    let o = run(&["merge", "a.part", "-o", "a.png"], &dir);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("carries no recipe"), "{}", stderr(&o));
+}
+
 /// A render takes a checkpoint's finished tiles as they are, so whoever wrote the file chose
 /// those pixels. In a directory others may write to (`/tmp`), another user could leave a
 /// checkpoint of the same scene, with sums of their choosing, under the name a render uses:
