@@ -272,6 +272,25 @@ impl BenchResult {
         {
             return Err("the headline's thread count is not in the scaling table".into());
         }
+        // A bench measures each thread count once, and its headline is that count's row:
+        // `rank` reads the headline and `compare` the rows, so a headline of its own, or a
+        // count twice, would show one run two ways.
+        let mut counts: Vec<usize> = self.scaling.iter().map(|r| r.threads).collect();
+        counts.sort_unstable();
+        if let Some(w) = counts.windows(2).find(|w| w[0] == w[1]) {
+            return Err(format!("the scaling table has {} threads twice", w[0]));
+        }
+        let row = |r: &Row| serde_json::to_value(r).ok();
+        if (self.scaling.iter())
+            .find(|r| r.threads == self.result.threads)
+            .map(row)
+            != Some(row(&self.result))
+        {
+            return Err(format!(
+                "the headline is not the scaling table's row of {} threads",
+                self.result.threads
+            ));
+        }
         let v = &self.validation;
         let consistent = match v.status.as_str() {
             "valid" => {

@@ -247,6 +247,23 @@ fn hostile_imports_are_refused_with_the_reason() {
             "out of order",
         ),
         (
+            "thread-count-twice",
+            edited(&|v| {
+                let row = v["scaling"][0].clone();
+                v["scaling"].as_array_mut().unwrap().push(row);
+            }),
+            "threads twice",
+        ),
+        (
+            "headline-of-its-own",
+            edited(&|v| {
+                let fast = serde_json::json!({"median": 9e11, "min": 9e11, "max": 9e11});
+                v["result"]["samples_per_sec"] = fast;
+                v["result"]["runs"] = serde_json::json!([9e11]);
+            }),
+            "the headline is not the scaling table's row",
+        ),
+        (
             "speed-beyond-any-run",
             edited(&|v| v["result"]["samples_per_sec"]["max"] = Value::from(1.7e308)),
             "more than any run makes",
