@@ -1395,3 +1395,53 @@ fn a_database_on_a_read_only_file_system_reads() {
         "the file system changed"
     );
 }
+
+/// SQLite reads a -wal file's pages in place of the database's (and writes them into it at
+/// the next checkpoint), and a -wal file is valid by its own checksums alone. In a directory
+/// others may write to, another user left `r.db-wal`, made from a database of their own,
+/// beside a database of this user's that they cannot read: `list` showed their machine and
+/// CPU (`m-evil`) as run 1's, exit 0. A -wal, -shm or -journal file of another user's is
+/// refused now, naming it, and the database is left as it was. Changing a file's owner needs
+/// root: elsewhere the test is skipped.
+#[test]
+fn another_user_s_wal_file_beside_the_database_is_refused() {
+    let dir = temp_dir("results-strangers-wal");
+    let db = dir.join("r.db");
+    let v = json(&root().join("fuzz/corpus/result/quick-one-thread.json"));
+    write_json(&dir.join("quick.json"), &v);
+    let o = results(&dir, &db, &["import", "quick.json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // Their database: a copy, changed in a transaction left in its WAL.
+    let theirs = dir.join("theirs.db");
+    std::fs::copy(&db, &theirs).unwrap();
+    let conn = rusqlite::Connection::open(&theirs).unwrap();
+    conn.pragma_update(None, "wal_autocheckpoint", 0).unwrap();
+    conn.execute("UPDATE runs SET machine_id = 'm-evil'", [])
+        .unwrap();
+    let wal = dir.join("r.db-wal");
+    std::fs::copy(dir.join("theirs.db-wal"), &wal).unwrap();
+    drop(conn);
+    if std::os::unix::fs::chown(&wal, Some(65534), Some(65534)).is_err() {
+        return skip(
+            "another_user_s_wal_file_beside_the_database_is_refused",
+            "changing a file's owner needs root",
+        );
+    }
+    let before = bytes(&db);
+    for args in [&["list"][..], &["import", "quick.json"]] {
+        let o = results(&dir, &db, args);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains("r.db-wal: belongs to another user (uid 65534"),
+            "{args:?}: {err}"
+        );
+        assert!(!stdout(&o).contains("m-evil"), "{args:?}");
+    }
+    assert_eq!(bytes(&db), before);
+    // The user's own -wal file is theirs to keep.
+    std::fs::remove_file(&wal).unwrap();
+    let o = results(&dir, &db, &["list"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stdout(&o).contains("m-evil"));
+}

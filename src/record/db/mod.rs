@@ -180,12 +180,15 @@ impl ResultsDb {
         // Whose the file is, from what it holds, before SQLite opens it to use it: a file
         // this build must refuse is left as it was, and no -wal or -shm file is made for it.
         recognise(path)?;
+        refuse_strangers_companions(path)?;
         let mut db = match access {
             Access::Read => Self::connect_to_read(path)?,
             Access::Write => Self::connect(path, OpenFlags::SQLITE_OPEN_READ_WRITE)?,
         };
         // The same checks through SQLite, which also reads what the WAL holds.
         db.schema = db.check()?;
+        // Again once SQLite has opened them: one planted between the first look and the open.
+        refuse_strangers_companions(path)?;
         if access == Access::Read {
             if db.schema < SCHEMA_VERSION {
                 // Brought up to date where it can be written; read as it is where it cannot
@@ -477,6 +480,46 @@ impl ResultsDb {
         let rows = stmt.query_map([], |r| r.get(0))?;
         Ok(rows.collect::<rusqlite::Result<Vec<_>>>()?)
     }
+}
+
+/// Refuses the database at `path` where its -wal, -shm or -journal file is there and is
+/// another user's (not the database's owner's, this process's user's or root's) or not a
+/// plain file. SQLite reads a WAL file's pages in place of the database's, and writes them
+/// into it at a checkpoint: in a directory others may write to (`/tmp`), another user who
+/// leaves a -wal file of their making beside a database (its checksums are no secret)
+/// chooses the rows every command shows, and the rows the next write keeps.
+fn refuse_strangers_companions(path: &Path) -> Result<()> {
+    use std::os::unix::fs::MetadataExt;
+    let Ok(owner) = std::fs::metadata(path).map(|m| m.uid()) else {
+        return Ok(());
+    };
+    let me = rustix::process::geteuid().as_raw();
+    for suffix in ["-wal", "-shm", "-journal"] {
+        let mut name = path.as_os_str().to_owned();
+        name.push(suffix);
+        let companion = PathBuf::from(name);
+        let Ok(meta) = std::fs::symlink_metadata(&companion) else {
+            continue;
+        };
+        if !meta.file_type().is_file() {
+            bail!(
+                "{}: not a plain file, so SQLite would not use it; remove it to use {}",
+                companion.display(),
+                path.display()
+            );
+        }
+        if ![owner, me, 0].contains(&meta.uid()) {
+            bail!(
+                "{}: belongs to another user (uid {}; the database is uid {owner}'s, this is \
+                 uid {me}), and SQLite would take its pages for the database's; remove it to \
+                 use {}",
+                companion.display(),
+                meta.uid(),
+                path.display()
+            );
+        }
+    }
+    Ok(())
 }
 
 /// Adds one result in transaction `tx`, unless a result of the same digest is there.
