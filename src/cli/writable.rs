@@ -113,3 +113,20 @@ fn user() -> String {
         Err(_) => "unknown ids".to_owned(),
     }
 }
+
+/// Whether `a` and `b` name one file, whether or not it exists yet: the same name in the
+/// same directory, however the directory is spelt, or, where both exist, one file by two
+/// names (a link).
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    let place = |p: &Path| {
+        let dir = match p.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        Some((dir.canonicalize().ok()?, p.file_name()?.to_owned()))
+    };
+    let inode = |p: &Path| std::fs::metadata(p).ok().map(|m| (m.dev(), m.ino()));
+    matches!((place(a), place(b)), (Some(a), Some(b)) if a == b)
+        || matches!((inode(a), inode(b)), (Some(a), Some(b)) if a == b)
+}

@@ -1445,3 +1445,44 @@ fn another_user_s_wal_file_beside_the_database_is_refused() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(!stdout(&o).contains("m-evil"));
 }
+
+/// `bench --out F` with F the database it records in (`--db F`, `TESSERA_DB=F`, or a link to
+/// it), and `results report -o F` on database F, replaced the database with the JSON result
+/// or the page (exit 0, "recorded in same.db"): every earlier run was lost, and the next
+/// command said "not an SQLite database". Both are refused now, the database left as it was.
+#[test]
+fn an_output_naming_the_database_is_refused() {
+    let dir = temp_dir("results-output-is-db");
+    let db = dir.join("r.db");
+    let v = json(&root().join("fuzz/corpus/result/quick-one-thread.json"));
+    write_json(&dir.join("quick.json"), &v);
+    let o = results(&dir, &db, &["import", "quick.json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    std::os::unix::fs::symlink("r.db", dir.join("link.db")).unwrap();
+    let before = bytes(&db);
+    for name in ["r.db", "link.db", "./r.db"] {
+        let o = results(&dir, &db, &["report", "-o", name]);
+        assert_eq!(o.status.code(), Some(2), "{name}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains("names the results database"),
+            "{name}: {}",
+            stderr(&o)
+        );
+        let mut c = tessera();
+        c.args(["bench", &cover()])
+            .args("--width 8 --spp 1 --repeat 1 --warmup 0 --no-scaling".split(' '))
+            .args(["--out", name])
+            .env("TESSERA_DB", &db)
+            .current_dir(&dir);
+        let o = c.output().unwrap();
+        assert_eq!(o.status.code(), Some(2), "{name}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains("names the results database"),
+            "{name}: {}",
+            stderr(&o)
+        );
+        assert_eq!(bytes(&db), before, "{name}");
+    }
+    let o = results(&dir, &db, &["list"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}

@@ -10,7 +10,7 @@ mod measure;
 use super::charts;
 use super::flags::{self, DbArg, SimdArg};
 use super::output::{note, out};
-use super::writable::check_output;
+use super::writable::{check_output, same_file};
 use anyhow::{Result, bail};
 use measure::Measure;
 use std::collections::BTreeSet;
@@ -246,6 +246,18 @@ impl BenchMode {
             check_output(out)?;
         }
         let scaling = tessera::record::measure::scaling_counts(cpus);
+        let save = measure::save_to(args.no_save, args.db.db);
+        // The result file replaces whatever file it is written to: the database would be
+        // lost, every earlier run with it.
+        if let (Some(out), Some(save)) = (&args.out, &save)
+            && same_file(out, &save.path)
+        {
+            bail!(
+                "--out {} names the results database the result is recorded in: give it a \
+                 name of its own (or --no-save)",
+                out.display()
+            );
+        }
         Ok(Self::Measure(Box::new(Measure {
             plan: tessera::record::measure::Plan {
                 workload,
@@ -258,7 +270,7 @@ impl BenchMode {
             },
             json: args.json,
             out: args.out,
-            save: measure::save_to(args.no_save, args.db.db),
+            save,
         })))
     }
 }

@@ -2,7 +2,7 @@
 //! output checked writable, before any work starts: a `RenderPlan` that knows how to run.
 
 use super::{Args, PreviewArgs, SceneArgs, SplitArg};
-use crate::cli::writable::check_output;
+use crate::cli::writable::{check_output, same_file};
 use anyhow::{Result, bail};
 use std::net::{SocketAddr, TcpListener};
 use std::path::{Path, PathBuf};
@@ -401,23 +401,6 @@ fn default_output(scene: &Path) -> PathBuf {
     let mut name = stem;
     name.push(".png");
     PathBuf::from(name)
-}
-
-/// Whether `a` and `b` name one file, whether or not it exists yet: the same name in the
-/// same directory, however the directory is spelt, or, where both exist, one file by two
-/// names (a link).
-fn same_file(a: &Path, b: &Path) -> bool {
-    use std::os::unix::fs::MetadataExt;
-    let place = |p: &Path| {
-        let dir = match p.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => Path::new("."),
-        };
-        Some((dir.canonicalize().ok()?, p.file_name()?.to_owned()))
-    };
-    let inode = |p: &Path| std::fs::metadata(p).ok().map(|m| (m.dev(), m.ino()));
-    matches!((place(a), place(b)), (Some(a), Some(b)) if a == b)
-        || matches!((inode(a), inode(b)), (Some(a), Some(b)) if a == b)
 }
 
 #[cfg(test)]
