@@ -292,3 +292,26 @@ fn writing_the_workloads_of_one_name_keeps_the_other_hashes() {
     let kept = std::fs::read_to_string(root().join("benches/workloads.toml")).unwrap();
     assert_eq!(written, kept);
 }
+
+/// `bench --chart R.json R.json` wrote the chart over the result it drew (exit 0): the
+/// result was lost. A chart named as one of its results (or a link to one) is refused now,
+/// the result left as it was.
+#[test]
+fn a_chart_named_as_one_of_its_results_is_refused() {
+    let dir = temp_dir("bench-chart-over-result");
+    let result = root().join("fuzz/corpus/result/quick-scaling.json");
+    std::fs::copy(&result, dir.join("r.json")).unwrap();
+    std::os::unix::fs::symlink("r.json", dir.join("link.json")).unwrap();
+    let before = std::fs::read(dir.join("r.json")).unwrap();
+    for out in ["r.json", "./r.json", "link.json"] {
+        let o = run(&["bench", "--chart", out, "r.json"], &dir);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{out}: {err}");
+        assert!(
+            err.contains("names the same file as the result"),
+            "{out}: {err}"
+        );
+        assert_eq!(std::fs::read(dir.join("r.json")).unwrap(), before, "{out}");
+    }
+    ok(&["bench", "--chart", "c.svg", "r.json"], &dir);
+}

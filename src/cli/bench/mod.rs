@@ -190,6 +190,15 @@ impl BenchMode {
         if let Some(mut files) = args.chart {
             let out = files.remove(0);
             check_output(&out)?;
+            // The chart replaces whatever file it is written to: a result it draws would be lost.
+            if let Some(result) = files.iter().find(|r| same_file(&out, r)) {
+                bail!(
+                    "--chart {} names the same file as the result {}: give the chart a name \
+                     of its own",
+                    out.display(),
+                    result.display()
+                );
+            }
             return Ok(Self::Chart {
                 out,
                 results: files,
