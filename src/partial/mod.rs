@@ -142,7 +142,10 @@ impl Part {
         }
         let s = &self.state;
         let len = job.samples.len();
-        if job.samples.end < job.samples.start
+        // A part holds at least one sample of each pixel of its region, within the image's
+        // samples per pixel: an empty range once merged into a "0 spp" image.
+        if job.samples.end <= job.samples.start
+            || job.samples.end > r.target
             || s.tile == 0
             || s.done.len() as u64 != job.region.tile_count(s.tile)
             || s.done.iter().any(|&d| d > len)

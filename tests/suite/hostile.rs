@@ -1761,11 +1761,19 @@ fn merge_s_warning_on_a_stranger_s_recipe_is_of_bounded_length() {
 /// Writes `from`'s part in `dir` again as `to`, its header's gamma set to `gamma` (its
 /// checksum made anew: it is no secret).
 fn part_with_gamma(dir: &Path, from: &str, to: &str, gamma: f64) {
+    part_edited(dir, from, to, |header| {
+        header["render"]["gamma"] = gamma.into()
+    });
+}
+
+/// The part `from` in `dir` with its JSON header changed by `edit`, its checksum made again,
+/// written as `to`: what anyone can make, the checksum being no secret.
+fn part_edited(dir: &Path, from: &str, to: &str, edit: impl Fn(&mut serde_json::Value)) {
     let bytes = std::fs::read(dir.join(from)).unwrap();
     let header_len = u64::from_le_bytes(bytes[16..24].try_into().unwrap()) as usize;
     let mut header: serde_json::Value =
         serde_json::from_slice(&bytes[24..24 + header_len]).unwrap();
-    header["render"]["gamma"] = gamma.into();
+    edit(&mut header);
     let json = serde_json::to_vec(&header).unwrap();
     let mut part = bytes[..16].to_vec();
     part.extend((json.len() as u64).to_le_bytes());
@@ -1811,6 +1819,36 @@ fn a_part_whose_gamma_is_not_its_recipe_s_merges_without_the_recipe() {
     let o = run(&["merge", "a.part", "-o", "a.png"], &dir);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(!stderr(&o).contains("carries no recipe"), "{}", stderr(&o));
+}
+
+/// A hand-made part whose samples are an empty range (0..0) merged into an image said to be
+/// of 0 samples per pixel, exit 0; one whose range goes past the image's samples per pixel
+/// likewise claimed more than the image has. Both are refused as inconsistent.
+#[test]
+fn a_part_of_no_samples_or_more_than_its_image_has_is_refused() {
+    let dir = temp_dir("hostile-merge-samples");
+    let scene = scene_path("img-1.12-metal-fuzz.toml");
+    let scene = scene.to_str().unwrap();
+    let args = ["render", scene, "--width", "16", "--spp", "2", "-q"];
+    ok(
+        &[&args[..], &["--samples", "0..2", "-o", "a.part"]].concat(),
+        &dir,
+    );
+    for (name, end) in [("empty.part", 0), ("beyond.part", 3)] {
+        part_edited(&dir, "a.part", name, |h| {
+            h["state"]["job"]["samples"]["end"] = end.into();
+        });
+        let o = run(&["merge", name, "-o", "m.png"], &dir);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{name}: {err}");
+        assert!(
+            err.contains(name) && err.contains("inconsistent header"),
+            "{name}: {err}"
+        );
+        assert!(!dir.join("m.png").exists(), "{name}");
+    }
+    let o = run(&["merge", "a.part", "-o", "a.png"], &dir);
+    assert!(o.status.success(), "{}", stderr(&o));
 }
 
 /// A render takes a checkpoint's finished tiles as they are, so whoever wrote the file chose
