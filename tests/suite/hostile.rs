@@ -989,26 +989,11 @@ fn pipes_and_devices_named_as_inputs_are_refused_not_waited_on() {
             &["bench", name, "--no-save"],
         ] {
             // A FIFO with no writer: opened for reading the usual way, it waits forever.
-            let mut child = tessera()
-                .args(args)
-                .current_dir(&dir)
-                .stdout(Stdio::piped())
-                .stderr(Stdio::piped())
-                .spawn()
-                .unwrap();
-            let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
-            while child.try_wait().unwrap().is_none() {
-                if std::time::Instant::now() > deadline {
-                    let _ = child.kill();
-                    panic!("{args:?} waited on the pipe");
-                }
-                std::thread::sleep(std::time::Duration::from_millis(20));
-            }
-            refused(
-                &child.wait_with_output().unwrap(),
-                why,
-                &format!("{args:?}"),
+            let o = output_within_a_minute(
+                tessera().args(args).current_dir(&dir),
+                &format!("{args:?} (on the pipe)"),
             );
+            refused(&o, why, &format!("{args:?}"));
         }
     }
 }
@@ -1925,25 +1910,16 @@ fn an_output_name_that_is_another_users_pipe_is_refused() {
         );
     }
     let cover = cover();
-    let mut child = tessera()
-        .args([
-            "render", &cover, "-q", "--width", "16", "--spp", "1", "-o", "out.png",
-        ])
-        .current_dir(&dir)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
-    while child.try_wait().unwrap().is_none() {
-        if std::time::Instant::now() > deadline {
-            let _ = child.kill();
-            panic!("the render waited on another user's pipe");
-        }
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
+    let o = output_within_a_minute(
+        tessera()
+            .args([
+                "render", &cover, "-q", "--width", "16", "--spp", "1", "-o", "out.png",
+            ])
+            .current_dir(&dir),
+        "the render (on another user's pipe)",
+    );
     refused(
-        &child.wait_with_output().unwrap(),
+        &o,
         "out.png: is a pipe (FIFO) of another user's (uid 65534",
         "another user's pipe",
     );

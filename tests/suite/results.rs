@@ -321,28 +321,16 @@ fn what_a_result_says_is_shown_escaped_in_the_terminal() {
     assert!(text.contains("Evil\\u{1b}[2J"), "{text}");
 }
 
-/// Runs `results ARGS` on `db`, killing it after a minute: an answer, not a hang. What it
-/// prints is dropped (unread, a long listing would fill the pipe and wait on it).
+/// Runs `results ARGS` on `db`, killing it after a minute: an answer, not a hang.
 fn results_within_a_minute(dir: &Path, db: &Path, args: &[&str]) -> Output {
-    let mut child = tessera()
-        .arg("results")
-        .args(args)
-        .env("TESSERA_DB", db)
-        .current_dir(dir)
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
-    while child.try_wait().unwrap().is_none() {
-        if std::time::Instant::now() > deadline {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("results {args:?} ran for a minute");
-        }
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
-    child.wait_with_output().unwrap()
+    output_within_a_minute(
+        tessera()
+            .arg("results")
+            .args(args)
+            .env("TESSERA_DB", db)
+            .current_dir(dir),
+        &format!("results {args:?}"),
+    )
 }
 
 /// A speed near the largest `f64` was positive and finite, so an import took it; the

@@ -85,6 +85,43 @@ pub fn run_in_env(args: &[&str], env: &[(&str, &str)], dir: &Path) -> Output {
 }
 
 /// Runs tessera with `args` in `dir`; it must succeed.
+/// Runs `command` to its end with its output captured, killing it and failing the test
+/// after a minute: for a command that, broken, would wait forever (on a pipe nobody
+/// writes, an axis without end). Its output is read as it comes, so a long one cannot
+/// fill the pipe and look like a hang.
+pub fn output_within_a_minute(command: &mut Command, what: &str) -> Output {
+    use std::io::Read;
+    use std::process::Stdio;
+    let mut child = command
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let drain = |mut pipe: Box<dyn Read + Send>| {
+        std::thread::spawn(move || {
+            let mut bytes = Vec::new();
+            pipe.read_to_end(&mut bytes).unwrap();
+            bytes
+        })
+    };
+    let stdout = drain(Box::new(child.stdout.take().unwrap()));
+    let stderr = drain(Box::new(child.stderr.take().unwrap()));
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    while child.try_wait().unwrap().is_none() {
+        if std::time::Instant::now() > deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("{what} ran for a minute");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    Output {
+        status: child.wait().unwrap(),
+        stdout: stdout.join().unwrap(),
+        stderr: stderr.join().unwrap(),
+    }
+}
+
 pub fn ok(args: &[&str], dir: &Path) {
     ok_in_env(args, &[], dir);
 }
