@@ -51,6 +51,11 @@ impl RgbImage {
     /// `MAX_COMPARED_PIXELS`.
     pub fn load(path: &Path) -> Result<Self> {
         let (decoder, _, _) = Self::decoder(path)?;
+        Self::decode(path, decoder)
+    }
+
+    /// The pixels of the image at `path` from `decoder`, its header already read.
+    fn decode(path: &Path, decoder: impl image::ImageDecoder) -> Result<Self> {
         let img = image::DynamicImage::from_decoder(decoder).map_err(|e| Error::Image {
             path: path.to_owned(),
             message: decode_failure(&e),
@@ -63,18 +68,12 @@ impl RgbImage {
         })
     }
 
-    /// The width and height the header of the image at `path` claims, checked against
-    /// `MAX_COMPARED_PIXELS`; nothing else is decoded.
-    pub fn size(path: &Path) -> Result<(u32, u32)> {
-        Ok(Self::size_and_display(path)?.0)
-    }
-
-    /// `size`, and what the header holds that changes how a viewer shows the picture: a
-    /// PNG's chunks and an EXR's attributes (walked by `decoder`), an alpha channel in any
-    /// format (the values measured are the colour channels only, so a transparent image and
-    /// an opaque one of the same colours would otherwise be identical), and a JPEG's EXIF
-    /// orientation and colour profile.
-    pub fn size_and_display(path: &Path) -> Result<((u32, u32), Vec<String>)> {
+    /// A decoder of the image at `path` (`decoder`), and what its header holds that changes
+    /// how a viewer shows the picture: a PNG's chunks and an EXR's attributes (walked by
+    /// `decoder`), an alpha channel in any format (the values measured are the colour
+    /// channels only, so a transparent image and an opaque one of the same colours would
+    /// otherwise be identical), and a JPEG's EXIF orientation and colour profile.
+    fn opened(path: &Path) -> Result<(impl image::ImageDecoder, Vec<String>)> {
         use image::ImageDecoder;
         let (mut decoder, mut display_changes, format) = Self::decoder(path)?;
         let fail = |e: image::ImageError| Error::Image {
@@ -100,7 +99,7 @@ impl RgbImage {
                 display_changes.push("an ICC colour profile (an APP2 segment)".to_owned());
             }
         }
-        Ok((decoder.dimensions(), display_changes))
+        Ok((decoder, display_changes))
     }
 
     /// A decoder of the image at `path` with its header read and its size checked, what the
@@ -251,15 +250,17 @@ pub fn difference(a: &RgbImage, b: &RgbImage) -> std::result::Result<Difference,
 /// Loads two image files and gives their difference; their sizes are compared, and checked,
 /// before either is decoded.
 pub fn difference_of_files(a: &Path, b: &Path) -> Result<Difference> {
-    let (size_a, shown_a) = RgbImage::size_and_display(a)?;
-    let (size_b, shown_b) = RgbImage::size_and_display(b)?;
-    if let Some(message) = sizes_differ(size_a, size_b) {
+    use image::ImageDecoder;
+    let (decoder_a, shown_a) = RgbImage::opened(a)?;
+    let (decoder_b, shown_b) = RgbImage::opened(b)?;
+    if let Some(message) = sizes_differ(decoder_a.dimensions(), decoder_b.dimensions()) {
         return Err(Error::Image {
             path: b.to_owned(),
             message,
         });
     }
-    let (ia, ib) = (RgbImage::load(a)?, RgbImage::load(b)?);
+    let ia = RgbImage::decode(a, decoder_a)?;
+    let ib = RgbImage::decode(b, decoder_b)?;
     let mut d = difference(&ia, &ib).map_err(|message| Error::Image {
         path: b.to_owned(),
         message,
