@@ -77,6 +77,12 @@ pub fn threads(text: &str) -> Result<usize, String> {
     whole(text, 1, 4096).map(|n| n as usize)
 }
 
+/// A thread count a recorded run may have (`results history --threads`): 1 to what an
+/// import takes, which is more than a render may start.
+pub fn recorded_threads(text: &str) -> Result<usize, String> {
+    whole(text, 1, tessera::record::result::MAX_THREADS as u128).map(|n| n as usize)
+}
+
 /// A seed: any 64-bit unsigned number.
 pub fn seed(text: &str) -> Result<u64, String> {
     whole(text, 0, u128::from(u64::MAX)).map(|n| n as u64)
@@ -112,5 +118,18 @@ mod tests {
             Err("`two` is not a whole number from 1 to 4096".into())
         );
         assert_eq!(whole_u32("0"), Ok(0));
+    }
+
+    #[test]
+    fn a_recorded_run_s_thread_count_is_chosen_up_to_what_an_import_takes() {
+        // An imported run may have used more threads than a render here may start: `history`
+        // still picks it out.
+        assert_eq!(recorded_threads("8192"), Ok(8192));
+        assert_eq!(recorded_threads("65536"), Ok(65536));
+        assert_eq!(
+            recorded_threads("65537"),
+            Err("must be a whole number from 1 to 65536".into())
+        );
+        assert!(threads("8192").is_err());
     }
 }

@@ -90,7 +90,7 @@ enum ResultsCommand {
         #[arg(long)]
         workload: Option<String>,
         /// The thread count (default: that of the machine's newest run).
-        #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = super::flags::threads)]
+        #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = super::flags::recorded_threads)]
         threads: Option<usize>,
         /// The SIMD path (default: that of the machine's newest run).
         #[arg(long)]
