@@ -3,6 +3,7 @@
 //! benchmark results and preview frames all go through here.
 
 use crate::error::{Error, Result};
+use crate::owner;
 use std::io::Write;
 use std::os::unix::fs::PermissionsExt;
 use std::path::{Path, PathBuf};
@@ -52,12 +53,12 @@ fn refuse_foreign_pipe(path: &Path) -> std::io::Result<()> {
     let Ok(meta) = std::fs::metadata(path) else {
         return Ok(());
     };
-    let me = rustix::process::geteuid().as_raw();
-    if meta.file_type().is_fifo() && meta.uid() != me && meta.uid() != 0 {
+    if meta.file_type().is_fifo() && owner::is_another_users(meta.uid(), &[]) {
         return Err(std::io::Error::other(format!(
-            "is a pipe (FIFO) of another user's (uid {}; this is uid {me}): what is written \
+            "is a pipe (FIFO) of another user's (uid {}; this is uid {}): what is written \
              there goes to whoever reads it, not to a file; remove it or choose another name",
-            meta.uid()
+            meta.uid(),
+            owner::this_user()
         )));
     }
     Ok(())

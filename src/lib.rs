@@ -57,6 +57,7 @@ pub mod job;
 pub mod material;
 pub mod math;
 pub mod metadata;
+pub mod owner;
 pub mod partial;
 pub mod png_header;
 pub mod pnm_header;

@@ -109,7 +109,7 @@ fn run_example(dir: &Path) -> String {
 fn user() -> String {
     format!(
         "uid {}, gid {}",
-        rustix::process::geteuid().as_raw(),
+        tessera::owner::this_user(),
         rustix::process::getegid().as_raw()
     )
 }

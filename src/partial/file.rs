@@ -59,15 +59,15 @@ impl PartReader<BufReader<std::fs::File>> {
         };
         let file = crate::input_file::open_regular(path).map_err(io)?;
         let meta = file.metadata().map_err(io)?;
-        let me = rustix::process::geteuid().as_raw();
-        if meta.uid() != me && meta.uid() != 0 {
+        if crate::owner::is_another_users(meta.uid(), &[]) {
             return Err(part_error(
                 path,
                 format!(
-                    "belongs to another user (uid {}; this is uid {me}): a render resumes only \
+                    "belongs to another user (uid {}; this is uid {}): a render resumes only \
                      from a checkpoint of its own user's; remove it or choose another \
                      --checkpoint file",
-                    meta.uid()
+                    meta.uid(),
+                    crate::owner::this_user()
                 ),
             ));
         }

@@ -11,6 +11,7 @@ const LAYERS: &[&str] = &[
     "simd",
     "error",
     "text",
+    "owner",
     "atomic_file",
     "input_file",
     "metadata",

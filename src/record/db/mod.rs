@@ -493,7 +493,6 @@ fn refuse_strangers_companions(path: &Path) -> Result<()> {
     let Ok(owner) = std::fs::metadata(path).map(|m| m.uid()) else {
         return Ok(());
     };
-    let me = rustix::process::geteuid().as_raw();
     for suffix in ["-wal", "-shm", "-journal"] {
         let mut name = path.as_os_str().to_owned();
         name.push(suffix);
@@ -508,13 +507,14 @@ fn refuse_strangers_companions(path: &Path) -> Result<()> {
                 path.display()
             );
         }
-        if ![owner, me, 0].contains(&meta.uid()) {
+        if crate::owner::is_another_users(meta.uid(), &[owner]) {
             bail!(
                 "{}: belongs to another user (uid {}; the database is uid {owner}'s, this is \
-                 uid {me}), and SQLite would take its pages for the database's; remove it to \
+                 uid {}), and SQLite would take its pages for the database's; remove it to \
                  use {}",
                 companion.display(),
                 meta.uid(),
+                crate::owner::this_user(),
                 path.display()
             );
         }
