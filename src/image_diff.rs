@@ -37,7 +37,8 @@ pub struct Difference {
 }
 
 /// An RGB image as floats in [0, 1]: 8-bit formats scaled, EXR's linear values clamped (NaN
-/// counts as 0), so an over-bright float image compares as a display would show it.
+/// counts as 0, and `difference_of_files` lists it), so an over-bright float image compares
+/// as a display would show it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RgbImage {
     pub width: u32,
@@ -51,21 +52,24 @@ impl RgbImage {
     /// `MAX_COMPARED_PIXELS`.
     pub fn load(path: &Path) -> Result<Self> {
         let (decoder, _, _) = Self::decoder(path)?;
-        Self::decode(path, decoder)
+        Self::decode(path, decoder).map(|(image, _)| image)
     }
 
-    /// The pixels of the image at `path` from `decoder`, its header already read.
-    fn decode(path: &Path, decoder: impl image::ImageDecoder) -> Result<Self> {
+    /// The pixels of the image at `path` from `decoder`, its header already read, and how
+    /// many of its values were NaN (a float image's), each taken as 0.
+    fn decode(path: &Path, decoder: impl image::ImageDecoder) -> Result<(Self, usize)> {
         let img = image::DynamicImage::from_decoder(decoder).map_err(|e| Error::Image {
             path: path.to_owned(),
             message: decode_failure(&e),
         })?;
         let rgb = img.to_rgb32f();
-        Ok(Self {
+        let nans = rgb.iter().filter(|c| c.is_nan()).count();
+        let image = Self {
             width: rgb.width(),
             height: rgb.height(),
             data: rgb.into_raw().into_iter().map(unit).collect(),
-        })
+        };
+        Ok((image, nans))
     }
 
     /// A decoder of the image at `path` (`decoder`), and what its header holds that changes
@@ -259,12 +263,24 @@ pub fn difference_of_files(a: &Path, b: &Path) -> Result<Difference> {
             message,
         });
     }
-    let ia = RgbImage::decode(a, decoder_a)?;
-    let ib = RgbImage::decode(b, decoder_b)?;
+    let (ia, nans_a) = RgbImage::decode(a, decoder_a)?;
+    let (ib, nans_b) = RgbImage::decode(b, decoder_b)?;
     let mut d = difference(&ia, &ib).map_err(|message| Error::Image {
         path: b.to_owned(),
         message,
     })?;
+    // A NaN is measured as black, but viewers differ in what they show for one (black,
+    // a warning colour, or a spoilt picture): an image holding any is not called identical.
+    let with_nans = |mut shown: Vec<String>, nans: usize| {
+        if nans > 0 {
+            shown.push(format!(
+                "{nans} NaN value{} (measured as 0; viewers differ in what they show for one)",
+                if nans == 1 { "" } else { "s" }
+            ));
+        }
+        shown
+    };
+    let (shown_a, shown_b) = (with_nans(shown_a, nans_a), with_nans(shown_b, nans_b));
     d.display_changes = [(a, shown_a), (b, shown_b)]
         .into_iter()
         .flat_map(|(path, changes)| changes.into_iter().map(move |c| (path.to_owned(), c)))
@@ -377,6 +393,32 @@ mod tests {
             );
             assert!(listed(name, a, a).is_empty(), "{name}: opaque");
         }
+    }
+
+    /// A NaN is measured as 0, so an EXR of NaN once compared identical with a black one,
+    /// though viewers show NaN as they choose (some black, some a warning colour). Each NaN
+    /// value is counted and listed.
+    #[test]
+    fn nan_values_are_listed_not_called_identical_with_black() {
+        let exr = |red: f32| {
+            use exr::prelude::*;
+            let mut out = std::io::Cursor::new(Vec::new());
+            let rgb = SpecificChannels::rgb(move |at: Vec2<usize>| {
+                (if at.0 == 0 { red } else { 0.0f32 }, 0.0f32, 0.0f32)
+            });
+            Image::from_channels((2, 1), rgb)
+                .write()
+                .to_buffered(&mut out)
+                .unwrap();
+            out.into_inner()
+        };
+        let (black, nan) = (exr(0.0), exr(f32::NAN));
+        let changes = listed("nan", ("black.exr", &black), ("nan.exr", &nan));
+        assert_eq!(
+            changes,
+            ["1 NaN value (measured as 0; viewers differ in what they show for one)"]
+        );
+        assert!(listed("nan", ("a.exr", &black), ("b.exr", &black)).is_empty());
     }
 
     /// A JPEG's EXIF orientation (an APP1 segment) turns or flips the picture in viewers,
