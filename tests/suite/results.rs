@@ -1065,6 +1065,78 @@ fn rank_compare_history_and_export_read_the_kept_runs() {
     assert_eq!(stdout(&o), "imported 0 new results, 5 already present\n");
 }
 
+/// `compare m-3f2a …` pooled the runs of every machine whose id begins so, and `commit:aaaa`
+/// those of every such commit, under the newest one's name: a result imported from a
+/// machine `m-3f2a9…` at 100 times the speed made the user's own machine "1.980 within the
+/// runs' spread" of itself. A start shared by several is refused, naming them (as
+/// `history --machine` refuses one); a whole id selects its own runs, a clean commit apart
+/// from its `-dirty` build.
+#[test]
+fn a_machine_or_commit_start_shared_by_several_is_refused_by_compare() {
+    let dir = temp_dir("results-shared-start");
+    let db = dir.join("r.db");
+    let base = json(&root().join("fuzz/corpus/result/quick-one-thread.json"));
+    let made = [
+        as_if(&base, "m-3f2a111111111111", "aaaa1111", 1_700_000_000, 1.0),
+        as_if(
+            &base,
+            "m-3f2a111111111111",
+            "aaaa1111-dirty",
+            1_700_000_050,
+            1.0,
+        ),
+        as_if(
+            &base,
+            "m-3f2a999999999999",
+            "aaaa9999",
+            1_700_000_100,
+            100.0,
+        ),
+    ];
+    let mut files = Vec::new();
+    for (i, v) in made.iter().enumerate() {
+        files.push(format!("r{i}.json"));
+        write_json(&dir.join(&files[i]), v);
+    }
+    let files: Vec<&str> = files.iter().map(String::as_str).collect();
+    let o = results(&dir, &db, &[&["import"][..], &files].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    for (a, says) in [
+        (
+            "m-3f2a",
+            "`m-3f2a` is the start of 2 machines (m-3f2a111111111111, m-3f2a999999999999)",
+        ),
+        ("machine:m-", "`machine:m-` is the start of 2 machines"),
+        ("commit:aaaa", "`commit:aaaa` is the start of 3 commits"),
+        (
+            "aaaa1",
+            "`aaaa1` is the start of 2 commits (aaaa1111, aaaa1111-dirty)",
+        ),
+    ] {
+        let o = results(&dir, &db, &["compare", a, "latest"]);
+        assert_eq!(o.status.code(), Some(2), "{a}: {}", stdout(&o));
+        assert!(stderr(&o).contains(says), "{a}: {}", stderr(&o));
+        assert!(stdout(&o).is_empty(), "{a}: {}", stdout(&o));
+    }
+    // Spelt out whole, or begun as only one, each names its own runs.
+    for (a, b) in [
+        ("m-3f2a1", "m-3f2a9"),
+        ("m-3f2a111111111111", "latest"),
+        ("commit:aaaa1111", "commit:aaaa1111-dirty"),
+        ("aaaa1111", "aaaa9"),
+    ] {
+        let o = results(&dir, &db, &["compare", a, b]);
+        assert!(o.status.success(), "{a} {b}: {}", stderr(&o));
+    }
+    let o = results(&dir, &db, &["compare", "m-3f2a1", "m-3f2a9"]);
+    let text = stdout(&o);
+    assert!(text.contains("m-3f2a1 (2 runs on "), "{text}");
+    assert!(
+        text.contains("100.000  faster, beyond the spread"),
+        "{text}"
+    );
+}
+
 /// The README's steps as a new user takes them: `bench` records the quick workload, and then
 /// `results rank`, `history` and `report` with no flags show that run; two runs on
 /// different SIMD paths compare by their numbers (or `latest~1 latest`).

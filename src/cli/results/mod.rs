@@ -586,11 +586,8 @@ fn select<'a>(runs: &'a [Run], what: &str) -> Result<(Vec<&'a Run>, bool)> {
     }
     let chosen: Vec<&Run> = match kind {
         "run" => runs.iter().filter(|r| r.id.to_string() == key).collect(),
-        "machine" => runs
-            .iter()
-            .filter(|r| r.machine_id.starts_with(key))
-            .collect(),
-        _ => runs.iter().filter(|r| r.commit.starts_with(key)).collect(),
+        "machine" => one_of(runs, what, key, "machines", |r| &r.machine_id)?,
+        _ => one_of(runs, what, key, "commits", |r| &r.commit)?,
     };
     if chosen.is_empty() {
         bail!(
@@ -599,6 +596,44 @@ fn select<'a>(runs: &'a [Run], what: &str) -> Result<(Vec<&'a Run>, bool)> {
         );
     }
     Ok((chosen, kind == "run"))
+}
+
+/// The runs of the one machine or commit (`of` gives a run's) that `key` names: the one it
+/// spells out whole, else the one it is the start of. A start shared by several is refused,
+/// naming them, as `history` refuses one: their runs pooled under the first's name would
+/// be one side of a comparison that no single machine or commit measured, and an imported
+/// result may claim any id that begins as the user's does.
+fn one_of<'a>(
+    runs: &'a [Run],
+    what: &str,
+    key: &str,
+    kinds: &str,
+    of: impl Fn(&Run) -> &String,
+) -> Result<Vec<&'a Run>> {
+    let exact: Vec<&Run> = runs.iter().filter(|r| of(r) == key).collect();
+    if !exact.is_empty() {
+        return Ok(exact);
+    }
+    let chosen: Vec<&Run> = runs.iter().filter(|r| of(r).starts_with(key)).collect();
+    let mut names: Vec<&str> = chosen.iter().map(|r| of(r).as_str()).collect();
+    names.sort_unstable();
+    names.dedup();
+    if names.len() > 1 {
+        const SHOWN: usize = 8;
+        let mut listed: Vec<String> = (names.iter().take(SHOWN))
+            .map(|n| terminal_safe(n, 48))
+            .collect();
+        if names.len() > SHOWN {
+            listed.push(format!("{} more", names.len() - SHOWN));
+        }
+        bail!(
+            "`{}` is the start of {} {kinds} ({}): give more of one",
+            terminal_safe(what, 40),
+            names.len(),
+            listed.join(", ")
+        );
+    }
+    Ok(chosen)
 }
 
 /// A Unix time as a UTC date and time, `2026-12-01 19:27`.
