@@ -1506,6 +1506,54 @@ fn another_user_s_wal_file_beside_the_database_is_refused() {
     assert!(!stdout(&o).contains("m-evil"));
 }
 
+/// A database another user left under the name `--db` gives, readable and writable by all
+/// (mode 666 in a shared directory), took this user's runs: `import` said "imported 1 new
+/// result" into their file, where they read this user's machine and results and chose the
+/// runs beside them. Writing to another user's database is refused (exit 2), the file left
+/// as it was and no -wal or -shm file made; reading it still works. Changing a file's owner
+/// needs root: elsewhere the test is skipped.
+#[test]
+fn another_user_s_database_is_read_but_never_written() {
+    let dir = temp_dir("results-strangers-db");
+    let db = dir.join("r.db");
+    let v = json(&root().join("fuzz/corpus/result/quick-one-thread.json"));
+    write_json(&dir.join("quick.json"), &v);
+    let o = results(&dir, &db, &["import", "quick.json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mine = as_if(&v, "m-mine000000000000", "abcd", 1_700_000_000, 1.0);
+    write_json(&dir.join("mine.json"), &mine);
+    std::fs::set_permissions(&db, std::fs::Permissions::from_mode(0o666)).unwrap();
+    if std::os::unix::fs::chown(&db, Some(65534), Some(65534)).is_err() {
+        return skip(
+            "another_user_s_database_is_read_but_never_written",
+            "changing a file's owner needs root",
+        );
+    }
+    let before = bytes(&db);
+    let o = results(&dir, &db, &["import", "mine.json"]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}{}", stdout(&o));
+    assert!(
+        err.contains("r.db: belongs to another user (uid 65534"),
+        "{err}"
+    );
+    assert_eq!(bytes(&db), before);
+    for companion in ["r.db-wal", "r.db-shm"] {
+        assert!(!dir.join(companion).exists(), "{companion}");
+    }
+    assert_eq!(listed(&dir, &db, &[]).len(), 1);
+    // The same file, this user's again, takes the run (root's read made its -wal and -shm
+    // files as SQLite makes them, the database owner's).
+    let me = std::fs::metadata("/proc/self").map(|m| std::os::unix::fs::MetadataExt::uid(&m));
+    let me = me.ok();
+    for name in ["r.db", "r.db-wal", "r.db-shm"] {
+        let _ = std::os::unix::fs::chown(dir.join(name), me, None);
+    }
+    let o = results(&dir, &db, &["import", "mine.json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(listed(&dir, &db, &[]).len(), 2);
+}
+
 /// `bench --out F` with F the database it records in (`--db F`, `TESSERA_DB=F`, or a link to
 /// it), and `results report -o F` on database F, replaced the database with the JSON result
 /// or the page (exit 0, "recorded in same.db"): every earlier run was lost, and the next

@@ -181,6 +181,9 @@ impl ResultsDb {
         // this build must refuse is left as it was, and no -wal or -shm file is made for it.
         recognise(path)?;
         refuse_strangers_companions(path)?;
+        if access == Access::Write {
+            refuse_a_strangers_database(path)?;
+        }
         let mut db = match access {
             Access::Read => Self::connect_to_read(path)?,
             Access::Write => Self::connect(path, OpenFlags::SQLITE_OPEN_READ_WRITE)?,
@@ -518,6 +521,29 @@ fn refuse_strangers_companions(path: &Path) -> Result<()> {
                 path.display()
             );
         }
+    }
+    Ok(())
+}
+
+/// Refuses to write to the database at `path` where it is another user's (not this
+/// process's user's or root's). It is read as any other (`results` on a colleague's
+/// database), but in a directory others may write to (`/tmp`), another user who leaves a
+/// database under the name `--db` gives, readable and writable by all, would have every
+/// run recorded in it: they would read this user's machines and results, and choose the
+/// runs beside them that every command shows.
+fn refuse_a_strangers_database(path: &Path) -> Result<()> {
+    use std::os::unix::fs::MetadataExt;
+    let Ok(owner) = std::fs::metadata(path).map(|m| m.uid()) else {
+        return Ok(());
+    };
+    let me = rustix::process::geteuid().as_raw();
+    if ![me, 0].contains(&owner) {
+        bail!(
+            "{}: belongs to another user (uid {owner}; this is uid {me}): runs are recorded \
+             only in a database of this user's, which no one else reads or changes; \
+             `tessera results` still reads this one, and --db names another to record in",
+            path.display()
+        );
     }
     Ok(())
 }
