@@ -44,13 +44,15 @@ impl PartReader<BufReader<std::fs::File>> {
         PartReader::new(BufReader::new(file), len, path)
     }
 
-    /// Opens the checkpoint at `path` to resume from, as `open` does, refusing one that
-    /// another user owns. A render takes a checkpoint's finished tiles as they are, so the
-    /// user who wrote it chooses those pixels: in a directory others may write to (`/tmp`),
-    /// another user could leave a checkpoint of the same scene under the name a render will
-    /// use, with sums of their choosing (its checksum is no secret), and the image would
-    /// carry them, recipe and all. The file's owner is read from the opened file, so nothing
-    /// swapped in after the check is read; a file of root's is taken (root can write any).
+    /// Opens the part or checkpoint at `path` to take into an image, as `open` does,
+    /// refusing one that another user owns. A render takes a checkpoint's finished tiles,
+    /// and a merge a part's sums, as they are, so the user who wrote the file chooses those
+    /// pixels (its checksum is no secret): in a directory others may write to (`/tmp`, a
+    /// shared volume), another user could leave a checkpoint of the same scene under the
+    /// name a render will use, or the part of a shard that failed among a merge's, and the
+    /// image would carry their pixels, recipe and all. The file's owner is read from the
+    /// opened file, so nothing swapped in after the check is read; a file of root's is
+    /// taken (root can write any).
     pub fn open_own(path: &Path) -> Result<Self> {
         use std::os::unix::fs::MetadataExt;
         let io = |cause| Error::Io {
@@ -63,9 +65,9 @@ impl PartReader<BufReader<std::fs::File>> {
             return Err(part_error(
                 path,
                 format!(
-                    "belongs to another user (uid {}; this is uid {}): a render resumes only \
-                     from a checkpoint of its own user's; remove it or choose another \
-                     --checkpoint file",
+                    "belongs to another user (uid {}; this is uid {}): an image takes a \
+                     checkpoint or part only of its own user's, as whoever writes one chooses \
+                     its pixels; remove it, or copy it to make it yours if you trust it",
                     meta.uid(),
                     crate::owner::this_user()
                 ),

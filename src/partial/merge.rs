@@ -190,19 +190,20 @@ pub fn merge(parts: &[(PathBuf, Part)]) -> Result<(Film, f32)> {
 
 /// Merges the part files `paths` into the image they cover together (see `check_set`),
 /// reading one part at a time a chunk at a time: memory stays about one image whatever the
-/// number of parts. Every part is checked, by its header, before any sums are read.
+/// number of parts. Every part is checked, by its header, before any sums are read, and
+/// one another user owns is refused (`PartReader::open_own`).
 /// Gives the film and the render the parts belong to: the first part's, with the recipe
 /// source every part carries (none unless all carry the same).
 pub fn merge_files(paths: &[PathBuf]) -> Result<(Film, RenderId)> {
     let headers = paths
         .iter()
-        .map(|path| Ok((path.as_path(), PartReader::open(path)?.into_header())))
+        .map(|path| Ok((path.as_path(), PartReader::open_own(path)?.into_header())))
         .collect::<Result<Vec<(&Path, Part)>>>()?;
     let named: Vec<(&Path, &Part)> = headers.iter().map(|(p, h)| (*p, h)).collect();
     let whole = check_set(&named)?;
     let mut film = whole.film();
     for (path, header) in &headers {
-        let reader = PartReader::open(path)?;
+        let reader = PartReader::open_own(path)?;
         if reader.header() != header {
             return Err(part_error(path, "changed while being merged".to_owned()));
         }

@@ -1888,6 +1888,51 @@ fn a_checkpoint_another_user_owns_is_not_resumed() {
     assert!(dir.join("out.png").exists());
 }
 
+/// `merge DIR` took every part in the directory, whoever owned it: where a shard failed,
+/// another user's part of the same scene left in a shared directory filled the gap (its
+/// sums of their choosing, its checksum no secret), and the image was written, "merged 2
+/// parts", under the user's recipe. A part another user owns is refused, named or found in
+/// a directory, and the image is not written; the same file, the user's own again, merges.
+/// Changing a file's owner needs root: elsewhere the test is skipped.
+#[test]
+fn a_part_another_user_owns_is_not_merged() {
+    let dir = temp_dir("hostile-strangers-part");
+    std::fs::create_dir_all(dir.join("parts")).unwrap();
+    let cover = cover();
+    for shard in ["0/2", "1/2"] {
+        let name = format!("parts/p{}.part", &shard[..1]);
+        let o = run(
+            &["render", &cover, "-q", "--width", "24", "--spp", "2"]
+                .into_iter()
+                .chain(["--shard", shard, "-o", &name])
+                .collect::<Vec<_>>(),
+            &dir,
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let me = std::fs::metadata("/proc/self").map(|m| std::os::unix::fs::MetadataExt::uid(&m));
+    let theirs = dir.join("parts/p1.part");
+    if std::os::unix::fs::chown(&theirs, Some(65534), Some(65534)).is_err() {
+        return skip(
+            "a_part_another_user_owns_is_not_merged",
+            "changing a file's owner needs root",
+        );
+    }
+    for named in [&["parts"][..], &["parts/p0.part", "parts/p1.part"]] {
+        let args = [&["merge"][..], named, &["-o", "out.png"]].concat();
+        refused(
+            &run(&args, &dir),
+            "p1.part: belongs to another user (uid 65534",
+            "another user's part",
+        );
+        assert!(!dir.join("out.png").exists(), "an image was written");
+    }
+    std::os::unix::fs::chown(&theirs, me.ok(), None).unwrap();
+    let o = run(&["merge", "parts", "-o", "out.png"], &dir);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(dir.join("out.png").exists());
+}
+
 /// An output written in place because it is a pipe (`-o /dev/stdout`, a FIFO) may be a pipe
 /// another user made under the name in a shared directory (`/tmp`): the render then waited
 /// forever for a reader (killed after 20 s), or, with the other user reading, sent them the
