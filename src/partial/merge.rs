@@ -102,10 +102,11 @@ fn check_set(parts: &[(&Path, &Part)]) -> Result<Whole> {
             .collect();
         return Err(Error::Merge(format!(
             "the parts leave gaps: they hold {covered} pixel-samples of the {needed} that \
-                 {}x{} pixels × samples 0..{total} need; a shard is missing. Parts:\n  {}",
+                 {}x{} pixels × samples 0..{total} need; a shard is missing. Parts: {}",
             window.width,
             window.height,
-            listing.join("\n  ")
+            // One line, as every error is printed: a newline would show as `\u{a}`.
+            listing.join("; ")
         )));
     }
     Ok(Whole {
@@ -259,6 +260,15 @@ mod tests {
         assert!(merge(&[named(part(full, [0, 4])), named(part(full, [4, 9]))]).is_ok());
         let gap = merge(&[named(part(top, [0, 9]))]).unwrap_err().to_string();
         assert!(gap.contains("gaps"), "{gap}");
+        // One line, as every error is printed: a newline between the parts showed as `\u{a}`.
+        let listed = "a shard is missing. Parts: p: pixels 8x3 at (0, 0), samples 0..9";
+        assert!(!gap.contains('\n') && gap.ends_with(listed), "{gap}");
+        let two = merge(&[named(part(top, [0, 4])), named(part(top, [4, 9]))]);
+        let two = two.unwrap_err().to_string();
+        assert!(
+            two.ends_with("samples 0..4; p: pixels 8x3 at (0, 0), samples 4..9"),
+            "{two}"
+        );
         let overlap = merge(&[named(part(full, [0, 4])), named(part(top, [3, 5]))]);
         assert!(overlap.unwrap_err().to_string().contains("overlaps"));
         let hole = merge(&[named(part(full, [0, 4])), named(part(full, [5, 9]))]);
