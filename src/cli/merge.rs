@@ -3,7 +3,7 @@
 //! them.
 
 use super::output::note;
-use super::writable::check_output;
+use super::writable::{check_output, same_file};
 use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -43,6 +43,14 @@ pub fn run(args: Args) -> Result<ExitCode> {
     Format::from_path(&output)?;
     check_output(&output)?;
     let paths = part_files(&parts)?;
+    // The image replaces whatever file it is written to: a part it adds up would be lost.
+    if let Some(part) = paths.iter().find(|p| same_file(&output, p)) {
+        anyhow::bail!(
+            "-o {} names the same file as the part {}: give the image a name of its own",
+            output.display(),
+            part.display()
+        );
+    }
     let (film, render) = tessera::partial::merge_files(&paths)?;
     let recipe = match render.recipe.as_ref().filter(|_| !no_provenance) {
         Some(source) => {

@@ -425,6 +425,32 @@ fn bad_parts_are_refused_and_nothing_is_damaged() {
     assert_ne!(bytes(&dir, "out.png"), b"precious");
 }
 
+/// `merge p0.png p1.png -o p0.png`, parts named as images (a part may have any name),
+/// replaced part `p0.png` with the image (exit 0, "merged 2 parts"): a shard's render was
+/// lost, and the merge could not be run again. An output naming one of the parts, however
+/// spelt or by a link, is refused before anything is read, every part left as it was.
+#[test]
+fn an_image_named_as_one_of_its_parts_is_refused() {
+    let dir = temp_dir("merge-onto-a-part");
+    let scene = cover();
+    for (spec, out) in [("0/2", "p0.png"), ("1/2", "p1.png")] {
+        ok(&small(&scene, &["--shard", spec, "-o", out]), &dir);
+    }
+    std::os::unix::fs::symlink("p1.png", dir.join("link.png")).unwrap();
+    let parts = [bytes(&dir, "p0.png"), bytes(&dir, "p1.png")];
+    for out in ["p0.png", "./p1.png", "link.png"] {
+        let o = run(&["merge", "p0.png", "p1.png", "-o", out], &dir);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{out}: {err}");
+        assert!(
+            err.contains("names the same file as the part"),
+            "{out}: {err}"
+        );
+    }
+    assert_eq!([bytes(&dir, "p0.png"), bytes(&dir, "p1.png")], parts);
+    ok(&["merge", "p0.png", "p1.png", "-o", "out.png"], &dir);
+}
+
 #[test]
 fn a_render_in_one_part_writes_a_part_that_merges() {
     let dir = temp_dir("one-part");
