@@ -256,6 +256,34 @@ fn bad_results_and_workloads_are_refused_with_status_2() {
     assert!(!dir.join("w.toml").exists());
 }
 
+/// `bench --compare` printed the workload's name and id as the result gave them: a newline
+/// in a stranger's name started lines of its own, a forged table row saying "9.000
+/// faster, beyond the spread" above the real one. They are one escaped line now, as every
+/// other text of a result is.
+#[test]
+fn a_compared_result_s_workload_cannot_forge_a_line() {
+    let dir = temp_dir("bench-compare-forged");
+    let mut v: Value = serde_json::from_slice(
+        &std::fs::read(root().join("fuzz/corpus/result/quick-one-thread.json")).unwrap(),
+    )
+    .unwrap();
+    let forged = "      1  1.0  9.0  9.000  faster, beyond the spread";
+    v["workload"]["name"] = Value::from(format!("quick\n{forged}\n\u{1b}[2J"));
+    v["workload"]["id"] = Value::from(format!("{}\n{forged}", v["workload"]["id"]));
+    std::fs::write(dir.join("a.json"), serde_json::to_vec(&v).unwrap()).unwrap();
+    let o = run(&["bench", "--compare", "a.json", "a.json"], &dir);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        !text.lines().any(|l| l.starts_with(forged)) && !text.contains('\u{1b}'),
+        "{text}"
+    );
+    assert!(
+        text.starts_with("workload quick\\u{a}      1  1.0"),
+        "{text}"
+    );
+}
+
 /// `--write-workloads` with `--workload` renders only the workloads named: the quick one
 /// here, the file then the repository's, the others' hashes kept as built in.
 #[test]

@@ -22,6 +22,7 @@ use tessera::record::stats::{self, Scaling};
 use tessera::record::workload::{self, Workload, hash_text};
 use tessera::render::{self, RenderOptions};
 use tessera::scene::Overrides;
+use tessera::text::terminal_safe;
 
 /// `tessera bench` as typed.
 #[derive(clap::Args)]
@@ -296,9 +297,15 @@ fn compare_files(old: &BenchResult, new: &BenchResult) -> Result<String> {
         );
     }
     let w = &new.workload;
+    // A result's text, escaped as one line: a newline in a stranger's workload name would
+    // start a line of its own, such as a forged row of the table below.
     let mut text = format!(
         "workload {} ({}x{}, {} spp; {})\n",
-        w.name, w.width, w.height, w.spp, w.id
+        terminal_safe(&w.name, 64),
+        w.width,
+        w.height,
+        w.spp,
+        terminal_safe(&w.id, 64)
     );
     for (which, r) in [("old", old), ("new", new)] {
         if r.validation.status != "valid" {
