@@ -268,36 +268,54 @@ fn legend(lines: &[(String, Scaling)]) -> String {
     h
 }
 
+/// The most thread counts the efficiency table gives a column each: as many as one result
+/// measures. Beyond them each line lists its own, so that the page grows with the rows the
+/// database holds, not with the lines times every count any line has (5,000 imported
+/// results of as many thread counts made a table of 25 million cells, a page of 554 MB).
+const MAX_THREAD_COLUMNS: usize = 64;
+
 /// Efficiency (speedup over one thread ÷ threads) of each line at each thread count.
 fn efficiency_table(ranked: &[Line], scaling: &[Scaling]) -> String {
     let mut threads: Vec<i64> = scaling.iter().flat_map(|s| s.keys().copied()).collect();
     threads.sort_unstable();
     threads.dedup();
+    let columns = threads.len() <= MAX_THREAD_COLUMNS;
     let mut h =
         "<div class=\"box\"><table class=\"efficiency\"><thead><tr><th>machine and build</th>"
             .to_owned();
-    for &t in &threads {
-        let _ = write!(
-            h,
-            "<th class=\"n\">{}</th>",
-            plural(t.max(0) as usize, "thread")
-        );
+    if columns {
+        for &t in &threads {
+            let _ = write!(
+                h,
+                "<th class=\"n\">{}</th>",
+                plural(t.max(0) as usize, "thread")
+            );
+        }
+    } else {
+        h.push_str("<th>by thread count</th>");
     }
     h.push_str("</tr></thead><tbody>");
     for (line, sc) in ranked.iter().zip(scaling) {
         let _ = write!(h, "<tr><td class=\"cpu\">{}</td>", html_safe(&line.label()));
         let one = sc.get(&1).map(|p| p.median);
-        for t in &threads {
-            let cell = match (sc.get(t), one) {
-                (Some(p), Some(one)) => format!(
-                    "{:.3} M/s, {:.0}%",
-                    p.median / 1e6,
-                    100.0 * p.median / one / *t as f64
-                ),
-                (Some(p), None) => format!("{:.3} M/s", p.median / 1e6),
-                (None, _) => "–".into(),
-            };
-            let _ = write!(h, "<td class=\"n\">{cell}</td>");
+        let cell = |t: i64, p: &Pooled| match one {
+            Some(one) => format!(
+                "{:.3} M/s, {:.0}%",
+                p.median / 1e6,
+                100.0 * p.median / one / t as f64
+            ),
+            None => format!("{:.3} M/s", p.median / 1e6),
+        };
+        if columns {
+            for t in &threads {
+                let text = sc.get(t).map_or_else(|| "–".into(), |p| cell(*t, p));
+                let _ = write!(h, "<td class=\"n\">{text}</td>");
+            }
+        } else {
+            let own: Vec<String> = (sc.iter())
+                .map(|(&t, p)| format!("{}: {}", plural(t.max(0) as usize, "thread"), cell(t, p)))
+                .collect();
+            let _ = write!(h, "<td>{}</td>", own.join("; "));
         }
         h.push_str("</tr>");
     }
@@ -373,6 +391,43 @@ mod tests {
         let said = "The chart shows the first 8 of the 10 lines of the ranking";
         assert!(page(10).contains(said));
         assert!(!page(8).contains("The chart shows the first"));
+    }
+
+    /// A line per thread count, each measured at its own count: the efficiency table had a
+    /// column for every count any line has, cells growing with their square (5,000 lines, a
+    /// page of 554 MB). Beyond one result's 64 counts each line lists its own.
+    #[test]
+    fn the_efficiency_table_grows_with_the_lines_not_their_square() {
+        let page = |n: i64| {
+            let section = Section {
+                title: "quick".into(),
+                runs: n as usize,
+                ranked: (0..n).map(|i| line(&format!("CPU {i}"))).collect(),
+                scaling: (1..=n)
+                    .map(|t| Scaling::from([(t, line("x").score)]))
+                    .collect(),
+                histories: Vec::new(),
+            };
+            let page = render(&ReportPage {
+                generated_unix_s: 0,
+                total_runs: n as usize,
+                all: false,
+                sections: std::slice::from_ref(&section),
+            });
+            let table = &page[page.find("class=\"efficiency\"").unwrap()..];
+            let table = &table[..table.find("</table>").unwrap()];
+            (table.matches("<td").count(), table.to_owned())
+        };
+        // As many counts as one result has: a column each.
+        let (cells, table) = page(64);
+        assert_eq!(cells, 64 * 65);
+        assert!(table.contains("<th class=\"n\">64 threads</th>"), "{table}");
+        let (cells, table) = page(2000);
+        assert_eq!(cells, 2 * 2000);
+        assert!(
+            table.contains("<td>2000 threads: 18.300 M/s</td>"),
+            "{table}"
+        );
     }
 
     #[test]
