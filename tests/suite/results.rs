@@ -1554,6 +1554,57 @@ fn another_user_s_database_is_read_but_never_written() {
     assert_eq!(listed(&dir, &db, &[]).len(), 2);
 }
 
+/// Reading a database SQLite keeps in WAL mode makes its -wal and -shm files where they
+/// are missing, even on a read-only connection, and a -wal of another user's beside a
+/// database is refused: one `results list` by mallory of alice's database, readable by
+/// all in a sticky shared directory, left his -wal and -shm there, and alice's every
+/// command was refused ("lab.db-wal: belongs to another user"), the files hers to remove
+/// only by root. Another user's database is now read as an immutable file where no -wal
+/// holds changes, and nothing is made beside it; one whose -wal holds changes without a
+/// -shm is refused, left as it is. Changing a file's owner needs root: elsewhere the test
+/// is skipped.
+#[test]
+fn reading_another_user_s_database_leaves_nothing_beside_it() {
+    let dir = temp_dir("results-strangers-read");
+    let db = dir.join("r.db");
+    let v = json(&root().join("fuzz/corpus/result/quick-one-thread.json"));
+    write_json(&dir.join("quick.json"), &v);
+    let o = results(&dir, &db, &["import", "quick.json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // Changes kept in a -wal file, as a writer that has not yet checkpointed leaves them.
+    let conn = rusqlite::Connection::open(&db).unwrap();
+    conn.pragma_update(None, "wal_autocheckpoint", 0).unwrap();
+    conn.execute("UPDATE runs SET cpu_model = 'In the WAL'", [])
+        .unwrap();
+    std::fs::copy(dir.join("r.db-wal"), dir.join("kept-wal")).unwrap();
+    drop(conn);
+    std::fs::set_permissions(&db, std::fs::Permissions::from_mode(0o644)).unwrap();
+    if std::os::unix::fs::chown(&db, Some(65534), Some(65534)).is_err() {
+        return skip(
+            "reading_another_user_s_database_leaves_nothing_beside_it",
+            "changing a file's owner needs root",
+        );
+    }
+    let before = bytes(&db);
+    let o = results(&dir, &db, &["list"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("In the WAL"), "{}", stdout(&o));
+    for companion in ["r.db-wal", "r.db-shm"] {
+        assert!(!dir.join(companion).exists(), "{companion} made by a read");
+    }
+    std::fs::copy(dir.join("kept-wal"), dir.join("r.db-wal")).unwrap();
+    std::os::unix::fs::chown(dir.join("r.db-wal"), Some(65534), Some(65534)).unwrap();
+    let o = results(&dir, &db, &["list"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stdout(&o));
+    assert!(
+        stderr(&o).contains("holds changes but has no -shm"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!dir.join("r.db-shm").exists());
+    assert_eq!(bytes(&db), before);
+}
+
 /// `bench --out F` with F the database it records in (`--db F`, `TESSERA_DB=F`, or a link to
 /// it), and `results report -o F` on database F, replaced the database with the JSON result
 /// or the page (exit 0, "recorded in same.db"): every earlier run was lost, and the next

@@ -231,6 +231,16 @@ impl ResultsDb {
     /// and a read-only file system cannot hold a new one: there it is read as immutable,
     /// which is true of it, since nobody can write it.
     fn connect_to_read(path: &Path) -> Result<Self> {
+        if read_immutable_as_a_stranger(path)? {
+            let conn = open_immutable(path).with_context(|| {
+                format!("{}: could not open the results database", path.display())
+            })?;
+            return Ok(Self {
+                conn,
+                path: path.to_owned(),
+                schema: 0,
+            });
+        }
         let db = Self::connect(path, OpenFlags::SQLITE_OPEN_READ_ONLY)?;
         // The first read is where SQLite opens the -wal and -shm files. Any other error
         // shows at the checks that follow.
@@ -546,6 +556,41 @@ fn refuse_a_strangers_database(path: &Path) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// Whether the database at `path`, where it is another user's, is to be read as an
+/// immutable file. SQLite makes a WAL database's -wal and -shm files where they are
+/// missing, even to read it, and a -wal or -shm of another user's beside a database is
+/// refused by every command (`refuse_strangers_companions`): one `results list` of a
+/// colleague's database, readable by all in a shared directory, left theirs there, which
+/// its owner could neither use nor remove. So another user's database is read through its
+/// -wal and -shm where both are there (its owner's, in use), and as an immutable file where
+/// no -wal holds changes (it holds every row then); a -wal of changes without its -shm
+/// cannot be read without making one, and is refused.
+fn read_immutable_as_a_stranger(path: &Path) -> Result<bool> {
+    use std::os::unix::fs::MetadataExt;
+    let Ok(owner) = std::fs::metadata(path).map(|m| m.uid()) else {
+        return Ok(false);
+    };
+    if owner == rustix::process::geteuid().as_raw() {
+        return Ok(false);
+    }
+    let companion = |suffix: &str| {
+        let mut name = path.as_os_str().to_owned();
+        name.push(suffix);
+        std::fs::metadata(PathBuf::from(name)).ok()
+    };
+    match (companion("-wal"), companion("-shm")) {
+        (Some(_), Some(_)) => Ok(false),
+        (Some(wal), None) if wal.len() > 0 => bail!(
+            "{}: another user's database (uid {owner}) whose -wal file holds changes but \
+             has no -shm file: reading them would leave a -shm file of this user's beside \
+             it, which would keep its owner out; left as it is (its owner's next use of it \
+             writes the changes in)",
+            path.display()
+        ),
+        _ => Ok(true),
+    }
 }
 
 /// Adds one result in transaction `tx`, unless a result of the same digest is there.
