@@ -546,13 +546,13 @@ fn refuse_a_strangers_database(path: &Path) -> Result<()> {
     let Ok(owner) = std::fs::metadata(path).map(|m| m.uid()) else {
         return Ok(());
     };
-    let me = rustix::process::geteuid().as_raw();
-    if ![me, 0].contains(&owner) {
+    if crate::owner::is_another_users(owner, &[]) {
         bail!(
-            "{}: belongs to another user (uid {owner}; this is uid {me}): runs are recorded \
+            "{}: belongs to another user (uid {owner}; this is uid {}): runs are recorded \
              only in a database of this user's, which no one else reads or changes; \
              `tessera results` still reads this one, and --db names another to record in",
-            path.display()
+            path.display(),
+            crate::owner::this_user()
         );
     }
     Ok(())
@@ -572,7 +572,7 @@ fn read_immutable_as_a_stranger(path: &Path) -> Result<bool> {
     let Ok(owner) = std::fs::metadata(path).map(|m| m.uid()) else {
         return Ok(false);
     };
-    if owner == rustix::process::geteuid().as_raw() {
+    if owner == crate::owner::this_user() {
         return Ok(false);
     }
     let companion = |suffix: &str| {
