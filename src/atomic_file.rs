@@ -38,9 +38,35 @@ fn temporary_beside(path: &Path) -> std::io::Result<tempfile::NamedTempFile> {
 }
 
 /// True when `path` exists and is neither a file nor a directory: a device such as
-/// `/dev/null`, or a pipe.
+/// `/dev/null`, or a pipe, named itself or by a symbolic link of this user's or root's
+/// (`/dev/stdout`). A link of another user's is not followed: in a directory others may
+/// write to (`/tmp`), another user can leave one under the name an output will have,
+/// pointing at a device of theirs (their own terminal), which then received the image, recipe
+/// and all, with no file made and exit 0. Such a link is replaced by the file, as a link to
+/// a file is.
 fn is_special(path: &Path) -> bool {
-    std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir())
+    use std::os::unix::fs::MetadataExt;
+    match std::fs::symlink_metadata(path) {
+        Ok(link) if link.file_type().is_symlink() && owner::is_another_users(link.uid(), &[]) => {
+            false
+        }
+        Ok(_) => std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir()),
+        Err(_) => false,
+    }
+}
+
+/// Opens the device or pipe at `path` (`is_special`) to write in place. A symbolic link is
+/// followed only where there was one when `is_special` took it (this user's or root's):
+/// one swapped in since for a device named itself is refused (`O_NOFOLLOW`), not followed.
+fn open_in_place(path: &Path) -> std::io::Result<std::fs::File> {
+    use std::os::unix::fs::OpenOptionsExt;
+    let link = std::fs::symlink_metadata(path)?.file_type().is_symlink();
+    let mut options = std::fs::OpenOptions::new();
+    options.write(true);
+    if !link {
+        options.custom_flags(libc::O_NOFOLLOW);
+    }
+    options.open(path)
 }
 
 /// Refuses a pipe (FIFO) at `path` that another user owns (neither this user nor root). In
@@ -98,7 +124,8 @@ pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
 
 /// `write_atomically` of what `write` writes, streamed through a buffer rather than made
 /// whole in memory first. The rename replaces `path` itself: where `path` is a symbolic
-/// link, the link is replaced, and what it pointed to is left as it was.
+/// link (to a file, or another user's to anything), the link is replaced, and what it
+/// pointed to is left as it was.
 pub fn write_atomically_with(
     path: &Path,
     write: &mut dyn FnMut(&mut dyn Write) -> std::io::Result<()>,
@@ -109,10 +136,7 @@ pub fn write_atomically_with(
     };
     if is_special(path) {
         refuse_foreign_pipe(path).map_err(io)?;
-        let file = std::fs::OpenOptions::new()
-            .write(true)
-            .open(path)
-            .map_err(io)?;
+        let file = open_in_place(path).map_err(io)?;
         let mut out = std::io::BufWriter::with_capacity(1 << 16, file);
         return write(&mut out).and_then(|()| out.flush()).map_err(io);
     }

@@ -1933,6 +1933,65 @@ fn a_part_another_user_owns_is_not_merged() {
     assert!(dir.join("out.png").exists());
 }
 
+/// A device is written in place, but a symbolic link another user left under an output's
+/// name in a shared directory is not followed to one: a link to a terminal of theirs took
+/// the image and its recipe (they read all 6,217 bytes of the PNG from it), the render said
+/// it wrote the file, exit 0, and no file was made. Such a link is replaced by the file, as
+/// a link to a file is; the device is left as it was. Here the links point at `/dev/null`
+/// and `/dev/zero` (where the image vanished). Changing a link's owner needs root: elsewhere the test is
+/// skipped.
+#[test]
+fn an_output_name_that_is_another_users_link_to_a_device_is_not_followed() {
+    let dir = temp_dir("hostile-strangers-device-link");
+    for (name, device) in [("out.png", "/dev/null"), ("preview.png", "/dev/zero")] {
+        let link = dir.join(name);
+        std::os::unix::fs::symlink(device, &link).unwrap();
+        if std::os::unix::fs::lchown(&link, Some(65534), Some(65534)).is_err() {
+            return skip(
+                "an_output_name_that_is_another_users_link_to_a_device",
+                "changing a link's owner needs root",
+            );
+        }
+    }
+    let cover = cover();
+    let o = output_within_a_minute(
+        tessera()
+            .args([
+                "render",
+                &cover,
+                "-q",
+                "--width",
+                "16",
+                "--spp",
+                "1",
+                "-o",
+                "out.png",
+                "--preview-file",
+                "preview.png",
+            ])
+            .current_dir(&dir),
+        "the render (on another user's links to a device)",
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for name in ["out.png", "preview.png"] {
+        let meta = std::fs::symlink_metadata(dir.join(name)).unwrap();
+        assert!(
+            meta.is_file(),
+            "{name} is still another user's link: the image went where it points"
+        );
+        let bytes = std::fs::read(dir.join(name)).unwrap();
+        assert!(
+            bytes.starts_with(b"\x89PNG\r\n\x1a\n"),
+            "{name} holds no PNG"
+        );
+    }
+    use std::os::unix::fs::FileTypeExt;
+    for device in ["/dev/null", "/dev/zero"] {
+        let meta = std::fs::metadata(device).unwrap();
+        assert!(meta.file_type().is_char_device(), "{device} was replaced");
+    }
+}
+
 /// An output written in place because it is a pipe (`-o /dev/stdout`, a FIFO) may be a pipe
 /// another user made under the name in a shared directory (`/tmp`): the render then waited
 /// forever for a reader (killed after 20 s), or, with the other user reading, sent them the
