@@ -90,9 +90,37 @@ fn refuse_foreign_pipe(path: &Path) -> std::io::Result<()> {
     Ok(())
 }
 
+/// Refuses a file at `path` that this user may create a file beside but not replace: one of
+/// another user's (root's included) in a sticky directory (`/tmp`) of another user's, where
+/// only a file's owner may remove or rename over it. The rename that puts the output in
+/// place then failed at the very end, "Operation not permitted", the render's work lost.
+/// Root may replace any file.
+fn refuse_unreplaceable(path: &Path) -> std::io::Result<()> {
+    use std::os::unix::fs::MetadataExt;
+    let me = rustix::process::geteuid().as_raw();
+    let Ok(meta) = std::fs::symlink_metadata(path) else {
+        return Ok(());
+    };
+    if me == 0 || meta.uid() == me {
+        return Ok(());
+    }
+    let Ok(dir) = std::fs::metadata(directory_of(path)) else {
+        return Ok(());
+    };
+    if dir.mode() & 0o1000 == 0 || dir.uid() == me {
+        return Ok(());
+    }
+    Err(std::io::Error::other(format!(
+        "belongs to another user (uid {}; this is uid {me}), in a directory where only a \
+         file's owner may replace it (sticky, as /tmp): the output could not be put in its \
+         place; remove it or choose another name",
+        meta.uid()
+    )))
+}
+
 /// Checks, before any work is spent on it, that `write_atomically` can write `path`: its
 /// directory exists and takes a new file, and `path` is not a directory (nor another user's
-/// pipe).
+/// pipe, nor a file this user may not replace).
 pub fn check_writable(path: &Path) -> Result<()> {
     let io = |cause| Error::Io {
         path: path.to_owned(),
@@ -108,6 +136,7 @@ pub fn check_writable(path: &Path) -> Result<()> {
         // Written in place; opening a pipe now would wait for its reader.
         return refuse_foreign_pipe(path).map_err(io);
     }
+    refuse_unreplaceable(path).map_err(io)?;
     // Created and removed again: the directory takes a new file.
     temporary_beside(path)
         .and_then(|tmp| tmp.close())

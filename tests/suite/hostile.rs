@@ -1992,6 +1992,45 @@ fn an_output_name_that_is_another_users_link_to_a_device_is_not_followed() {
     }
 }
 
+/// In a directory where only a file's owner may replace it (sticky, as `/tmp`), another
+/// user's file under an output's name cannot be replaced by a user other than root: the
+/// render ran to its end and then failed, "out.png: Operation not permitted", its work lost.
+/// Refused before the render starts, naming the owner; the file is left as it was. Acting
+/// as a second user needs root: elsewhere the test is skipped.
+#[test]
+fn an_output_name_another_user_holds_in_a_sticky_directory_is_refused_before_the_render() {
+    use std::os::unix::fs::PermissionsExt;
+    use std::os::unix::process::CommandExt;
+    let test = "an_output_name_another_user_holds_in_a_sticky_directory";
+    let dir = temp_dir("hostile-strangers-sticky");
+    std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o1777)).unwrap();
+    std::fs::write(dir.join("scene.toml"), GOOD).unwrap();
+    std::fs::write(dir.join("out.png"), "another user's").unwrap();
+    if std::os::unix::fs::chown(dir.join("out.png"), Some(65533), Some(65533)).is_err() {
+        return skip(test, "changing a file's owner needs root");
+    }
+    // The binary, where the second user (65534) may run it.
+    let binary = dir.join("tessera");
+    std::fs::copy(env!("CARGO_BIN_EXE_tessera"), &binary).unwrap();
+    let o = output_within_a_minute(
+        Command::new(&binary)
+            .args(["render", "scene.toml", "-q", "--spp", "64", "-o", "out.png"])
+            .current_dir(&dir)
+            .uid(65534)
+            .gid(65534),
+        "the render (onto another user's file in a sticky directory)",
+    );
+    refused(
+        &o,
+        "out.png: belongs to another user (uid 65533",
+        "another user's file in a sticky directory",
+    );
+    assert_eq!(
+        std::fs::read(dir.join("out.png")).unwrap(),
+        b"another user's"
+    );
+}
+
 /// An output written in place because it is a pipe (`-o /dev/stdout`, a FIFO) may be a pipe
 /// another user made under the name in a shared directory (`/tmp`): the render then waited
 /// forever for a reader (killed after 20 s), or, with the other user reading, sent them the
