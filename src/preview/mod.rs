@@ -164,6 +164,16 @@ pub struct Previewer {
 impl Previewer {
     /// A previewer of `state`'s job, its picture tone-mapped with `gamma`.
     pub fn new(about: About, state: &JobState, gamma: f32) -> Self {
+        // The names are a stranger's text (a scene file handed over under its name): the
+        // page shows them as the terminal does, a bidirectional override or an escape in
+        // them as `\u{…}`, never raw.
+        let about = About {
+            scene: shown(&about.scene),
+            scene_file: shown(&about.scene_file),
+            job: shown(&about.job),
+            output: shown(&about.output),
+            ..about
+        };
         let mut builder = FrameBuilder::new(state, gamma);
         builder.update_all(state);
         // The first frame is all new: there is no frame before it to patch.
@@ -234,7 +244,7 @@ impl Previewer {
             };
         }
         status.download = (self.download.as_ref()).map(|d| DownloadInfo {
-            name: d.name.clone(),
+            name: shown(&d.name),
             bytes: d.png.len(),
         });
         self.status = Some(status.clone());
@@ -275,6 +285,12 @@ impl Watch for Previewer {
             self.publish(state, Some(progress), RunState::Rendering);
         }
     }
+}
+
+/// Text for the page: one line, every character that could reorder or hide what is around it
+/// (`text::is_unsafe`) written as a `\u{…}` escape.
+fn shown(text: &str) -> String {
+    crate::text::terminal_safe(text, usize::MAX)
 }
 
 fn snapshot(status: Status, frame: Arc<Frame>, download: Option<Arc<Download>>) -> Snapshot {

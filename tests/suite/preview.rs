@@ -367,6 +367,48 @@ fn the_page_its_assets_and_the_event_stream_are_served() {
     assert_eq!(viewer.interrupt_held().0, 0);
 }
 
+/// A scene file's name and an output's are text a stranger may choose (a scene handed over
+/// under its name): a right-to-left override (U+202E) in them reached the viewer's page raw
+/// and reversed what it showed of the scene, the title, the output and the download's name
+/// (`cov\u{202e}gnp` shows as "covpng"), and a terminal escape came along. The status now
+/// carries every such character as a `\u{…}` escape, as the terminal shows it.
+#[test]
+fn the_viewer_shows_a_stranger_s_names_escaped() {
+    let dir = temp_dir("preview-names");
+    let scene = "cov\u{202e}gnp.toml";
+    std::fs::write(dir.join(scene), GOOD).unwrap();
+    let output = "o\u{202e}\u{1b}[31mx.png";
+    let viewer = Viewer::start(
+        &[
+            "render",
+            scene,
+            "-o",
+            output,
+            "--preview=127.0.0.1:0",
+            "--preview-hold",
+        ],
+        &dir,
+    );
+    let status = viewer.wait_for("the end", |s| {
+        s["state"] == "finished" && !s["download"].is_null()
+    });
+    let shown = [
+        &status["about"]["scene"],
+        &status["about"]["scene_file"],
+        &status["about"]["output"],
+        &status["download"]["name"],
+    ];
+    for text in shown.map(|v| v.as_str().unwrap_or_default()) {
+        assert!(
+            !text.chars().any(|c| c == '\u{202e}' || c.is_control()),
+            "raw in the page: {text:?}"
+        );
+        assert!(text.contains("\\u{202e}"), "{text:?}");
+    }
+    assert!(dir.join(output).is_file(), "the image keeps its own name");
+    assert_eq!(viewer.interrupt_held().0, 0);
+}
+
 /// A page of another origin that names the viewer in an `<img>` gets the image (the
 /// browser sends the viewer's own loopback Host): measured with Chromium, a page on
 /// `http://localhost:PORT2` loaded `/download` and read its 300x200 size. Every answer says
