@@ -159,6 +159,28 @@ pub fn write_atomically_with(
     path: &Path,
     write: &mut dyn FnMut(&mut dyn Write) -> std::io::Result<()>,
 ) -> Result<()> {
+    write_whole(path, write, false)
+}
+
+/// `write_atomically_with` of a result that took work to make (a render's image or part):
+/// where the finished file cannot be renamed into place, it is kept under its temporary
+/// name, which the error gives, rather than removed. In a sticky directory (`/tmp`) another
+/// user can leave a file under the output's name while the render runs, after the check
+/// before it (`check_writable`); the rename then failed and the render's work was lost.
+pub fn write_result_atomically_with(
+    path: &Path,
+    write: &mut dyn FnMut(&mut dyn Write) -> std::io::Result<()>,
+) -> Result<()> {
+    write_whole(path, write, true)
+}
+
+/// `write_atomically_with`, keeping the finished temporary file where the rename fails if
+/// `keep`.
+fn write_whole(
+    path: &Path,
+    write: &mut dyn FnMut(&mut dyn Write) -> std::io::Result<()>,
+    keep: bool,
+) -> Result<()> {
     let io = |cause| Error::Io {
         path: path.to_owned(),
         cause,
@@ -177,8 +199,24 @@ pub fn write_atomically_with(
         .into_inner()
         .map_err(|e| io(std::io::IntoInnerError::into_error(e)))?;
     tmp.as_file().sync_all().map_err(io)?;
-    tmp.persist(path).map_err(|e| io(e.error))?;
-    Ok(())
+    let Err(failed) = tmp.persist(path) else {
+        return Ok(());
+    };
+    // Why: a file another user holds says so, rather than "Operation not permitted".
+    let why = refuse_unreplaceable(path).err().unwrap_or(failed.error);
+    if !keep {
+        return Err(io(why));
+    }
+    let Ok((_, kept)) = failed.file.keep() else {
+        return Err(io(why));
+    };
+    Err(io(std::io::Error::new(
+        why.kind(),
+        format!(
+            "{why}; the finished file is kept as {}",
+            crate::text::path_safe(&kept)
+        ),
+    )))
 }
 
 #[cfg(test)]
@@ -208,6 +246,28 @@ mod tests {
         assert_eq!(std::fs::read(&p).unwrap(), b"second");
         let leftovers = std::fs::read_dir(&dir).unwrap().count();
         assert_eq!(leftovers, 1);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_finished_result_that_cannot_be_put_in_place_is_kept() {
+        let dir = std::env::temp_dir().join(format!("tessera-result-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("out.png");
+        // While the result is written, something the rename cannot replace takes its name:
+        // here a directory; in a sticky directory, another user's file.
+        let failed = write_result_atomically_with(&p, &mut |out| {
+            std::fs::create_dir_all(p.join("in the way"))?;
+            out.write_all(b"finished")
+        })
+        .unwrap_err()
+        .to_string();
+        let (_, kept) = failed.rsplit_once("the finished file is kept as ").unwrap();
+        assert_eq!(std::fs::read(kept).unwrap(), b"finished", "{failed}");
+        // A preview's or a checkpoint's file is written again soon: nothing is kept.
+        let lost = write_atomically(&p, b"a preview");
+        assert!(lost.is_err_and(|e| !e.to_string().contains("is kept as")));
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 2);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

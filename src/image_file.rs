@@ -3,7 +3,7 @@
 //! text chunk, an EXR header attribute; PPM has none); files are written atomically. And the
 //! way back: an image's recipe and pixels, read as a stranger's file, with limits.
 
-use crate::atomic_file::write_atomically_with;
+use crate::atomic_file::write_result_atomically_with;
 use crate::error::{Error, Result};
 use crate::exr_header::{self, SampleType};
 use crate::film::Film;
@@ -148,10 +148,11 @@ impl Film {
     }
 
     /// Writes the image to `path` in the format its extension names, atomically, with
-    /// `recipe` in its metadata where the format has any.
+    /// `recipe` in its metadata where the format has any; a finished file that cannot be
+    /// renamed into place is kept (`write_result_atomically_with`).
     pub fn save(&self, path: &Path, gamma: f32, recipe: Option<&Recipe>) -> Result<()> {
         let format = Format::from_path(path)?;
-        write_atomically_with(path, &mut |out| self.write(format, gamma, recipe, out))
+        write_result_atomically_with(path, &mut |out| self.write(format, gamma, recipe, out))
     }
 }
 

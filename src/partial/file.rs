@@ -272,6 +272,14 @@ pub fn save(path: &Path, render: &RenderId, state: &JobState) -> Result<()> {
     crate::atomic_file::write_atomically_with(path, &mut |out| write_part(out, render, state))
 }
 
+/// `save` of a render's finished part: one that cannot be renamed into place is kept
+/// (`write_result_atomically_with`).
+pub fn save_result(path: &Path, render: &RenderId, state: &JobState) -> Result<()> {
+    crate::atomic_file::write_result_atomically_with(path, &mut |out| {
+        write_part(out, render, state)
+    })
+}
+
 impl Part {
     /// The length in bytes of a file with this header, once it is known to be consistent.
     fn file_len(&self, header_len: u64) -> u64 {

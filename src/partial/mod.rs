@@ -6,7 +6,7 @@
 mod file;
 mod merge;
 
-pub use file::{PartReader, save};
+pub use file::{PartReader, save, save_result};
 pub use merge::{merge, merge_files};
 
 use crate::error::{Error, Result};

@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
-use tessera::atomic_file::write_atomically;
+use tessera::atomic_file::write_result_atomically_with;
 use tessera::film::Film;
 use tessera::image_file::Format;
 use tessera::job::{Job, JobState};
@@ -287,7 +287,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     // The output first, so that a viewer told the render has finished finds it written.
     let preview = match (&output, preview) {
         (Output::Part(path), preview) => {
-            partial::save(path, &render, &state)?;
+            partial::save_result(path, &render, &state)?;
             preview.map(|p| p.end(&state, RunState::Finished))
         }
         // The viewer's final frame comes from the state: the image gets a copy.
@@ -344,7 +344,7 @@ fn write_image(
     film.write(Format::Png, gamma, recipe.as_ref(), &mut png)
         .context("could not encode the PNG")?;
     if format == Format::Png {
-        write_atomically(path, &png)?;
+        write_result_atomically_with(path, &mut |out| out.write_all(&png))?;
     } else {
         film.save(path, gamma, recipe.as_ref())?;
     }
