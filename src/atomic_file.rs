@@ -27,8 +27,14 @@ fn temporary_beside(path: &Path) -> std::io::Result<tempfile::NamedTempFile> {
             "the output path has no file name",
         )
     })?;
+    // A name near the file system's limit (255 bytes) leaves no room for what the temporary
+    // name adds (a dot before, a dot, six characters and `.tmp` after): its start stands for
+    // it, so that every name a file may have can be written.
+    const ADDED: usize = 12;
+    let name = std::os::unix::ffi::OsStrExt::as_bytes(name);
+    let name = &name[..name.len().min(255 - ADDED)];
     let mut prefix = std::ffi::OsString::from(".");
-    prefix.push(name);
+    prefix.push(<std::ffi::OsStr as std::os::unix::ffi::OsStrExt>::from_bytes(name));
     prefix.push(".");
     tempfile::Builder::new()
         .prefix(&prefix)
@@ -268,6 +274,18 @@ mod tests {
         let lost = write_atomically(&p, b"a preview");
         assert!(lost.is_err_and(|e| !e.to_string().contains("is kept as")));
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 2);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_name_at_the_file_system_s_limit_is_written() {
+        let dir = std::env::temp_dir().join(format!("tessera-long-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join(format!("{}.png", "a".repeat(251)));
+        check_writable(&p).unwrap();
+        write_atomically(&p, b"whole").unwrap();
+        assert_eq!(std::fs::read(&p).unwrap(), b"whole");
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
