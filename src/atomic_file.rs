@@ -103,7 +103,7 @@ fn refuse_foreign_pipe(path: &Path) -> std::io::Result<()> {
 /// Root may replace any file.
 fn refuse_unreplaceable(path: &Path) -> std::io::Result<()> {
     use std::os::unix::fs::MetadataExt;
-    let me = rustix::process::geteuid().as_raw();
+    let me = owner::this_user();
     let Ok(meta) = std::fs::symlink_metadata(path) else {
         return Ok(());
     };
