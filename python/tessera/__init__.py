@@ -175,24 +175,28 @@ _MAX_SCENE_CHARS = 64 << 20
 _SCENE_INT_RANGE = (-(1 << 63), (1 << 63) - 1)
 
 
-def _string_keys(scene: Mapping) -> None:
-    """Refuses a dict, at any depth, with a key that is not a string (JSON would turn `1`
-    into `"1"` without a word), a whole number beyond a scene file's (named by its keys,
-    not by a place in the JSON the user never wrote), one that holds itself, and one larger,
-    written out, than a scene file may be: a list held many times over is as many lists in
-    the JSON, and a walk without bounds never ends on a dict that holds itself (a YAML
-    anchor and its alias)."""
+def _checked_copy(scene: Mapping) -> Dict[str, Any]:
+    """A copy of ``scene`` of plain dicts, lists, strings and numbers, which is what is
+    written out as JSON: so what is written is what was checked, whatever the objects it
+    was made of say of themselves (a `str` whose `__len__` says 0, an `int` whose `__int__`
+    says 1, a dict whose `items()` changes between calls). Refuses a dict,
+    at any depth, with a key that is not a string (JSON would turn `1` into `"1"` without a
+    word), a whole number beyond a scene file's (named by its keys, not by a place in the
+    JSON the user never wrote), one that holds itself, and one larger, written out, than a
+    scene file may be: a list held many times over is as many lists in the JSON, and a walk
+    without bounds never ends on a dict that holds itself (a YAML anchor and its alias)."""
     values = chars = 0
-    # The dicts and lists to walk, with where they are, each followed by None once its
-    # items are walked, to leave it; those being walked, by id.
-    pending: list = [(scene, None)]
+    copy: Dict[str, Any] = {}
+    # The dicts and lists to walk, with where they are and the plain copy to fill, each
+    # followed by None once its items are walked, to leave it; those being walked, by id.
+    pending: list = [(scene, None, copy)]
     inside: dict = {}
     while pending:
         entry = pending.pop()
         if entry is None:
             inside.popitem()
             continue
-        value, where = entry
+        value, where, into = entry
         if id(value) in inside:
             raise ValueError("scene: a dict or list holds itself")
         inside[id(value)] = None
@@ -200,32 +204,62 @@ def _string_keys(scene: Mapping) -> None:
         items = value.items() if isinstance(value, Mapping) else enumerate(value)
         for key, item in items:
             if isinstance(key, str):
-                chars += len(key)
+                chars += _counted(str.__len__(key), chars)
+                key = str.__str__(key)
             elif isinstance(value, Mapping):
                 raise ValueError(f"scene: a dict's keys must be strings, not {key!r}")
+            if isinstance(item, np.generic):
+                # A NumPy number, boolean or string, as the Python one it holds.
+                item = np.asarray(item).item()
             if isinstance(item, str):
-                chars += len(item)
+                # Its length counted before a string of another type is copied as a `str`.
+                chars += _counted(str.__len__(item), chars)
+                item = str.__str__(item)
             elif isinstance(item, np.ndarray):
                 # Written out as a list of its elements, each a value: counted before it is,
                 # as its shape may claim far more than it holds (`np.broadcast_to` of one
                 # number to 2^26 took 15 s and 3 GB to write out, then to be refused).
+                item = np.asarray(item)
                 values += item.size - 1
                 chars += _array_chars(item, _place(where, value, key), values)
             elif isinstance(item, (Mapping, list, tuple)):
-                pending.append((item, _place(where, value, key)))
-            elif isinstance(item, (int, np.integer)) and not isinstance(item, bool):
+                plain: Any = {} if isinstance(item, Mapping) else []
+                pending.append((item, _place(where, value, key), plain))
+                item = plain
+            elif isinstance(item, bool):
+                pass
+            elif isinstance(item, int):
+                item = int.__int__(item)
                 low, high = _SCENE_INT_RANGE
-                if not low <= int(item) <= high:
+                if not low <= item <= high:
                     raise ValueError(
-                        f"scene: {_shown(_place(where, value, key))} is {int(item)}, beyond "
+                        f"scene: {_shown(_place(where, value, key))} is {item}, beyond "
                         f"the whole numbers a scene file holds ({low} to {high})"
                     )
+            elif isinstance(item, float):
+                item = float.__float__(item)
+            if isinstance(into, dict):
+                into[key] = item
+            else:
+                into.append(item)
             values += 1
         if values > _MAX_SCENE_VALUES or chars > _MAX_SCENE_CHARS:
-            raise ValueError(
-                f"scene: more than {_MAX_SCENE_VALUES} values or {_MAX_SCENE_CHARS >> 20} MiB "
-                "of text written out, more than a scene file may hold"
-            )
+            _too_large()
+    return copy
+
+
+def _counted(n: int, chars: int) -> int:
+    """``n`` characters more, refused at once where they bring ``chars`` past the bound."""
+    if chars + n > _MAX_SCENE_CHARS:
+        _too_large()
+    return n
+
+
+def _too_large() -> None:
+    raise ValueError(
+        f"scene: more than {_MAX_SCENE_VALUES} values or {_MAX_SCENE_CHARS >> 20} MiB "
+        "of text written out, more than a scene file may hold"
+    )
 
 
 def _array_chars(array: np.ndarray, where: Any, values: int) -> int:
@@ -275,9 +309,9 @@ def _shown(place: Any) -> str:
 def _scene_input(scene: SceneLike) -> "tuple[str, str]":
     """What the native side is handed: ("file", path), ("toml", text) or ("json", dict)."""
     if isinstance(scene, Mapping):
-        _string_keys(scene)
+        plain = _checked_copy(scene)
         try:
-            text = json.dumps(scene, allow_nan=False, default=_json_value)
+            text = json.dumps(plain, allow_nan=False, default=_json_value)
         except ValueError as e:
             raise ValueError(f"scene: {e}") from None
         return ("json", text)

@@ -157,6 +157,39 @@ def test_a_dict_that_holds_itself_or_writes_out_too_large_is_refused(make, says)
     assert tessera.render(scene).width == 8
 
 
+def test_objects_that_say_other_than_they_hold_are_written_out_as_checked():
+    # A str whose __len__ says 0 passed the bound on text: 700 of 1 MiB were written out as
+    # JSON and TOML of 734 MB (6.7 s, 2.1 GB) before the bound on the TOML refused them.
+    # What is written out is now a copy of plain values, made as they are counted.
+    class Empty(str):
+        def __len__(self):
+            return 0
+
+    class One(int):
+        def __int__(self):
+            return 1
+
+        def __index__(self):
+            return 1
+
+    with pytest.raises(ValueError, match="64 MiB of text"):
+        tessera.render({"x": [Empty("x" * (1 << 20))] * 700})
+    with pytest.raises(ValueError, match=r"image\.width is 18446744073709551616, beyond"):
+        tessera.render({"image": {"width": One(2**64)}})
+    # What they hold is what is rendered.
+    scene = {
+        "image": {"width": 8, "height": 8, "samples_per_pixel": 1, "max_depth": 2},
+        "materials": {"a": {"type": "lambertian", "albedo": [0.5, 0.5, 0.5]}},
+        "spheres": [{"center": [0, 0, -1], "radius": 0.5, "material": "a"}],
+    }
+    lying = {
+        "image": {"width": One(8), "height": 8, "samples_per_pixel": 1, "max_depth": 2},
+        "materials": {Empty("a"): {"type": Empty("lambertian"), "albedo": [0.5, 0.5, 0.5]}},
+        "spheres": [{"center": [0, 0, -1], "radius": 0.5, "material": Empty("a")}],
+    }
+    assert tessera.render(lying).sums == tessera.render(scene).sums
+
+
 def test_a_long_key_above_many_dicts_is_not_written_out_for_each():
     # The key check kept each dict's place written out (`image.kkk…k[3]`) until it was
     # walked: 4,000 dicts under a key of a million characters once took 4 GB. Places are
