@@ -180,6 +180,8 @@ pub struct ImageHeader {
     pub display_changes: Vec<String>,
     /// An EXR file's sample type (PNG: `None`).
     pub samples: Option<SampleType>,
+    /// A PNG's zlib stream header (`PngHeader::zlib_header`; EXR: `None`).
+    pub zlib_header: Option<[u8; 2]>,
 }
 
 impl ImageHeader {
@@ -191,6 +193,7 @@ impl ImageHeader {
             recipe: h.recipe,
             display_changes: h.display_changes,
             samples: None,
+            zlib_header: h.zlib_header,
         }
     }
 }
@@ -255,6 +258,7 @@ fn header_of(
                 recipe: h.recipe,
                 display_changes: h.display_changes,
                 samples: h.samples,
+                zlib_header: None,
             })
         }
     }
@@ -324,6 +328,31 @@ pub fn read_pixels(path: &Path, header: &ImageHeader) -> Result<Pixels> {
     match header.format {
         Format::Ppm => Err(image_error(path, "is a PPM file")),
         Format::Png => {
+            // tessera's encoder begins the pixels' zlib stream with 0x78: deflate with a
+            // 32 KiB window, no preset dictionary. libpng (Firefox, GIMP) inflates with the
+            // window the stream declares, so one that reaches further back than a smaller
+            // window declared is a broken picture there, though this decoder, which takes
+            // no notice of the window, reads it whole.
+            match header.zlib_header {
+                Some([0x78, flags]) if flags & 0x20 == 0 => {}
+                Some([method, flags]) => {
+                    return Ok(Pixels::Other(format!(
+                        "a zlib stream declaring {}{}, which libpng decodes with what it \
+                         declares",
+                        if method & 0x0f == 8 && method >> 4 < 8 {
+                            format!("a window of {} bytes", 1u32 << ((method >> 4) + 8))
+                        } else {
+                            format!("the method 0x{method:02x}")
+                        },
+                        if flags & 0x20 != 0 {
+                            " and a preset dictionary"
+                        } else {
+                            ""
+                        }
+                    )));
+                }
+                None => return Ok(Pixels::Other("no IDAT chunk of two bytes or more".into())),
+            }
             let file = open_as_checked(path, header)?;
             let budget = count as usize * 8 + (1 << 24);
             let mut decoder = png::Decoder::new_with_limits(
@@ -331,6 +360,9 @@ pub fn read_pixels(path: &Path, header: &ImageHeader) -> Result<Pixels> {
                 png::Limits { bytes: budget },
             );
             decoder.set_ignore_text_chunk(true);
+            // The zlib stream's checksum too, which libpng and Python's zlib check: a stream
+            // whose checksum is wrong is a damaged file there.
+            decoder.ignore_checksums(false);
             let mut reader = decoder
                 .read_info()
                 .map_err(|e| image_error(path, format!("is not a readable PNG file: {e}")))?;

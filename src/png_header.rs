@@ -1,8 +1,8 @@
 //! A PNG file's header read as a stranger's: its chunks walked within bounds (at most
 //! `MAX_PNG_CHUNKS`, every length inside the file, one IHDR first, an IEND last) for its size,
 //! tessera's recipe (an iTXt chunk, inflated no further than a recipe may be; one in a tEXt
-//! or zTXt chunk is refused) and the chunks that change how a viewer shows it, the others
-//! skipped unread (a text chunk past its keyword). Below the scene, whose
+//! or zTXt chunk is refused), the chunks that change how a viewer shows it and the header of
+//! its pixels' zlib stream, the others skipped unread (a text chunk past its keyword). Below the scene, whose
 //! image textures are walked so before a decoder keeps their chunks, and the image files.
 
 use crate::metadata::{KEY, MAX_BYTES};
@@ -18,6 +18,9 @@ pub struct PngHeader {
     /// The chunks tessera does not write that change how a viewer shows the picture, each
     /// said in words.
     pub display_changes: Vec<String>,
+    /// The first two bytes of the pixels' zlib stream (of the first IDAT chunk of two bytes
+    /// or more): its method, the window it declares, whether it needs a preset dictionary.
+    pub zlib_header: Option<[u8; 2]>,
 }
 
 const PNG_SIGNATURE: [u8; 8] = [0x89, b'P', b'N', b'G', 0x0d, 0x0a, 0x1a, 0x0a];
@@ -63,6 +66,7 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
     }
     let (mut at, mut size, mut found) = (8u64, None, None);
     let mut display_changes = Vec::new();
+    let mut zlib_header = None;
     // Skips `n` bytes, within the buffer where it can.
     let skip =
         |r: &mut std::io::BufReader<R>, n: i64| r.seek_relative(n).map_err(|e| e.to_string());
@@ -165,6 +169,12 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
                 }
                 skip(&mut r, length as i64 - n as i64 + 4)?;
             }
+            b"IDAT" if zlib_header.is_none() && length >= 2 => {
+                let mut two = [0u8; 2];
+                r.read_exact(&mut two).map_err(|e| e.to_string())?;
+                zlib_header = Some(two);
+                skip(&mut r, length as i64 - 2 + 4)?;
+            }
             b"IEND" => break,
             _ => skip(&mut r, length as i64 + 4)?,
         }
@@ -176,6 +186,7 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
         height,
         recipe: found,
         display_changes,
+        zlib_header,
     })
 }
 

@@ -563,6 +563,51 @@ fn a_png_of_a_million_chunks_is_refused_within_bounds() {
     }
 }
 
+/// `png` with its one IDAT chunk's zlib stream made `change(stream)`.
+fn png_with_stream(png: &[u8], change: impl Fn(&mut Vec<u8>)) -> Vec<u8> {
+    let mut at = 8;
+    loop {
+        let length = u32::from_be_bytes(png[at..at + 4].try_into().unwrap()) as usize;
+        if &png[at + 4..at + 8] == b"IDAT" {
+            let mut stream = png[at + 8..at + 8 + length].to_vec();
+            change(&mut stream);
+            let chunk = png_chunk(b"IDAT", &stream);
+            return [&png[..at], &chunk[..], &png[at + 12 + length..]].concat();
+        }
+        at += 12 + length;
+    }
+}
+
+/// The pixels' zlib stream as libpng (Firefox, GIMP) reads it: with the window its header
+/// declares, and its checksum checked. A stream declaring a window of 256 bytes that reaches
+/// 32 KiB back, or one whose checksum is wrong, is a broken picture there; the PNG decoder
+/// tessera uses takes no notice of either, and both were called `identical`.
+#[test]
+fn a_png_whose_zlib_stream_libpng_refuses_is_not_identical() {
+    let dir = temp_dir("hostile-png-zlib");
+    let png = std::fs::read(rendered(&dir, "a.png")).unwrap();
+    assert_eq!(
+        run(&["reproduce", "a.png", "-q"], &dir).status.code(),
+        Some(0)
+    );
+    // The window of 256 bytes (its check bits made right again), or a preset dictionary.
+    let small_window = png_with_stream(&png, |s| {
+        s[0] = 0x08;
+        s[1] = (s[1] & 0xe0) + (31 - (0x0800 + u16::from(s[1] & 0xe0)) % 31) as u8 % 31;
+    });
+    std::fs::write(dir.join("window.png"), small_window).unwrap();
+    let o = run(&["reproduce", "window.png", "-q"], &dir);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("a zlib stream declaring a window of 256 bytes"),
+        "{}",
+        stdout(&o)
+    );
+    let checksum = png_with_stream(&png, |s| *s.last_mut().unwrap() ^= 1);
+    std::fs::write(dir.join("checksum.png"), checksum).unwrap();
+    let o = run(&["reproduce", "checksum.png", "-q"], &dir);
+    refused(&o, "has pixels that do not decode", "checksum");
+}
 // --- recipes ----------------------------------------------------------------------------------
 
 /// The recipe JSON of the image at `path`.
