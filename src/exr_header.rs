@@ -2,7 +2,8 @@
 //! before any EXR library sees the file: one part only, no deep data, red, green and blue
 //! channels only, a bounded number of attributes of bounded size, every size checked against
 //! the file's length before it is read. It gives the image's size, the recipe's text and the
-//! attributes that change how a viewer shows the picture.
+//! attributes that change how a viewer shows the picture, or that OpenEXR requires and it
+//! lacks.
 
 use crate::metadata as recipe;
 use std::io::Read;
@@ -64,6 +65,30 @@ const DISPLAY_ATTRIBUTES: [(&str, &str); 8] = [
         "a preview image, which file browsers show as its thumbnail",
     ),
 ];
+
+/// Attributes OpenEXR requires of every header, with their types, that the `exr` crate reads
+/// a file without (taking defaults of its own): the OpenEXR library refuses such a file, so
+/// every viewer built on it shows nothing where tessera decodes a picture.
+const REQUIRED: [(&str, &str); 4] = [
+    ("lineOrder", "lineOrder"),
+    ("pixelAspectRatio", "float"),
+    ("screenWindowCenter", "v2f"),
+    ("screenWindowWidth", "float"),
+];
+
+/// What is said of each attribute of `REQUIRED` missing from `attributes` (the names and
+/// types of a header's attributes), as a change in how a viewer shows the picture.
+fn lacking(attributes: &[(String, String)]) -> impl Iterator<Item = String> + '_ {
+    REQUIRED
+        .iter()
+        .filter(|(name, kind)| !attributes.iter().any(|(n, k)| n == name && k == kind))
+        .map(|(name, kind)| {
+            format!(
+                "no attribute {name} of type {kind}, which OpenEXR requires: viewers built on \
+                 it refuse the file"
+            )
+        })
+}
 
 /// Reads a bounded amount, saying what was being read when the file ends early.
 struct Bounded<R> {
@@ -179,11 +204,13 @@ pub fn check_bounds<R: Read>(r: R, len: u64) -> Result<(), String> {
 /// `check_bounds`, and what the header holds that changes how a viewer shows the picture
 /// (`ExrHeader::display_changes`), whatever its channels: for `compare`.
 pub fn display_changes<R: Read>(r: R, len: u64) -> Result<Vec<String>, String> {
-    let mut changes = Vec::new();
+    let (mut changes, mut attributes) = (Vec::new(), Vec::new());
     walk(r, len, &mut |name, kind, value| {
+        attributes.push((name.to_owned(), kind.to_owned()));
         changes.extend(display_change(name, kind, &value)?);
         Ok(())
     })?;
+    changes.extend(lacking(&attributes));
     Ok(changes)
 }
 
@@ -294,8 +321,9 @@ fn walk<R: Read>(r: R, len: u64, visit: &mut Visit<'_>) -> Result<(), String> {
 /// Reads the header of the `len`-byte EXR file `r` is at the start of.
 pub fn read<R: Read>(r: R, len: u64) -> Result<ExrHeader, String> {
     let (mut data, mut display, mut list, mut recipe) = (None, None, None, None);
-    let mut display_changes = Vec::new();
+    let (mut display_changes, mut attributes) = (Vec::new(), Vec::new());
     walk(r, len, &mut |name, kind, value| {
+        attributes.push((name.to_owned(), kind.to_owned()));
         match (name, kind) {
             ("dataWindow", "box2i") => data = Some(box2i(&value, "dataWindow")?),
             ("displayWindow", "box2i") => display = Some(box2i(&value, "displayWindow")?),
@@ -330,6 +358,7 @@ pub fn read<R: Read>(r: R, len: u64) -> Result<ExrHeader, String> {
         }
         Ok(())
     })?;
+    display_changes.extend(lacking(&attributes));
     let data = data.ok_or("has no dataWindow attribute")?;
     let list = list.ok_or("has no channels attribute")?;
     let names: Vec<&str> = list.iter().map(|(n, _)| n.as_str()).collect();

@@ -299,6 +299,43 @@ fn an_exr_whose_attributes_change_its_display_differs() {
     }
 }
 
+/// An EXR without an attribute OpenEXR requires of every header (here renamed, its first
+/// letter's case changed): the OpenEXR library refuses it, so every viewer built on it shows
+/// nothing, but the `exr` crate reads it with defaults of its own, and it was `identical`.
+#[test]
+fn an_exr_lacking_an_attribute_openexr_requires_differs() {
+    let dir = temp_dir("hostile-exr-required");
+    let exr = std::fs::read(rendered(&dir, "a.exr")).unwrap();
+    for name in [
+        "lineOrder",
+        "pixelAspectRatio",
+        "screenWindowCenter",
+        "screenWindowWidth",
+    ] {
+        let (attributes, _) = exr_walk(&exr);
+        let found = attributes.iter().find(|a| a.0 == name.as_bytes()).unwrap();
+        let start = found.0.as_ptr() as usize - exr.as_ptr() as usize;
+        let mut renamed = exr.clone();
+        renamed[start] ^= 0x20;
+        let file = format!("no-{name}.exr");
+        std::fs::write(dir.join(&file), &renamed).unwrap();
+        let why = format!("no attribute {name} of type");
+        let o = run(&["reproduce", &file, "-q"], &dir);
+        assert_eq!(o.status.code(), Some(1), "{name}: {}", stderr(&o));
+        let said = stdout(&o);
+        assert!(
+            said.starts_with("differs:") && said.contains(&why),
+            "{name}: {said}"
+        );
+        let o = run(&["compare", &file, "a.exr"], &dir);
+        let said = stdout(&o);
+        assert!(
+            !said.contains("identical") && said.contains(&why),
+            "{name}: {said}"
+        );
+    }
+}
+
 // --- PNG ------------------------------------------------------------------------------------
 
 /// A PNG chunk's bytes.
