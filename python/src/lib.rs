@@ -632,7 +632,8 @@ fn reproduce<'py>(
 }
 
 /// Measures `workload` ("quick", "cover", "cornell", "next-week") as `tessera bench` does,
-/// without recording it, and returns the result as JSON of the `tessera-bench` schema.
+/// without recording it, and returns the result as JSON of the `tessera-bench` schema;
+/// Ctrl-C stops it (KeyboardInterrupt).
 #[pyfunction(name = "bench")]
 #[pyo3(signature = (workload, *, threads=None, scaling=false, repeat=3, warmup=1, simd=None))]
 fn bench_workload(
@@ -662,9 +663,12 @@ fn bench_workload(
         simd: path,
         simd_chosen: chosen,
     };
-    let result = py
-        .detach(|| measure::measure(&plan))
-        .map_err(|e| TesseraError::new_err(format!("could not start the thread pool: {e}")))?;
+    // Ctrl-C stops it as it stops any render: each of its renders looks between rays.
+    let result = interruptible(py, |stop| match measure::measure_unless(&plan, stop) {
+        Ok(Some(result)) => Ok(result),
+        Ok(None) => Err(Failed::Interrupted),
+        Err(e) => Err(Failed::Pool(e.to_string())),
+    })?;
     serde_json::to_string(&result)
         .map_err(|e| TesseraError::new_err(format!("could not write the result: {e}")))
 }

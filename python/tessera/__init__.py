@@ -447,7 +447,7 @@ def bench(
     workload: "quick", "cover", "cornell" or "next-week".
     threads: of the headline result (default: every CPU). scaling: also measure 1, 2, 4, …
     threads. repeat: measured renders per thread count (the median is reported). warmup:
-    renders before measuring.
+    renders before measuring. Ctrl-C stops it and raises KeyboardInterrupt.
     """
     if not isinstance(workload, str):
         raise ValueError(f"workload must be a workload's name, not {workload!r}")

@@ -8,6 +8,7 @@ use crate::record::result::{BenchResult, Method, Row, SCHEMA, Spread, Validation
 use crate::record::workload::{Workload, hash_text};
 use crate::render::{self, RenderOptions, RenderStats};
 use std::collections::BTreeSet;
+use std::sync::atomic::AtomicBool;
 
 /// What to measure.
 pub struct Plan {
@@ -37,6 +38,17 @@ pub fn scaling_counts(cpus: usize) -> Vec<usize> {
 /// Renders `plan`'s workload as it says and makes the result; `Err` only when a thread pool
 /// cannot be started. An image that is not the workload's makes the result `invalid`.
 pub fn measure(plan: &Plan) -> Result<BenchResult, rayon::ThreadPoolBuildError> {
+    let stop = AtomicBool::new(false);
+    let done = measure_unless(plan, &stop)?;
+    Ok(done.expect("a measurement nothing stops is finished"))
+}
+
+/// `measure`, given up (`None`) soon after `stop` is set: each render looks at it between
+/// rays, as every render does (the Python package's Ctrl-C).
+pub fn measure_unless(
+    plan: &Plan,
+    stop: &AtomicBool,
+) -> Result<Option<BenchResult>, rayon::ThreadPoolBuildError> {
     let started_unix_s = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.as_secs());
@@ -44,18 +56,22 @@ pub fn measure(plan: &Plan) -> Result<BenchResult, rayon::ThreadPoolBuildError> 
     let host = Host::this();
     let cpu_times_at_start = CpuTimes::now();
     let mut images = BTreeSet::new();
-    let mut render = |threads: usize| -> Result<RenderStats, rayon::ThreadPoolBuildError> {
+    let mut render = |threads: usize| -> Result<Option<RenderStats>, rayon::ThreadPoolBuildError> {
         let options = RenderOptions {
             threads: Some(threads),
             tile: render::DEFAULT_TILE,
             simd: plan.simd,
         };
-        let (film, stats) = render::render(&plan.workload.scene, &options, &|_| {})?;
-        images.insert(hash_text(film.content_hash()));
-        Ok(stats)
+        let done = render::render_unless(&plan.workload.scene, &options, &|_| {}, stop)?;
+        Ok(done.map(|(film, stats)| {
+            images.insert(hash_text(film.content_hash()));
+            stats
+        }))
     };
     for _ in 0..plan.warmup {
-        render(plan.threads)?;
+        if render(plan.threads)?.is_none() {
+            return Ok(None);
+        }
     }
     let mut counts: Vec<usize> = plan.scaling.clone();
     counts.push(plan.threads);
@@ -63,9 +79,13 @@ pub fn measure(plan: &Plan) -> Result<BenchResult, rayon::ThreadPoolBuildError> 
     counts.dedup();
     let mut rows = Vec::new();
     for &threads in &counts {
-        let runs = (0..plan.repeat)
-            .map(|_| render(threads))
-            .collect::<Result<Vec<_>, _>>()?;
+        let mut runs = Vec::new();
+        for _ in 0..plan.repeat {
+            let Some(stats) = render(threads)? else {
+                return Ok(None);
+            };
+            runs.push(stats);
+        }
         rows.push(row(threads, &runs));
     }
     let base = rows
@@ -83,7 +103,7 @@ pub fn measure(plan: &Plan) -> Result<BenchResult, rayon::ThreadPoolBuildError> 
     let result = (rows.iter().find(|r| r.threads == plan.threads))
         .cloned()
         .unwrap_or_else(|| row(plan.threads, &[]));
-    Ok(BenchResult {
+    Ok(Some(BenchResult {
         schema: SCHEMA.into(),
         build: Build::this(plan.simd, plan.simd_chosen),
         host,
@@ -107,7 +127,7 @@ pub fn measure(plan: &Plan) -> Result<BenchResult, rayon::ThreadPoolBuildError> 
         scaling: rows,
         validation,
         busy: Some(busy),
-    })
+    }))
 }
 
 /// The measurement of `runs` at `threads`.
