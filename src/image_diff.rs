@@ -76,7 +76,8 @@ impl RgbImage {
     /// how a viewer shows the picture: a PNG's chunks and an EXR's attributes (walked by
     /// `decoder`), an alpha channel in any format (the values measured are the colour
     /// channels only, so a transparent image and an opaque one of the same colours would
-    /// otherwise be identical), and a JPEG's EXIF orientation and colour profile.
+    /// otherwise be identical), and a JPEG's EXIF orientation and colour profile (and more
+    /// than one EXIF segment).
     fn opened(path: &Path) -> Result<(impl image::ImageDecoder, Vec<String>)> {
         use image::ImageDecoder;
         let (mut decoder, mut display_changes, format) = Self::decoder(path)?;
@@ -153,13 +154,15 @@ impl RgbImage {
         if let Some(
             format @ (image::ImageFormat::OpenExr
             | image::ImageFormat::Png
-            | image::ImageFormat::Pnm),
+            | image::ImageFormat::Pnm
+            | image::ImageFormat::Jpeg),
         ) = reader.format()
         {
             // The `exr` crate keeps every attribute of a header, the PNG decoder every text
             // chunk, whatever their count, and the PNM decoder every line of a PAM header,
             // whatever its length: the chunks, attributes or lines are walked within bounds
-            // first, and the file read again from its start.
+            // first, and the file read again from its start. A JPEG's segments are walked
+            // for the EXIF ones, which its decoder reads otherwise than viewers do.
             let mut file = reader.into_inner();
             let walked = match format {
                 image::ImageFormat::Png => {
@@ -168,6 +171,7 @@ impl RgbImage {
                 image::ImageFormat::Pnm => {
                     crate::pnm_header::check_bounds(&mut file).map(|()| Vec::new())
                 }
+                image::ImageFormat::Jpeg => Ok(jpeg_display_changes(&mut file)),
                 _ => crate::exr_header::display_changes(&mut file, len),
             };
             display_changes = walked.map_err(fail)?;
@@ -202,6 +206,67 @@ impl RgbImage {
             data: bytes.iter().map(|&b| f32::from(b) / 255.0).collect(),
         }
     }
+}
+
+/// The most segments of a JPEG walked for its EXIF ones: the book's earth map has a dozen.
+const MAX_JPEG_SEGMENTS: usize = 1 << 16;
+
+/// What a JPEG's segments before its pixels hold that viewers read otherwise than its
+/// decoder: more than one EXIF segment (APP1), of which browsers (Firefox, Chrome) read the
+/// first and the decoder the last, so that a first one saying "turned" and a last one
+/// saying "upright" show a picture turned, whose values are measured upright. A file that
+/// is not a JPEG as far as its pixels is its decoder's to refuse.
+fn jpeg_display_changes<R: std::io::Read + Seek>(r: &mut std::io::BufReader<R>) -> Vec<String> {
+    let exif = jpeg_exif_segments(r).unwrap_or(0);
+    if exif < 2 {
+        return Vec::new();
+    }
+    vec![format!(
+        "{exif} EXIF segments (APP1), each of which can turn or flip the picture: viewers \
+         read the first, the decoder measured the last"
+    )]
+}
+
+/// The EXIF segments of the JPEG `r` is at the start of, counted up to its first scan (or
+/// its first `MAX_JPEG_SEGMENTS` segments), each skipped past its first six bytes.
+fn jpeg_exif_segments<R: std::io::Read + Seek>(
+    r: &mut std::io::BufReader<R>,
+) -> std::io::Result<usize> {
+    use std::io::Read;
+    let mut two = [0u8; 2];
+    r.read_exact(&mut two)?;
+    if two != [0xff, 0xd8] {
+        return Ok(0);
+    }
+    let mut exif = 0;
+    for _ in 0..MAX_JPEG_SEGMENTS {
+        let mut byte = [0u8; 1];
+        r.read_exact(&mut byte)?;
+        if byte[0] != 0xff {
+            break;
+        }
+        // Fill bytes, then the marker.
+        while byte[0] == 0xff {
+            r.read_exact(&mut byte)?;
+        }
+        match byte[0] {
+            // Markers without a length: restarts and TEM.
+            0xd0..=0xd7 | 0x01 => continue,
+            // The first scan (the pixels), or what no segment begins with.
+            0xda | 0xd8 | 0xd9 | 0x00 => break,
+            _ => {}
+        }
+        r.read_exact(&mut two)?;
+        let mut rest = i64::from(u16::from_be_bytes(two)) - 2;
+        if byte[0] == 0xe1 && rest >= 6 {
+            let mut head = [0u8; 6];
+            r.read_exact(&mut head)?;
+            rest -= 6;
+            exif += usize::from(&head == b"Exif\0\0");
+        }
+        r.seek_relative(rest.max(0))?;
+    }
+    Ok(exif)
 }
 
 /// What a decoder's failure says of the file: a file that ends within its pixels says so
@@ -450,6 +515,32 @@ mod tests {
             "{changes:?}"
         );
         assert!(listed("jpeg", ("a.jpg", jpeg), ("b.jpg", jpeg)).is_empty());
+    }
+
+    /// Browsers read a JPEG's first EXIF segment, its decoder the last: a first one saying
+    /// "turned" before a last one saying "upright" showed a turned picture that compare
+    /// called `inf dB (identical)` to the upright one.
+    #[test]
+    fn a_jpeg_of_two_exif_segments_is_listed() {
+        let jpeg = include_bytes!("../scenes/earthmap.jpg");
+        // A big-endian TIFF header, one IFD entry: Orientation (0x0112), SHORT, `turn`.
+        let exif = |turn: u8| {
+            let segment = [
+                &b"Exif\0\0MM\0*\0\0\0\x08\0\x01"[..],
+                &[0x01, 0x12, 0, 3, 0, 0, 0, 1, 0, turn, 0, 0, 0, 0, 0, 0],
+            ]
+            .concat();
+            let length = u16::try_from(segment.len() + 2).unwrap().to_be_bytes();
+            [&[0xff, 0xe1][..], &length, &segment].concat()
+        };
+        let twice = [&jpeg[..2], &exif(6), &exif(1), &jpeg[2..]].concat();
+        let changes = listed("jpeg-two-exif", ("a.jpg", jpeg), ("b.jpg", &twice));
+        assert!(
+            changes.len() == 1 && changes[0].contains("2 EXIF segments"),
+            "{changes:?}"
+        );
+        let once = [&jpeg[..2], &exif(1), &jpeg[2..]].concat();
+        assert!(listed("jpeg-one-exif", ("a.jpg", jpeg), ("b.jpg", &once)).is_empty());
     }
 
     #[test]
