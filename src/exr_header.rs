@@ -3,7 +3,8 @@
 //! channels only, a bounded number of attributes of bounded size, every size checked against
 //! the file's length before it is read. It gives the image's size, the recipe's text and the
 //! attributes that change how a viewer shows the picture, or that OpenEXR requires and it
-//! lacks.
+//! lacks; and where its chunks lie, for a check that its offset table points each entry to
+//! its own chunk, as OpenEXR requires.
 
 use crate::metadata as recipe;
 use std::io::Read;
@@ -47,6 +48,8 @@ pub struct ExrHeader {
     /// What the header holds that tessera does not write and that changes how a viewer
     /// shows the picture, each said in words.
     pub display_changes: Vec<String>,
+    /// Where its chunks lie.
+    pub layout: ExrLayout,
 }
 
 /// Attributes that change what a viewer shows, and how.
@@ -198,7 +201,7 @@ fn channels(value: &[u8]) -> Result<Vec<(String, SampleType)>, String> {
 /// EXR another program may have made (an image texture, an image to compare), which the
 /// `exr` crate then reads, keeping every attribute without a bound of its own.
 pub fn check_bounds<R: Read>(r: R, len: u64) -> Result<(), String> {
-    walk(r, len, &mut |_, _, _| Ok(()))
+    walk(r, len, &mut |_, _, _| Ok(())).map(drop)
 }
 
 /// `check_bounds`, and what the header holds that changes how a viewer shows the picture
@@ -238,8 +241,8 @@ fn display_change(name: &str, kind: &str, value: &[u8]) -> Result<Option<String>
 type Visit<'a> = dyn FnMut(&str, &str, Vec<u8>) -> Result<(), String> + 'a;
 
 /// Walks the header of the `len`-byte EXR file `r` is at the start of, within the bounds,
-/// handing `visit` each attribute's name, type and value.
-fn walk<R: Read>(r: R, len: u64, visit: &mut Visit<'_>) -> Result<(), String> {
+/// handing `visit` each attribute's name, type and value; gives the header's length.
+fn walk<R: Read>(r: R, len: u64, visit: &mut Visit<'_>) -> Result<u64, String> {
     let mut r = Bounded {
         inner: r,
         left: len,
@@ -282,7 +285,7 @@ fn walk<R: Read>(r: R, len: u64, visit: &mut Visit<'_>) -> Result<(), String> {
                     if tiled { "tiles" } else { "scan lines" }
                 ));
             }
-            return Ok(());
+            return Ok(r.read);
         }
         if seen.len() == MAX_ATTRIBUTES {
             return Err(format!(
@@ -322,9 +325,11 @@ fn walk<R: Read>(r: R, len: u64, visit: &mut Visit<'_>) -> Result<(), String> {
 pub fn read<R: Read>(r: R, len: u64) -> Result<ExrHeader, String> {
     let (mut data, mut display, mut list, mut recipe) = (None, None, None, None);
     let (mut display_changes, mut attributes) = (Vec::new(), Vec::new());
-    walk(r, len, &mut |name, kind, value| {
+    let (mut tiles, mut compression) = (None, None);
+    let header_len = walk(r, len, &mut |name, kind, value| {
         attributes.push((name.to_owned(), kind.to_owned()));
         match (name, kind) {
+            ("compression", "compression") => compression = value.first().copied(),
             ("dataWindow", "box2i") => data = Some(box2i(&value, "dataWindow")?),
             ("displayWindow", "box2i") => display = Some(box2i(&value, "displayWindow")?),
             ("channels", "chlist") => list = Some(channels(&value)?),
@@ -338,6 +343,8 @@ pub fn read<R: Read>(r: R, len: u64) -> Result<ExrHeader, String> {
                         "holds mipmap or ripmap levels, which tessera does not write".to_owned(),
                     );
                 }
+                let size = |at: usize| u32::from_le_bytes([0, 1, 2, 3].map(|i| value[at + i]));
+                tiles = Some((size(0), size(4)));
             }
             (key, "string") if key == recipe::KEY => {
                 recipe = Some(
@@ -392,5 +399,117 @@ pub fn read<R: Read>(r: R, len: u64) -> Result<ExrHeader, String> {
         samples,
         recipe,
         display_changes,
+        layout: ExrLayout {
+            header_len,
+            tiles,
+            compression,
+            top: data[1],
+        },
     })
+}
+
+/// Where an EXR file's chunks lie: what its offset table, which follows the header, must
+/// say of them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ExrLayout {
+    /// The header's length in bytes: where the offset table begins.
+    pub header_len: u64,
+    /// The width and height of a tile, in a tiled file.
+    pub tiles: Option<(u32, u32)>,
+    /// The compression (as EXR numbers it), which sets the scan lines of a chunk.
+    pub compression: Option<u8>,
+    /// The data window's first row.
+    pub top: i32,
+}
+
+/// The most chunks whose places are checked: one a pixel of the largest image tessera
+/// makes would be far more than any layout it writes (64x64 tiles).
+const MAX_CHUNKS: u64 = 1 << 22;
+
+/// Whether an offset table entry of the `width` x `height` EXR file `r` (`layout`) points
+/// to a chunk that says it is another's, said in words: OpenEXR reads each tile or block of
+/// scan lines at its entry and refuses a chunk of other coordinates (every viewer built on
+/// it shows nothing), where the `exr` crate places each chunk where the chunk itself says,
+/// so that a table of two entries swapped reads as the picture. None when each chunk is
+/// where its entry says, or the table is not one to check (a layout or compression tessera
+/// does not know, an entry past the file's end): the decoder is then the judge.
+pub fn misplaced_chunk<R: Read + std::io::Seek>(
+    mut r: R,
+    width: u32,
+    height: u32,
+    layout: &ExrLayout,
+) -> std::io::Result<Option<String>> {
+    use std::io::SeekFrom;
+    // Chunks across and down, and the scan lines of a chunk of a file of scan lines: none,
+    // RLE and ZIPS one; ZIP and PXR24 16; PIZ, B44, B44A and DWAA 32; DWAB 256.
+    let (columns, rows, lines) = match layout.tiles {
+        Some((0, _) | (_, 0)) => return Ok(None),
+        Some((w, h)) => (width.div_ceil(w), height.div_ceil(h), 0),
+        None => {
+            let lines = match layout.compression {
+                Some(0..=2) => 1,
+                Some(3 | 5) => 16,
+                Some(4 | 6..=8) => 32,
+                Some(9) => 256,
+                _ => return Ok(None),
+            };
+            (1, height.div_ceil(lines), lines)
+        }
+    };
+    let count = u64::from(columns) * u64::from(rows);
+    if count > MAX_CHUNKS {
+        return Ok(None);
+    }
+    r.seek(SeekFrom::Start(layout.header_len))?;
+    let mut table = std::io::BufReader::new(&mut r);
+    let mut offsets = Vec::with_capacity(count as usize);
+    for _ in 0..count {
+        let mut entry = [0u8; 8];
+        if table.read_exact(&mut entry).is_err() {
+            return Ok(None);
+        }
+        offsets.push(u64::from_le_bytes(entry));
+    }
+    drop(table);
+    for (i, &offset) in (0u32..).zip(&offsets) {
+        let (column, row) = (i % columns, i / columns);
+        let mut said = [0u8; 16];
+        let n = if layout.tiles.is_some() { 16 } else { 4 };
+        r.seek(SeekFrom::Start(offset))?;
+        if r.read_exact(&mut said[..n]).is_err() {
+            return Ok(None);
+        }
+        let at = |k: usize| i32::from_le_bytes([0, 1, 2, 3].map(|b| said[4 * k + b]));
+        let wrong = match layout.tiles {
+            Some(_) => {
+                let expected = [i64::from(column), i64::from(row), 0, 0];
+                ([0, 1, 2, 3].map(|k| i64::from(at(k))) != expected).then(|| {
+                    format!(
+                        "entry {i} of its offset table, for tile ({column}, {row}), points to \
+                         the chunk of tile ({}, {}) at level ({}, {})",
+                        at(0),
+                        at(1),
+                        at(2),
+                        at(3)
+                    )
+                })
+            }
+            None => {
+                let expected = i64::from(layout.top) + i64::from(row) * i64::from(lines);
+                (i64::from(at(0)) != expected).then(|| {
+                    format!(
+                        "entry {i} of its offset table, for the scan lines from {expected}, \
+                         points to the chunk of those from {}",
+                        at(0)
+                    )
+                })
+            }
+        };
+        if let Some(wrong) = wrong {
+            return Ok(Some(format!(
+                "{wrong}: OpenEXR, and every viewer built on it, refuses such a file"
+            )));
+        }
+    }
+    Ok(None)
 }

@@ -182,6 +182,8 @@ pub struct ImageHeader {
     pub samples: Option<SampleType>,
     /// A PNG's zlib stream header (`PngHeader::zlib_header`; EXR: `None`).
     pub zlib_header: Option<[u8; 2]>,
+    /// Where an EXR's chunks lie (PNG: `None`).
+    pub exr_layout: Option<exr_header::ExrLayout>,
 }
 
 impl ImageHeader {
@@ -194,6 +196,7 @@ impl ImageHeader {
             display_changes: h.display_changes,
             samples: None,
             zlib_header: h.zlib_header,
+            exr_layout: None,
         }
     }
 }
@@ -259,6 +262,7 @@ fn header_of(
                 display_changes: h.display_changes,
                 samples: h.samples,
                 zlib_header: None,
+                exr_layout: Some(h.layout),
             })
         }
     }
@@ -391,7 +395,20 @@ pub fn read_pixels(path: &Path, header: &ImageHeader) -> Result<Pixels> {
                     .map_or("mixed".to_owned(), |s| format!("{s:?}"));
                 return Ok(Pixels::Other(format!("{} samples", samples.to_lowercase())));
             }
-            let file = open_as_checked(path, header)?;
+            let mut file = open_as_checked(path, header)?;
+            let io = |cause| crate::error::Error::Io {
+                path: path.to_owned(),
+                cause,
+            };
+            if let Some(layout) = &header.exr_layout {
+                let misplaced =
+                    exr_header::misplaced_chunk(&mut file, header.width, header.height, layout)
+                        .map_err(io)?;
+                if let Some(why) = misplaced {
+                    return Ok(Pixels::Other(why));
+                }
+                file.seek(SeekFrom::Start(0)).map_err(io)?;
+            }
             let width = header.width as usize;
             let image = read()
                 .no_deep_data()

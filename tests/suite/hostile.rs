@@ -336,6 +336,40 @@ fn an_exr_lacking_an_attribute_openexr_requires_differs() {
     }
 }
 
+/// OpenEXR reads each tile at its offset table's entry and refuses a chunk there that says
+/// it is another tile's; the `exr` crate puts each chunk where the chunk itself says. A
+/// table of two entries swapped was `identical`, though no viewer built on OpenEXR shows it.
+#[test]
+fn an_exr_whose_offset_table_points_to_other_tiles_differs() {
+    let dir = temp_dir("hostile-exr-offsets");
+    let scene = scene_path("img-1.12-metal-fuzz.toml");
+    let args = ["--width", "80", "--spp", "1", "-q", "-o", "a.exr"];
+    ok(
+        &[&["render", scene.to_str().unwrap()][..], &args].concat(),
+        &dir,
+    );
+    assert_eq!(
+        run(&["reproduce", "a.exr", "-q"], &dir).status.code(),
+        Some(0)
+    );
+    let exr = std::fs::read(dir.join("a.exr")).unwrap();
+    // Two tiles of 64x64 across: entries 0 and 1 swapped.
+    let table = exr_header_end(&exr);
+    let mut swapped = exr.clone();
+    swapped[table..table + 8].copy_from_slice(&exr[table + 8..table + 16]);
+    swapped[table + 8..table + 16].copy_from_slice(&exr[table..table + 8]);
+    std::fs::write(dir.join("swapped.exr"), swapped).unwrap();
+    let o = run(&["reproduce", "swapped.exr", "-q"], &dir);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let said = stdout(&o);
+    assert!(
+        said.contains(
+            "entry 0 of its offset table, for tile (0, 0), points to the chunk of tile (1, 0)"
+        ),
+        "{said}"
+    );
+}
+
 // --- PNG ------------------------------------------------------------------------------------
 
 /// A PNG chunk's bytes.
