@@ -355,7 +355,11 @@ pub fn read_pixels(path: &Path, header: &ImageHeader) -> Result<Pixels> {
                         }
                     )));
                 }
-                None => return Ok(Pixels::Other("no IDAT chunk of two bytes or more".into())),
+                None => {
+                    return Ok(Pixels::Other(
+                        "a zlib stream whose header is not in its first IDAT chunk".into(),
+                    ));
+                }
             }
             let file = open_as_checked(path, header)?;
             let budget = count as usize * 8 + (1 << 24);

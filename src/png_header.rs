@@ -18,8 +18,9 @@ pub struct PngHeader {
     /// The chunks tessera does not write that change how a viewer shows the picture, each
     /// said in words.
     pub display_changes: Vec<String>,
-    /// The first two bytes of the pixels' zlib stream (of the first IDAT chunk of two bytes
-    /// or more): its method, the window it declares, whether it needs a preset dictionary.
+    /// The first two bytes of the pixels' zlib stream, where the first IDAT chunk holds
+    /// both (tessera's always does): its method, the window it declares, whether it needs a
+    /// preset dictionary.
     pub zlib_header: Option<[u8; 2]>,
 }
 
@@ -66,7 +67,7 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
     }
     let (mut at, mut size, mut found) = (8u64, None, None);
     let mut display_changes = Vec::new();
-    let mut zlib_header = None;
+    let (mut zlib_header, mut idat_seen) = (None, false);
     // Skips `n` bytes, within the buffer where it can.
     let skip =
         |r: &mut std::io::BufReader<R>, n: i64| r.seek_relative(n).map_err(|e| e.to_string());
@@ -169,11 +170,18 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
                 }
                 skip(&mut r, length as i64 - n as i64 + 4)?;
             }
-            b"IDAT" if zlib_header.is_none() && length >= 2 => {
+            // Only the first: a stream whose header is split over chunks has none taken,
+            // rather than two bytes of its middle taken for it.
+            b"IDAT" if !idat_seen && length >= 2 => {
+                idat_seen = true;
                 let mut two = [0u8; 2];
                 r.read_exact(&mut two).map_err(|e| e.to_string())?;
                 zlib_header = Some(two);
                 skip(&mut r, length as i64 - 2 + 4)?;
+            }
+            b"IDAT" => {
+                idat_seen = true;
+                skip(&mut r, length as i64 + 4)?;
             }
             b"IEND" => break,
             _ => skip(&mut r, length as i64 + 4)?,
@@ -369,5 +377,28 @@ mod tests {
                 assert!(read(Cursor::new(&png), png.len() as u64).is_ok());
             }
         }
+    }
+
+    /// The zlib stream's header is taken from the first IDAT chunk only: where that chunk
+    /// holds less than both bytes, none is taken (two bytes of the stream's middle, in the
+    /// next chunk, once stood for it).
+    #[test]
+    fn the_zlib_header_is_the_first_idat_chunk_s_start() {
+        let ihdr = chunk(b"IHDR", &[0, 0, 0, 4, 0, 0, 0, 2, 8, 2, 0, 0, 0]);
+        let end = chunk(b"IEND", &[]);
+        let header_of = |idats: &[&[u8]]| {
+            let mut png = [&PNG_SIGNATURE[..], &ihdr].concat();
+            for data in idats {
+                png.extend(chunk(b"IDAT", data));
+            }
+            png.extend(&end);
+            read(Cursor::new(&png), png.len() as u64)
+                .unwrap()
+                .zlib_header
+        };
+        assert_eq!(header_of(&[&[0x78, 0x9c, 1], &[2, 3]]), Some([0x78, 0x9c]));
+        assert_eq!(header_of(&[&[0x08], &[0x78, 0x9c, 1]]), None);
+        assert_eq!(header_of(&[&[], &[0x78, 0x9c, 1]]), None);
+        assert_eq!(header_of(&[]), None);
     }
 }
