@@ -400,18 +400,28 @@ pub mod request {
         }))
     }
 
+    /// The key of the in-memory server's paths (`request`): the seeds' requests name it.
+    pub const KEY: &str = "0123456789abcdef0123456789abcdef";
+
     /// The server of that hub on a loopback port, started once and kept for the process's
-    /// life.
-    pub fn server() -> SocketAddr {
-        static ADDR: OnceLock<SocketAddr> = OnceLock::new();
-        *ADDR.get_or_init(|| {
+    /// life: its address, and the key its paths begin with.
+    pub fn server() -> (SocketAddr, &'static str) {
+        static SERVER: OnceLock<(SocketAddr, String)> = OnceLock::new();
+        let (addr, key) = SERVER.get_or_init(|| {
             let listener = std::net::TcpListener::bind("127.0.0.1:0").expect("a loopback port");
             let server = Server::start(listener, hub()).expect("the server starts");
-            let addr = server.addr();
+            let url = server.url();
+            let key = url
+                .trim_end_matches('/')
+                .rsplit('/')
+                .next()
+                .unwrap_or_default();
+            let found = (server.addr(), key.to_owned());
             // It lives as long as the process.
             std::mem::forget(server);
-            addr
-        })
+            found
+        });
+        (*addr, key)
     }
 
     /// Makes closing `stream` reset it rather than leave it in TIME_WAIT for a minute: tens of
@@ -438,7 +448,7 @@ pub mod request {
 
     /// Sends `bytes` on a new connection and reads the answer.
     pub fn exchange(bytes: &[u8]) -> Result<Vec<u8>, String> {
-        let addr = server();
+        let (addr, _) = server();
         let mut stream =
             TcpStream::connect(addr).map_err(|e| format!("cannot connect to the server: {e}"))?;
         let _ = stream.set_nodelay(true);
@@ -474,7 +484,8 @@ pub mod request {
     ///    HTTP/1 status line, and serving it never panics.
     pub fn request(bytes: &[u8]) -> Result<(), String> {
         let addr = SocketAddr::from(([127, 0, 0, 1], 8000));
-        let answer = answer_in_memory(hub(), addr, bytes, AT_MOST).map_err(|e| e.to_string())?;
+        let answer =
+            answer_in_memory(hub(), addr, KEY, bytes, AT_MOST).map_err(|e| e.to_string())?;
         if !answer.is_empty() && !answer.starts_with(b"HTTP/1.") {
             let head = String::from_utf8_lossy(&answer[..answer.len().min(80)]).into_owned();
             return Err(format!("an answer that is not HTTP/1: {head:?}"));
@@ -484,7 +495,9 @@ pub mod request {
 
     /// The server still answers a well-formed request for its status.
     pub fn alive() -> Result<(), String> {
-        let answer = exchange(b"GET /status HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")?;
+        let (_, key) = server();
+        let ask = format!("GET /{key}/status HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
+        let answer = exchange(ask.as_bytes())?;
         if answer.starts_with(b"HTTP/1.1 200") {
             Ok(())
         } else {

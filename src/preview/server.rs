@@ -1,8 +1,8 @@
 //! The web viewer's server: hyper on a single-threaded tokio runtime of its own thread,
 //! serving the page and its assets (compiled in), the status, the current frame and an event
-//! stream of statuses, and nothing else. Everything a client sends is hostile input: the
-//! limits below bound what any client can make it hold or do, and no client can reach the
-//! render, which only ever replaces the hub's snapshot.
+//! stream of statuses, and nothing else, each under a path of a key of its own. Everything
+//! a client sends is hostile input: the limits below bound what any client can make it hold
+//! or do, and no client can reach the render, which only ever replaces the hub's snapshot.
 
 use super::{Hub, Snapshot};
 use bytes::Bytes;
@@ -73,6 +73,7 @@ pub struct ServerStats {
 /// A running viewer server; `stop` ends it.
 pub struct Server {
     addr: SocketAddr,
+    key: String,
     stats: Arc<ServerStats>,
     shutdown: tokio::sync::watch::Sender<bool>,
     thread: Option<std::thread::JoinHandle<()>>,
@@ -83,6 +84,7 @@ impl Server {
     /// error before a render starts) from a thread of its own.
     pub fn start(listener: std::net::TcpListener, hub: Arc<Hub>) -> std::io::Result<Server> {
         let addr = listener.local_addr()?;
+        let key = new_key()?;
         listener.set_nonblocking(true)?;
         let runtime = tokio::runtime::Builder::new_current_thread()
             .enable_io()
@@ -97,6 +99,7 @@ impl Server {
         let shared = Arc::new(Shared {
             hub,
             addr,
+            key: key.clone(),
             stats: Arc::clone(&stats),
             png: Mutex::new(None),
             patch: Mutex::new(None),
@@ -120,6 +123,7 @@ impl Server {
             })?;
         Ok(Server {
             addr,
+            key,
             stats,
             shutdown,
             thread: Some(thread),
@@ -129,6 +133,11 @@ impl Server {
     /// The address it listens on (the port chosen, when 0 was asked for).
     pub fn addr(&self) -> SocketAddr {
         self.addr
+    }
+
+    /// The viewer's page: its address and key, the one URL under which it answers.
+    pub fn url(&self) -> String {
+        format!("http://{}/{}/", self.addr, self.key)
     }
 
     pub fn stats(&self) -> &ServerStats {
@@ -159,6 +168,8 @@ impl Drop for Server {
 struct Shared {
     hub: Arc<Hub>,
     addr: SocketAddr,
+    /// The first segment of every path served (`new_key`).
+    key: String,
     stats: Arc<ServerStats>,
     /// The newest frame's PNGs, made once for every client that asks: the whole frame and
     /// the patch from the frame before, each with its frame version.
@@ -289,12 +300,14 @@ where
 /// of the connection: the connection is served as a socket's is (hyper's parser, the limits,
 /// the routes, the pacing), over an in-memory pipe on a runtime of the caller's thread, for
 /// the fuzzers, which need no socket this way. `addr` is the address the server takes
-/// itself to listen on (the Host header must name it). The answer ends when the server
+/// itself to listen on (the Host header must name it), `key` the first segment of the
+/// paths it serves (`Server::url`). The answer ends when the server
 /// closes the connection, at the head of an event stream (which never ends by itself), or
 /// after `at_most`. A panic while serving is an error.
 pub fn answer_in_memory(
     hub: Arc<Hub>,
     addr: SocketAddr,
+    key: &str,
     request: &[u8],
     at_most: Duration,
 ) -> std::io::Result<Vec<u8>> {
@@ -305,6 +318,7 @@ pub fn answer_in_memory(
     let shared = Arc::new(Shared {
         hub,
         addr,
+        key: key.to_owned(),
         stats: Arc::new(ServerStats::default()),
         png: Mutex::new(None),
         patch: Mutex::new(None),
@@ -406,22 +420,66 @@ fn respond(shared: &Arc<Shared>, request: &Request<Incoming>) -> Response<Body> 
         );
     }
     let uri = request.uri();
-    match uri.path() {
-        "/" | "/index.html" => asset(INDEX_HTML, "text/html; charset=utf-8"),
-        "/viewer.css" => asset(VIEWER_CSS, "text/css; charset=utf-8"),
-        "/viewer.js" => asset(VIEWER_JS, "text/javascript; charset=utf-8"),
-        "/status" => {
+    // Every path begins with the key: another local user, or a page that guesses the port,
+    // finds nothing without it. The key alone is sent to its page.
+    let path = uri.path().strip_prefix('/').unwrap_or_default();
+    let (key, path) = path.split_once('/').unwrap_or((path, ""));
+    if !same_key(key, &shared.key) {
+        return text(
+            StatusCode::NOT_FOUND,
+            "not found: the viewer answers at the address tessera printed, key and all\n",
+        );
+    }
+    if !uri.path().ends_with('/') && path.is_empty() {
+        // The page's links are relative to the key's folder.
+        let mut r = text(
+            StatusCode::PERMANENT_REDIRECT,
+            "the viewer is one folder down\n",
+        );
+        if let Ok(to) = HeaderValue::from_str(&format!("/{key}/")) {
+            r.headers_mut().insert(header::LOCATION, to);
+        }
+        return r;
+    }
+    match path {
+        "" | "index.html" => asset(INDEX_HTML, "text/html; charset=utf-8"),
+        "viewer.css" => asset(VIEWER_CSS, "text/css; charset=utf-8"),
+        "viewer.js" => asset(VIEWER_JS, "text/javascript; charset=utf-8"),
+        "status" => {
             let latest = shared.hub.latest();
             dynamic(
                 Full::new(latest.status_json.clone()).boxed(),
                 "application/json",
             )
         }
-        "/frame.png" => frame(shared, uri.query()),
-        "/download" => download(shared),
-        "/events" => events(shared),
+        "frame.png" => frame(shared, uri.query()),
+        "download" => download(shared),
+        "events" => events(shared),
         _ => text(StatusCode::NOT_FOUND, "not found\n"),
     }
+}
+
+/// A new key of the viewer's: 128 bits from the kernel's random source, as 32 hex digits.
+/// On a loopback address any local user (and a page in any browser tab, guessing ports)
+/// may connect; only who was shown the key can see the render.
+fn new_key() -> std::io::Result<String> {
+    let mut bytes = [0u8; 16];
+    let mut filled = 0;
+    while filled < bytes.len() {
+        filled +=
+            rustix::rand::getrandom(&mut bytes[filled..], rustix::rand::GetRandomFlags::empty())?;
+    }
+    Ok(bytes.iter().map(|b| format!("{b:02x}")).collect())
+}
+
+/// Whether `given` is `key`, compared in a time that does not depend on where they differ.
+fn same_key(given: &str, key: &str) -> bool {
+    given.len() == key.len()
+        && given
+            .bytes()
+            .zip(key.bytes())
+            .fold(0u8, |differ, (a, b)| differ | (a ^ b))
+            == 0
 }
 
 /// With the server on a loopback address, only requests naming a loopback host are
@@ -688,6 +746,38 @@ mod tests {
         super::super::Previewer::new(about, &JobState::new(job, 4), 2.0)
     }
 
+    /// The key of the paths served in memory here.
+    const KEY: &str = "k3y";
+
+    /// Every run's server has a key of its own, 128 bits the kernel drew: the address
+    /// printed is all that reaches the page.
+    #[test]
+    fn each_server_has_a_key_of_its_own() {
+        let previewer = blank_previewer();
+        let url = || {
+            let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+            let server = Server::start(listener, previewer.hub()).unwrap();
+            let url = server.url();
+            server.stop();
+            url
+        };
+        let (a, b) = (url(), url());
+        let key = |url: &str| {
+            url.trim_end_matches('/')
+                .rsplit('/')
+                .next()
+                .unwrap()
+                .to_owned()
+        };
+        let (key_a, key_b) = (key(&a), key(&b));
+        assert!(a.starts_with("http://127.0.0.1:") && a.ends_with(&format!("/{key_a}/")));
+        assert_eq!(key_a.len(), 32, "{a}");
+        assert!(key_a.bytes().all(|c| c.is_ascii_hexdigit()), "{a}");
+        assert_ne!(key_a, key_b);
+        assert!(same_key(&key_a, &key_a) && !same_key(&key_a, &key_b));
+        assert!(!same_key(&key_a[..31], &key_a) && !same_key("", &key_a));
+    }
+
     #[test]
     fn a_connection_in_memory_is_answered_as_a_socket_s_is() {
         let previewer = blank_previewer();
@@ -695,18 +785,28 @@ mod tests {
         let ask = |request: &[u8]| {
             let started = Instant::now();
             let answer =
-                answer_in_memory(previewer.hub(), addr, request, Duration::from_secs(5)).unwrap();
+                answer_in_memory(previewer.hub(), addr, KEY, request, Duration::from_secs(5))
+                    .unwrap();
             (
                 String::from_utf8_lossy(&answer).into_owned(),
                 started.elapsed(),
             )
         };
         // Answered, and at once: the connection closes when the client's side has.
-        let (status, took) = ask(b"GET /status HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
+        let (status, took) = ask(b"GET /k3y/status HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
         assert!(status.starts_with("HTTP/1.1 200"), "{status}");
         assert!(took < Duration::from_secs(2), "{took:?}");
-        let (two, _) = ask(b"GET /viewer.css HTTP/1.1\r\nHost: localhost:8000\r\n\r\n\
-              GET /nothing HTTP/1.1\r\nHost: localhost\r\n\r\n");
+        let (keyless, _) = ask(b"GET /status HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
+        assert!(keyless.starts_with("HTTP/1.1 404"), "{keyless}");
+        let (folder, _) = ask(b"GET /k3y HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
+        assert!(
+            folder.starts_with("HTTP/1.1 308") && folder.contains("location: /k3y/\r\n"),
+            "{folder}"
+        );
+        let (two, _) = ask(
+            b"GET /k3y/viewer.css HTTP/1.1\r\nHost: localhost:8000\r\n\r\n\
+              GET /k3y/nothing HTTP/1.1\r\nHost: localhost\r\n\r\n",
+        );
         assert!(
             two.starts_with("HTTP/1.1 200") && two.contains("HTTP/1.1 404"),
             "{two}"
@@ -723,7 +823,7 @@ mod tests {
             "{garbage}"
         );
         // An event stream is cut off after its head, well before `at_most`.
-        let (events, took) = ask(b"GET /events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
+        let (events, took) = ask(b"GET /k3y/events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
         assert!(events.contains("text/event-stream"), "{events}");
         assert!(took < Duration::from_secs(2), "{took:?}");
     }

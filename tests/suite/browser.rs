@@ -326,10 +326,13 @@ fn a_browser_shows_the_render_converging_and_the_final_image() {
             }
         }
     });
-    let host = url
+    // `http://ADDR:PORT/KEY/`: every path is under the key.
+    let (host, key) = url
         .trim_start_matches("http://")
         .trim_end_matches('/')
-        .to_owned();
+        .split_once('/')
+        .map(|(host, key)| (host.to_owned(), key.to_owned()))
+        .expect("an address and a key");
     let mut browser = Browser::open(&binary, &url, dir.join("profile"));
 
     // During the render: a frame drawn, the progress text, tiles outlined.
@@ -342,7 +345,7 @@ fn a_browser_shows_the_render_converging_and_the_final_image() {
         v["state"] == "rendering" && v["shown"].as_u64() > Some(0) && v["tiles"].as_u64() > Some(0)
     });
     let shot = browser.screenshot();
-    let frame = decode(&http_get(&host, "/frame.png"));
+    let frame = decode(&http_get(&host, &format!("/{key}/frame.png")));
     let screen = image_on_screen(&mut browser, &shot);
     let during_path = save_for_people("during.png", &shot);
     assert_shows(&screen, &frame, "during the render");
@@ -375,7 +378,7 @@ fn a_browser_shows_the_render_converging_and_the_final_image() {
     // At the end: the final image, with its download link.
     browser.wait_for("the final frame", texts, |v| {
         v["state"] == "finished"
-            && v["shown"].as_u64() == http_status(&host)["frame"]["version"].as_u64()
+            && v["shown"].as_u64() == http_status(&host, &key)["frame"]["version"].as_u64()
     });
     let shot = browser.screenshot();
     let screen = image_on_screen(&mut browser, &shot);
@@ -501,8 +504,8 @@ fn a_page_keeps_the_final_image_after_the_viewer_has_gone() {
     );
 }
 
-fn http_status(host: &str) -> Value {
-    serde_json::from_slice(&http_get(host, "/status")).expect("status JSON")
+fn http_status(host: &str, key: &str) -> Value {
+    serde_json::from_slice(&http_get(host, &format!("/{key}/status"))).expect("status JSON")
 }
 
 fn decode(bytes: &[u8]) -> image::RgbImage {

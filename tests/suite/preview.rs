@@ -19,6 +19,8 @@ const PATIENCE: Duration = Duration::from_secs(120);
 struct Viewer {
     child: Child,
     addr: SocketAddr,
+    /// The key every path begins with, from the address printed.
+    key: String,
     stderr: Arc<Mutex<String>>,
 }
 
@@ -48,21 +50,32 @@ impl Viewer {
                 }
             });
         }
-        let addr = match address.recv_timeout(PATIENCE) {
-            Ok(a) => a.parse().expect("an address"),
+        let (addr, key) = match address.recv_timeout(PATIENCE) {
+            Ok(a) => {
+                let (addr, key) = a.split_once('/').expect("an address and a key");
+                (addr.parse().expect("an address"), key.to_owned())
+            }
             Err(_) => {
                 let _ = child.kill();
                 panic!("no preview address: {}", stderr.lock().unwrap());
             }
         };
+        assert_eq!(key.len(), 32, "a key of 128 bits in hex: {key}");
         Viewer {
             child,
             addr,
+            key,
             stderr,
         }
     }
 
+    /// The answer to a GET of `path` under the viewer's key.
     fn get(&self, path: &str) -> Answer {
+        self.get_raw(&format!("/{}{path}", self.key))
+    }
+
+    /// The answer to a GET of `path` as it is.
+    fn get_raw(&self, path: &str) -> Answer {
         request(
             self.addr,
             &format!("GET {path} HTTP/1.1\r\n{}", self.host()),
@@ -325,7 +338,11 @@ fn the_page_its_assets_and_the_event_stream_are_served() {
     assert!(page.header("content-security-policy").is_some());
     let html = page.text();
     for asset in ["/viewer.css", "/viewer.js"] {
-        assert!(html.contains(asset), "the page links {asset}");
+        // Relative to the key's folder, the page's own.
+        assert!(
+            html.contains(&format!("\"{}\"", &asset[1..])),
+            "the page links {asset}"
+        );
         let a = viewer.get(asset);
         assert_eq!(a.code, 200, "{asset}");
         assert!(a.body.len() > 500, "{asset} is there");
@@ -336,7 +353,11 @@ fn the_page_its_assets_and_the_event_stream_are_served() {
     );
     let head = request(
         viewer.addr,
-        &format!("HEAD /frame.png HTTP/1.1\r\n{}", viewer.host()),
+        &format!(
+            "HEAD /{}/frame.png HTTP/1.1\r\n{}",
+            viewer.key,
+            viewer.host()
+        ),
     );
     assert_eq!(head.code, 200);
     assert!(head.body.is_empty(), "HEAD has no body");
@@ -345,8 +366,8 @@ fn the_page_its_assets_and_the_event_stream_are_served() {
     stream.set_read_timeout(Some(PATIENCE)).unwrap();
     write!(
         stream,
-        "GET /events HTTP/1.1\r\nHost: {}\r\n\r\n",
-        viewer.addr
+        "GET /{}/events HTTP/1.1\r\nHost: {}\r\n\r\n",
+        viewer.key, viewer.addr
     )
     .unwrap();
     let mut seen = Vec::new();
@@ -431,14 +452,17 @@ fn every_answer_keeps_other_origins_pages_from_loading_it() {
             "HEAD /events",
             request(
                 viewer.addr,
-                &format!("HEAD /events HTTP/1.1\r\n{}", viewer.host()),
+                &format!("HEAD /{}/events HTTP/1.1\r\n{}", viewer.key, viewer.host()),
             ),
         ),
         (
             "a foreign Host",
             request(
                 viewer.addr,
-                "GET /download HTTP/1.1\r\nHost: evil.example\r\nConnection: close\r\n\r\n",
+                &format!(
+                    "GET /{}/download HTTP/1.1\r\nHost: evil.example\r\nConnection: close\r\n\r\n",
+                    viewer.key
+                ),
             ),
         ),
     ];
@@ -466,17 +490,18 @@ fn a_second_host_or_a_foreign_absolute_url_is_misdirected() {
     let viewer = Viewer::start(&strs(&args), &dir);
     viewer.wait_for("the end", |s| s["state"] == "finished");
     let addr = viewer.addr;
+    let key = &viewer.key;
     let ask = |raw: String| request(addr, &raw).code;
     assert_eq!(
         ask(format!(
-            "GET /status HTTP/1.1\r\nHost: {addr}\r\nHost: evil.example\r\nConnection: close\r\n\r\n"
+            "GET /{key}/status HTTP/1.1\r\nHost: {addr}\r\nHost: evil.example\r\nConnection: close\r\n\r\n"
         )),
         421,
         "two Host headers"
     );
     assert_eq!(
         ask(format!(
-            "GET http://evil.example/status HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
+            "GET http://evil.example/{key}/status HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
         )),
         421,
         "an absolute URL of another host"
@@ -488,14 +513,14 @@ fn a_second_host_or_a_foreign_absolute_url_is_misdirected() {
     ] {
         assert_eq!(
             ask(format!(
-                "GET /status HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n"
+                "GET /{key}/status HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n"
             )),
             421,
             "a Host with a user part: {host}"
         );
         assert_eq!(
             ask(format!(
-                "GET http://{host}/status HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
+                "GET http://{host}/{key}/status HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
             )),
             421,
             "an absolute URL with a user part: {host}"
@@ -503,14 +528,14 @@ fn a_second_host_or_a_foreign_absolute_url_is_misdirected() {
     }
     assert_eq!(
         ask(format!(
-            "GET http://{addr}/status HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
+            "GET http://{addr}/{key}/status HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
         )),
         200,
         "an absolute URL of the viewer itself"
     );
     assert_eq!(
         ask(format!(
-            "GET /status HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
+            "GET /{key}/status HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
         )),
         200
     );
@@ -524,6 +549,7 @@ fn the_server_refuses_what_it_does_not_serve_while_the_render_goes_on() {
     args.extend(["-o", "limited.png", "--preview", "--preview-hold"].map(String::from));
     let viewer = Viewer::start(&strs(&args), &dir);
     let addr = viewer.addr;
+    let key = viewer.key.clone();
     let host = viewer.host();
     // Nothing to download before the render has finished.
     let early = viewer.get("/download");
@@ -531,18 +557,19 @@ fn the_server_refuses_what_it_does_not_serve_while_the_render_goes_on() {
     assert!(early.text().contains("when the render has finished"));
     // A client that asks for frame after frame and never reads an answer.
     let mut stuck = TcpStream::connect(addr).unwrap();
-    let pipelined = format!("GET /frame.png HTTP/1.1\r\nHost: {addr}\r\n\r\n").repeat(200);
+    let pipelined = format!("GET /{key}/frame.png HTTP/1.1\r\nHost: {addr}\r\n\r\n").repeat(200);
     stuck
         .set_write_timeout(Some(Duration::from_secs(5)))
         .unwrap();
     let _ = stuck.write_all(pipelined.as_bytes());
     // A client that floods status requests on one connection, for a while.
+    let flood_key = key.clone();
     let flood = std::thread::spawn(move || {
         let start = Instant::now();
         let mut answered = 0;
         if let Ok(mut s) = TcpStream::connect(addr) {
             s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
-            let one = format!("GET /status HTTP/1.1\r\nHost: {addr}\r\n\r\n");
+            let one = format!("GET /{flood_key}/status HTTP/1.1\r\nHost: {addr}\r\n\r\n");
             let mut reader = BufReader::new(s.try_clone().unwrap());
             while start.elapsed() < Duration::from_secs(2) {
                 if s.write_all(one.as_bytes()).is_err() {
@@ -583,17 +610,46 @@ fn the_server_refuses_what_it_does_not_serve_while_the_render_goes_on() {
         let a = viewer.get(path);
         assert_eq!(a.code, 404, "{path}");
     }
+    // Without the key, or with another, nothing is served: another user of the machine, or
+    // a page guessing ports, would watch the render and take the image. The key's folder
+    // without its slash is redirected to it, where the page's relative links work.
+    let other_key = "0".repeat(32);
+    for path in [
+        "/".to_owned(),
+        "/index.html".to_owned(),
+        "/status".to_owned(),
+        "/frame.png".to_owned(),
+        "/events".to_owned(),
+        format!("/{other_key}/status"),
+        format!("/{}/status", &key[..31]),
+        format!("/{key}x/status"),
+        format!("/x{key}/"),
+    ] {
+        let a = viewer.get_raw(&path);
+        assert_eq!(a.code, 404, "{path}");
+        assert!(
+            a.text().contains("the address tessera printed") && !a.text().contains(&key),
+            "{path}: {}",
+            a.text()
+        );
+    }
+    let folder = viewer.get_raw(&format!("/{key}"));
+    assert_eq!(folder.code, 308);
+    assert_eq!(folder.header("location"), Some(format!("/{key}/").as_str()));
     for method in ["POST", "PUT", "DELETE", "OPTIONS", "PATCH"] {
-        let a = request(addr, &format!("{method} /status HTTP/1.1\r\n{host}"));
+        let a = request(addr, &format!("{method} /{key}/status HTTP/1.1\r\n{host}"));
         assert_eq!(a.code, 405, "{method}");
         assert_eq!(a.header("allow"), Some("GET, HEAD"));
     }
     let huge = format!(
-        "GET /status HTTP/1.1\r\nX-Padding: {}\r\n{host}",
+        "GET /{key}/status HTTP/1.1\r\nX-Padding: {}\r\n{host}",
         "a".repeat(16 * 1024)
     );
     assert_eq!(request(addr, &huge).code, 431);
-    let many = format!("GET /status HTTP/1.1\r\n{}{host}", "X-A: b\r\n".repeat(100));
+    let many = format!(
+        "GET /{key}/status HTTP/1.1\r\n{}{host}",
+        "X-A: b\r\n".repeat(100)
+    );
     assert_eq!(request(addr, &many).code, 431);
     let elsewhere =
         "GET /status HTTP/1.1\r\nHost: attacker.example:80\r\nConnection: close\r\n\r\n";
@@ -604,7 +660,7 @@ fn the_server_refuses_what_it_does_not_serve_while_the_render_goes_on() {
     for _ in 0..32 {
         let mut s = TcpStream::connect(addr).unwrap();
         s.set_read_timeout(Some(PATIENCE)).unwrap();
-        write!(s, "GET /events HTTP/1.1\r\nHost: {addr}\r\n\r\n").unwrap();
+        write!(s, "GET /{key}/events HTTP/1.1\r\nHost: {addr}\r\n\r\n").unwrap();
         let mut first = [0u8; 12];
         s.read_exact(&mut first).unwrap();
         if &first == b"HTTP/1.1 503" {
@@ -874,7 +930,10 @@ fn an_interrupted_render_saves_its_checkpoint_before_a_stuck_viewer_lets_go() {
     // Frames asked for two hundred times over one connection, none read: tens of MB the
     // server cannot send.
     let mut stuck = std::net::TcpStream::connect(viewer.addr).unwrap();
-    let ask = format!("GET /frame.png HTTP/1.1\r\nHost: {}\r\n\r\n", viewer.addr);
+    let ask = format!(
+        "GET /{}/frame.png HTTP/1.1\r\nHost: {}\r\n\r\n",
+        viewer.key, viewer.addr
+    );
     stuck.write_all(ask.repeat(200).as_bytes()).unwrap();
     std::thread::sleep(Duration::from_millis(300));
     let _ = std::process::Command::new("kill")

@@ -106,7 +106,7 @@ mod viewer {
                      this machine on that address can see the render"
                 ));
             }
-            note(format_args!("tessera: preview at http://{addr}/"));
+            note(format_args!("tessera: preview at {}", server.url()));
             Ok(Self { server, hold })
         }
 
@@ -129,8 +129,8 @@ mod viewer {
                     }
                 }
                 note(format_args!(
-                    "tessera: serving the final image at http://{}/ until Ctrl-C",
-                    server.addr()
+                    "tessera: serving the final image at {} until Ctrl-C",
+                    server.url()
                 ));
                 while !stop.load(Ordering::Relaxed) {
                     std::thread::sleep(Duration::from_millis(100));

@@ -36,7 +36,7 @@ async function loadFrame() {
   let again = false;
   try {
     const since = shown > 0 ? `&since=${shown}` : "";
-    const r = await fetch(`/frame.png?v=${wanted}${since}`, { cache: "no-store" });
+    const r = await fetch(`frame.png?v=${wanted}${since}`, { cache: "no-store" });
     if (!r.ok) throw new Error(`frame: ${r.status}`);
     const version = Number(r.headers.get("x-frame-version"));
     const rows = (r.headers.get("x-frame-rows") || "").split(",").map((a) => a.split("-").map(Number));
@@ -174,13 +174,13 @@ function offer(status) {
   link.download = file.name;
   link.title = `${file.name}, ${(file.bytes / 1024).toFixed(0)} KiB`;
   if (status.about.held) {
-    link.href = "/download";
+    link.href = "download";
     link.hidden = false;
     return;
   }
   if (kept || keeping) return;
   keeping = true;
-  fetch("/download", { cache: "no-store" })
+  fetch("download", { cache: "no-store" })
     .then((r) => (r.ok ? r.blob() : Promise.reject(new Error(`download: ${r.status}`))))
     .then((blob) => {
       kept = URL.createObjectURL(blob);
@@ -199,7 +199,7 @@ function poll() {
   if (polling) return;
   polling = setInterval(async () => {
     try {
-      const r = await fetch("/status", { cache: "no-store" });
+      const r = await fetch("status", { cache: "no-store" });
       if (r.ok) show(await r.json());
     } catch (e) {
       lost();
@@ -221,11 +221,15 @@ function lost() {
 
 function listen() {
   if (!("EventSource" in window)) return poll();
-  const events = new EventSource("/events");
+  const events = new EventSource("events");
   let errors = 0;
   events.addEventListener("status", (e) => {
     errors = 0;
-    show(JSON.parse(e.data));
+    const status = JSON.parse(e.data);
+    show(status);
+    // A render that has ended sends nothing more, and its server goes once this page has
+    // the last frame and the file: asking again would ask whoever takes the port next.
+    if (status.state !== "rendering" && !status.about.held) events.close();
   });
   events.onerror = () => {
     errors += 1;

@@ -60,14 +60,14 @@ const METHODS: &[&str] = &[
     "",
     "GETGETGETGETGETGETGETGETGETGET",
 ];
-/// The paths the server serves (with any query), and others.
+/// The paths the server serves under its key's folder (with any query), and others.
 const SERVED: &[&str] = &[
-    "/",
-    "/index.html",
-    "/viewer.js",
-    "/viewer.css",
-    "/status",
-    "/frame.png",
+    "",
+    "index.html",
+    "viewer.js",
+    "viewer.css",
+    "status",
+    "frame.png",
 ];
 const PATHS: &[&str] = &[
     "/frame.png?download",
@@ -107,12 +107,33 @@ fn host_header(g: &mut Gen, addr: SocketAddr) -> (Option<String>, bool) {
     }
 }
 
-fn generate(g: &mut Gen, addr: SocketAddr) -> Case {
+/// The key in the server's address (`http://ADDR/KEY/`).
+fn key_of(server: &Server) -> String {
+    let url = server.url();
+    let key = url
+        .trim_end_matches('/')
+        .rsplit('/')
+        .next()
+        .unwrap_or_default();
+    key.to_owned()
+}
+
+fn generate(g: &mut Gen, addr: SocketAddr, key: &str) -> Case {
     let method = g.pick(METHODS);
+    // A served path under the key, one under no key or another, or something else.
     let path = if g.chance(5) {
         "/".repeat(1 + g.below(20_000))
     } else if g.chance(40) {
-        g.pick(SERVED).to_owned()
+        format!("/{key}/{}", g.pick(SERVED))
+    } else if g.chance(10) {
+        let other = if g.chance(50) {
+            "0".repeat(32)
+        } else {
+            key[1..].to_owned()
+        };
+        format!("/{other}/{}", g.pick(SERVED))
+    } else if g.chance(10) {
+        format!("/{}", g.pick(SERVED))
     } else {
         g.pick(PATHS).to_owned()
     };
@@ -174,12 +195,15 @@ fn generate(g: &mut Gen, addr: SocketAddr) -> Case {
         bytes = (0..g.below(4096)).map(|_| g.below(256) as u8).collect();
     }
     let bare = path.split('?').next().unwrap_or("");
+    let served = bare
+        .strip_prefix(&format!("/{key}/"))
+        .is_some_and(|name| SERVED.contains(&name));
     let expect = plain.then(|| {
         if method != "GET" && method != "HEAD" {
             405
         } else if !host_ok {
             421
-        } else if SERVED.contains(&bare) {
+        } else if served {
             200
         } else {
             404
@@ -223,8 +247,9 @@ fn status_code(answer: &[u8]) -> Option<u16> {
 fn generated_requests_get_a_meant_answer_and_the_server_keeps_answering() {
     let (server, _previewer) = server();
     let addr = server.addr();
-    let known = [200, 400, 404, 405, 408, 421, 431, 501, 503, 505];
-    let status = format!("GET /status HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n");
+    let key = key_of(&server);
+    let known = [200, 308, 400, 404, 405, 408, 421, 431, 501, 503, 505];
+    let status = format!("GET /{key}/status HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n");
     let alive = Arc::new(move || {
         for _ in 0..20 {
             if let Ok(a) = exchange(addr, status.as_bytes())
@@ -243,7 +268,7 @@ fn generated_requests_get_a_meant_answer_and_the_server_keeps_answering() {
         1_500,
         4 << 20,
         |g| {
-            let case = generate(g, addr);
+            let case = generate(g, addr, &key);
             let shown = String::from_utf8_lossy(&case.bytes[..case.bytes.len().min(600)])
                 .escape_debug()
                 .to_string();
