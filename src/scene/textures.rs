@@ -134,8 +134,20 @@ struct Found {
 fn locate(dirs: &[PathBuf], name: &Path) -> Result<Option<Found>, String> {
     for dir in dirs {
         let path = dir.join(name);
-        let Ok(real) = path.canonicalize() else {
-            continue;
+        // Not there, or a file where the name has a directory: looked for in the next
+        // directory. Any other failure (a name too long, a directory it may not search) is
+        // said as it is, not as "not found".
+        let real = match path.canonicalize() {
+            Ok(real) => real,
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::NotFound | std::io::ErrorKind::NotADirectory
+                ) =>
+            {
+                continue;
+            }
+            Err(e) => return Err(format!("texture file {}: {e}", path.display())),
         };
         // A scene file named without a directory has "" for its own.
         let base = if dir.as_os_str().is_empty() {
@@ -384,6 +396,19 @@ mod tests {
             .err()
             .unwrap();
         assert!(missing.contains("not found (looked in ."), "{missing}");
+        // A failure other than absence is said as it is: every one was "not found".
+        let long = format!("{}.png", "a".repeat(300));
+        let e = load(&long, &source, MAX_SCENE_TEXTURE_PIXELS)
+            .err()
+            .unwrap();
+        assert!(
+            e.contains("name too long") && !e.contains("not found"),
+            "{e}"
+        );
+        let e = load("a\0b.png", &source, MAX_SCENE_TEXTURE_PIXELS)
+            .err()
+            .unwrap();
+        assert!(!e.contains("not found"), "{e}");
     }
 
     #[test]
