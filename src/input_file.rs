@@ -18,6 +18,16 @@ pub fn open_regular(path: &Path) -> io::Result<File> {
     regular(file)
 }
 
+/// Opens `path` as `open_regular` does, where its last component is not a symbolic link:
+/// one there (swapped in since a caller looked) is not followed, and the error is ELOOP.
+pub fn open_regular_not_a_link(path: &Path) -> io::Result<File> {
+    let file = std::fs::OpenOptions::new()
+        .read(true)
+        .custom_flags(libc::O_NONBLOCK | libc::O_NOFOLLOW)
+        .open(path)?;
+    regular(file)
+}
+
 /// Opens `path`, a canonical path (no symbolic link anywhere along it), as `open_regular`
 /// does; where a link has since been swapped in anywhere along it, nothing is opened and
 /// the error is `LinkFound`. With Linux's `openat2` (5.6 and later) no link is followed at

@@ -59,7 +59,30 @@ impl PartReader<BufReader<std::fs::File>> {
             path: path.to_owned(),
             cause,
         };
-        let file = crate::input_file::open_regular(path).map_err(io)?;
+        // A symbolic link is followed only where it is this user's or root's: whoever makes
+        // a link chooses the file read. Where there was none, none swapped in is followed.
+        let link = std::fs::symlink_metadata(path)
+            .ok()
+            .filter(|m| m.file_type().is_symlink());
+        if let Some(link) = &link
+            && crate::owner::is_another_users(link.uid(), &[])
+        {
+            return Err(part_error(
+                path,
+                format!(
+                    "a symbolic link of another user's (uid {}; this is uid {}): whoever \
+                     makes the link chooses the checkpoint or part read; remove it",
+                    link.uid(),
+                    crate::owner::this_user()
+                ),
+            ));
+        }
+        let file = if link.is_some() {
+            crate::input_file::open_regular(path)
+        } else {
+            crate::input_file::open_regular_not_a_link(path)
+        }
+        .map_err(io)?;
         let meta = file.metadata().map_err(io)?;
         if crate::owner::is_another_users(meta.uid(), &[]) {
             return Err(part_error(

@@ -1998,8 +1998,25 @@ fn a_checkpoint_another_user_owns_is_not_resumed() {
         "another user's checkpoint",
     );
     assert!(!dir.join("out.png").exists(), "an image was written");
-    std::os::unix::fs::chown(&ck, me.ok(), None).unwrap();
+    std::os::unix::fs::chown(&ck, me.as_ref().ok().copied(), None).unwrap();
     let o = render("4");
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(dir.join("out.png").exists());
+    // Another user's link under the name, to a checkpoint that is this user's (or root's):
+    // whoever made the link chose which file is resumed. Refused; this user's own link is
+    // followed.
+    std::fs::remove_file(dir.join("out.png")).unwrap();
+    std::fs::rename(&ck, dir.join("kept.part")).unwrap();
+    std::os::unix::fs::symlink("kept.part", &ck).unwrap();
+    std::os::unix::fs::lchown(&ck, Some(65534), Some(65534)).unwrap();
+    refused(
+        &render("8"),
+        "ck.part: a symbolic link of another user's (uid 65534",
+        "another user's link to a checkpoint",
+    );
+    assert!(!dir.join("out.png").exists(), "an image was written");
+    std::os::unix::fs::lchown(&ck, me.ok(), None).unwrap();
+    let o = render("8");
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(dir.join("out.png").exists());
 }
