@@ -410,13 +410,7 @@ pub mod request {
         let (addr, key) = SERVER.get_or_init(|| {
             let listener = std::net::TcpListener::bind("127.0.0.1:0").expect("a loopback port");
             let server = Server::start(listener, hub()).expect("the server starts");
-            let url = server.url();
-            let key = url
-                .trim_end_matches('/')
-                .rsplit('/')
-                .next()
-                .unwrap_or_default();
-            let found = (server.addr(), key.to_owned());
+            let found = (server.addr(), server.key().to_owned());
             // It lives as long as the process.
             std::mem::forget(server);
             found

@@ -140,6 +140,11 @@ impl Server {
         format!("http://{}/{}/", self.addr, self.key)
     }
 
+    /// The key every path it serves begins with.
+    pub fn key(&self) -> &str {
+        &self.key
+    }
+
     pub fn stats(&self) -> &ServerStats {
         &self.stats
     }
@@ -754,22 +759,14 @@ mod tests {
     #[test]
     fn each_server_has_a_key_of_its_own() {
         let previewer = blank_previewer();
-        let url = || {
+        let url_and_key = || {
             let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
             let server = Server::start(listener, previewer.hub()).unwrap();
-            let url = server.url();
+            let found = (server.url(), server.key().to_owned());
             server.stop();
-            url
+            found
         };
-        let (a, b) = (url(), url());
-        let key = |url: &str| {
-            url.trim_end_matches('/')
-                .rsplit('/')
-                .next()
-                .unwrap()
-                .to_owned()
-        };
-        let (key_a, key_b) = (key(&a), key(&b));
+        let ((a, key_a), (_, key_b)) = (url_and_key(), url_and_key());
         assert!(a.starts_with("http://127.0.0.1:") && a.ends_with(&format!("/{key_a}/")));
         assert_eq!(key_a.len(), 32, "{a}");
         assert!(key_a.bytes().all(|c| c.is_ascii_hexdigit()), "{a}");

@@ -107,17 +107,6 @@ fn host_header(g: &mut Gen, addr: SocketAddr) -> (Option<String>, bool) {
     }
 }
 
-/// The key in the server's address (`http://ADDR/KEY/`).
-fn key_of(server: &Server) -> String {
-    let url = server.url();
-    let key = url
-        .trim_end_matches('/')
-        .rsplit('/')
-        .next()
-        .unwrap_or_default();
-    key.to_owned()
-}
-
 fn generate(g: &mut Gen, addr: SocketAddr, key: &str) -> Case {
     let method = g.pick(METHODS);
     // A served path under the key, one under no key or another, or something else.
@@ -247,7 +236,7 @@ fn status_code(answer: &[u8]) -> Option<u16> {
 fn generated_requests_get_a_meant_answer_and_the_server_keeps_answering() {
     let (server, _previewer) = server();
     let addr = server.addr();
-    let key = key_of(&server);
+    let key = server.key().to_owned();
     let known = [200, 308, 400, 404, 405, 408, 421, 431, 501, 503, 505];
     let status = format!("GET /{key}/status HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n");
     let alive = Arc::new(move || {
