@@ -1137,6 +1137,43 @@ fn a_machine_or_commit_start_shared_by_several_is_refused_by_compare() {
     );
 }
 
+/// `history --machine ID` took ID as a start and as part of a CPU model: a result imported
+/// from a machine whose id begins with the user's (`m-3f2a111111111111x`), or whose CPU
+/// model is the user's id, made the user's own machine "match 2 machines" however much of
+/// its id was given, its history shown no more (and the message cut both ids to the same 18
+/// characters). A whole id is that machine, as `compare` takes one; a start shared by
+/// several is still refused, naming them whole.
+#[test]
+fn history_of_a_machine_spelt_out_whole_is_that_machine_s() {
+    let dir = temp_dir("results-history-whole");
+    let db = dir.join("r.db");
+    let base = json(&root().join("fuzz/corpus/result/quick-one-thread.json"));
+    let mine = "m-3f2a111111111111";
+    let mut model = as_if(&base, "m-0000000000000000", "bbbb", 1_700_000_200, 50.0);
+    model["host"]["cpu_model"] = Value::from(mine);
+    let made = [
+        as_if(&base, mine, "aaaa", 1_700_000_000, 1.0),
+        as_if(&base, "m-3f2a111111111111x", "cccc", 1_700_000_100, 50.0),
+        model,
+    ];
+    let mut files = Vec::new();
+    for (i, v) in made.iter().enumerate() {
+        files.push(format!("r{i}.json"));
+        write_json(&dir.join(&files[i]), v);
+    }
+    let files: Vec<&str> = files.iter().map(String::as_str).collect();
+    let o = results(&dir, &db, &[&["import"][..], &files].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = results(&dir, &db, &["history", "--machine", mine]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = stdout(&o);
+    assert!(text.contains("aaaa") && !text.contains("cccc"), "{text}");
+    let o = results(&dir, &db, &["history", "--machine", "m-3f2a"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stdout(&o));
+    let says = "matches 3 machines (m-0000000000000000, m-3f2a111111111111, m-3f2a111111111111x)";
+    assert!(stderr(&o).contains(says), "{}", stderr(&o));
+}
+
 /// The README's steps as a new user takes them: `bench` records the quick workload, and then
 /// `results rank`, `history` and `report` with no flags show that run; two runs on
 /// different SIMD paths compare by their numbers (or `latest~1 latest`).

@@ -385,11 +385,18 @@ fn history(
             }
         }
     };
-    let runs = db.runs(&Filter {
+    let mut runs = db.runs(&Filter {
         workload: workload.map(str::to_owned),
         machine: Some(machine.clone()),
         ..Filter::default()
     })?;
+    // A machine spelt out whole is that machine, as `compare` takes one: the filter also
+    // matches every id that begins so and every CPU model that holds it, and an imported
+    // result may claim any such id or model, which made the user's own machine "match 2
+    // machines" however much of its id was given.
+    if runs.iter().any(|r| r.machine_id == machine) {
+        runs.retain(|r| r.machine_id == machine);
+    }
     let mut machines: Vec<&str> = runs.iter().map(|r| r.machine_id.as_str()).collect();
     machines.sort_unstable();
     machines.dedup();
@@ -406,7 +413,7 @@ fn history(
             machines.len(),
             machines
                 .iter()
-                .map(|m| terminal_safe(m, 18))
+                .map(|m| terminal_safe(m, 48))
                 .collect::<Vec<_>>()
                 .join(", ")
         ),
