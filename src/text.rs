@@ -117,9 +117,17 @@ pub fn terminal_safe_lines(text: &str) -> String {
     out
 }
 
-/// `text` for HTML text and attribute values: markup characters as entities, and what
-/// must not reach a terminal (controls, bidirectional overrides) as `\u{…}`, as a reader of
-/// the page could otherwise see another text than the one there.
+/// Whether `c` is one of Unicode's noncharacters (U+FDD0 to U+FDEF, and the last two of
+/// each plane), which no text exchanged holds: XML allows neither U+FFFE nor U+FFFF, and
+/// one of them in an SVG file made the whole file an error in a browser, its chart unshown.
+fn is_noncharacter(c: char) -> bool {
+    matches!(c, '\u{fdd0}'..='\u{fdef}') || (c as u32) & 0xfffe == 0xfffe
+}
+
+/// `text` for HTML text and attribute values, and for SVG and XML files: markup characters
+/// as entities, and what must not reach a terminal (controls, bidirectional overrides) or
+/// an XML file (noncharacters) as `\u{…}`, as a reader of the page could otherwise see
+/// another text than the one there, or none.
 pub fn html_safe(text: &str) -> String {
     let mut out = String::with_capacity(text.len());
     for c in text.chars() {
@@ -129,7 +137,7 @@ pub fn html_safe(text: &str) -> String {
             '>' => out.push_str("&gt;"),
             '"' => out.push_str("&quot;"),
             '\'' => out.push_str("&#39;"),
-            c if is_unsafe(c) => out.extend(c.escape_unicode()),
+            c if is_unsafe(c) || is_noncharacter(c) => out.extend(c.escape_unicode()),
             c => out.push(c),
         }
     }
@@ -205,6 +213,11 @@ mod tests {
         assert_eq!(
             html_safe("<b a=\"x\">&'\u{202e}</b>"),
             "&lt;b a=&quot;x&quot;&gt;&amp;&#39;\\u{202e}&lt;/b&gt;"
+        );
+        // What XML does not allow, which made a chart's whole SVG file an error.
+        assert_eq!(
+            html_safe("a\u{fffe}\u{ffff}\u{fdd0}\u{10ffff}\u{fffd}b"),
+            "a\\u{fffe}\\u{ffff}\\u{fdd0}\\u{10ffff}\u{fffd}b"
         );
     }
 }
