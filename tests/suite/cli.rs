@@ -498,6 +498,37 @@ fn a_checkpoint_naming_the_image_or_the_preview_is_refused_before_rendering() {
     }
 }
 
+/// A part is written whatever -o's extension: `render scene.toml --shard 0/2 -o scene.toml`
+/// replaced the scene file with the part (exit 0), the scene lost. Each of the render's
+/// outputs naming the scene file, by its name or a link, is refused before rendering.
+#[test]
+fn an_output_naming_the_scene_file_is_refused_before_rendering() {
+    let dir = dir_with_scene("output-is-scene", GOOD);
+    std::os::unix::fs::symlink("scene.toml", dir.join("link.png")).unwrap();
+    let cases: [&[&str]; 4] = [
+        &["--shard", "0/2", "-o", "scene.toml"],
+        &["--samples", "0..1", "-o", "./scene.toml"],
+        &["-o", "link.png"],
+        &["-o", "a.png", "--checkpoint", "scene.toml"],
+    ];
+    for flags in cases {
+        let mut args = vec!["render", "scene.toml", "--width", "8", "--spp", "2"];
+        args.extend_from_slice(flags);
+        let o = run(&args, &dir);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{flags:?}: {err}");
+        assert!(
+            err.contains("names the scene file being rendered"),
+            "{flags:?}: {err}"
+        );
+        assert_eq!(
+            std::fs::read(dir.join("scene.toml")).unwrap(),
+            GOOD.as_bytes()
+        );
+        assert!(!dir.join("a.png").exists());
+    }
+}
+
 #[test]
 fn an_unwritable_checkpoint_is_refused_before_rendering() {
     let dir = dir_with_scene("ckpt-missing-dir", GOOD);

@@ -256,6 +256,17 @@ impl RenderPlan {
             ),
         ];
         for (i, (flag, path)) in files.iter().enumerate() {
+            // Nor the scene file: a part is written whatever -o's extension, and
+            // `--shard 0/2 -o cover.toml` replaced the scene with it.
+            if let Some(path) = path
+                && same_file(path, &args.scene.scene)
+            {
+                bail!(
+                    "{flag} {} names the scene file being rendered: give the output a name of \
+                     its own",
+                    path.display()
+                );
+            }
             for (earlier, earlier_path) in &files[..i] {
                 if let (Some(path), Some(earlier_path)) = (path, earlier_path)
                     && same_file(path, earlier_path)
