@@ -324,6 +324,41 @@ fn writing_the_workloads_of_one_name_keeps_the_other_hashes() {
 /// `bench --chart R.json R.json` wrote the chart over the result it drew (exit 0): the
 /// result was lost. A chart named as one of its results (or a link to one) is refused now,
 /// the result left as it was.
+/// `bench s.toml --out s.toml` measured the scene and then replaced it with its result
+/// (exit 0, the scene lost). The scene file, or a link to it, as --out is refused before
+/// anything runs.
+#[test]
+fn a_result_named_as_its_scene_is_refused() {
+    let dir = dir_with_scene("bench-out-over-scene", GOOD);
+    std::os::unix::fs::symlink("scene.toml", dir.join("link.json")).unwrap();
+    for out in ["scene.toml", "./scene.toml", "link.json"] {
+        let o = run(
+            &[
+                "bench",
+                "scene.toml",
+                "--width",
+                "8",
+                "--spp",
+                "1",
+                "--no-save",
+                "--out",
+                out,
+            ],
+            &dir,
+        );
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{out}: {err}");
+        assert!(
+            err.contains("names the scene file measured"),
+            "{out}: {err}"
+        );
+        assert_eq!(
+            std::fs::read(dir.join("scene.toml")).unwrap(),
+            GOOD.as_bytes()
+        );
+    }
+}
+
 #[test]
 fn a_chart_named_as_one_of_its_results_is_refused() {
     let dir = temp_dir("bench-chart-over-result");

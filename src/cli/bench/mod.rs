@@ -254,6 +254,15 @@ impl BenchMode {
         };
         if let Some(out) = &args.out {
             check_output(out)?;
+            // The result replaces whatever file it is written to: the scene measured would be
+            // lost.
+            if let Some(scene) = args.scene.as_deref().filter(|s| same_file(out, s)) {
+                bail!(
+                    "--out {} names the scene file measured, {}: give the result a name of its own",
+                    out.display(),
+                    scene.display()
+                );
+            }
         }
         let scaling = tessera::record::measure::scaling_counts(cpus);
         let save = measure::save_to(args.no_save, args.db.db);
