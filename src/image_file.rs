@@ -361,8 +361,17 @@ pub fn read_pixels(path: &Path, header: &ImageHeader) -> Result<Pixels> {
                     ));
                 }
             }
-            let file = open_as_checked(path, header)?;
+            let mut file = open_as_checked(path, header)?;
             let budget = count as usize * 8 + (1 << 24);
+            // A stream that ends after its last row without its end and checksum decodes
+            // here, as libpng refuses it; it is inflated to its end first.
+            png_header::check_zlib_stream_ends(&mut file, budget as u64).map_err(|why| {
+                image_error(path, format!("has pixels that do not decode: {why}"))
+            })?;
+            file.seek(SeekFrom::Start(0)).map_err(|cause| Error::Io {
+                path: path.to_owned(),
+                cause,
+            })?;
             let mut decoder = png::Decoder::new_with_limits(
                 std::io::BufReader::new(file),
                 png::Limits { bytes: budget },

@@ -198,6 +198,86 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
     })
 }
 
+/// Output kept of the pixels' stream while it is inflated: a deflate stream reaches at most
+/// 32 KiB back.
+const WINDOW: usize = 32 << 10;
+
+/// Inflates the zlib stream of the pixels of the PNG `r` is at the start of (its IDAT
+/// chunks, already walked by `read`) to its end, checksum included, keeping only a window of
+/// what it gives: the PNG decoder stops once it has every row, so a stream cut after them
+/// (without its end or its Adler-32 checksum) decodes there, where libpng refuses it ("Not
+/// enough image data": Firefox, GIMP, pngfix). Says why a stream does not end as a stream
+/// must, or gives more than `most` bytes (more than the image's rows take: the time it
+/// takes is bounded by the image's size, not by what a small stream can inflate to).
+pub fn check_zlib_stream_ends<R: Read>(r: R, most: u64) -> Result<(), String> {
+    let mut r = std::io::BufReader::new(r);
+    let io = |e: std::io::Error| format!("could not be read: {e}");
+    let mut signature = [0u8; 8];
+    r.read_exact(&mut signature).map_err(io)?;
+    let mut inflater = fdeflate::Decompressor::new();
+    let mut output = vec![0u8; 4 * WINDOW];
+    let (mut filled, mut idat_seen, mut made_in_all) = (0, false, 0u64);
+    let mut input = vec![0u8; 64 << 10];
+    for _ in 0..MAX_PNG_CHUNKS {
+        let mut head = [0u8; 8];
+        r.read_exact(&mut head).map_err(io)?;
+        let length = u64::from(u32::from_be_bytes(head[..4].try_into().expect("4 bytes")));
+        if &head[4..] != b"IDAT" {
+            if idat_seen {
+                break;
+            }
+            std::io::copy(&mut (&mut r).take(length + 4), &mut std::io::sink()).map_err(io)?;
+            continue;
+        }
+        idat_seen = true;
+        let mut left = length;
+        while left > 0 {
+            let n = left.min(input.len() as u64) as usize;
+            r.read_exact(&mut input[..n]).map_err(io)?;
+            left -= n as u64;
+            let mut data = &input[..n];
+            while !data.is_empty() && !inflater.is_done() {
+                if filled == output.len() {
+                    output.copy_within(filled - WINDOW.., 0);
+                    filled = WINDOW;
+                }
+                let (read, made) =
+                    inflater
+                        .read(data, &mut output, filled, false)
+                        .map_err(|e| {
+                            match e {
+                        fdeflate::DecompressionError::WrongChecksum => {
+                            "a zlib stream whose Adler-32 checksum is wrong, which libpng refuses"
+                                .to_owned()
+                        }
+                        e => format!("a zlib stream that does not inflate ({e:?})"),
+                    }
+                        })?;
+                data = &data[read..];
+                filled += made;
+                made_in_all += made as u64;
+                if made_in_all > most {
+                    return Err(format!(
+                        "a zlib stream that inflates to more than {most} bytes, more than its \
+                         image's rows take"
+                    ));
+                }
+            }
+        }
+        let mut crc = [0u8; 4];
+        r.read_exact(&mut crc).map_err(io)?;
+    }
+    if inflater.is_done() {
+        Ok(())
+    } else {
+        Err(
+            "a zlib stream that ends without its end and checksum, which libpng refuses \
+             (\"Not enough image data\")"
+                .to_owned(),
+        )
+    }
+}
+
 /// The start of a text chunk of `length` bytes, as far as tessera's keyword and the zero
 /// byte that ends it: those bytes, how many were read, and whether the keyword is tessera's.
 fn read_keyword<R: Read>(

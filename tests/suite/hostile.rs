@@ -679,6 +679,26 @@ fn a_png_whose_zlib_stream_libpng_refuses_is_not_identical() {
     let o = run(&["reproduce", "checksum.png", "-q"], &dir);
     refused(&o, "has pixels that do not decode", "checksum");
 }
+
+/// A zlib stream cut after its last row, without its end or without its Adler-32 checksum:
+/// the PNG decoder stops once it has every row and took it whole (`identical`, exit 0),
+/// where libpng refuses it ("Not enough image data": Firefox, GIMP, pngfix).
+#[test]
+fn a_png_whose_zlib_stream_ends_without_its_checksum_is_not_identical() {
+    let dir = temp_dir("hostile-png-zlib-end");
+    let png = std::fs::read(rendered(&dir, "a.png")).unwrap();
+    for cut in [4, 2] {
+        let name = format!("cut{cut}.png");
+        let cut_png = png_with_stream(&png, |s| s.truncate(s.len() - cut));
+        std::fs::write(dir.join(&name), cut_png).unwrap();
+        let o = run(&["reproduce", &name, "-q"], &dir);
+        refused(
+            &o,
+            "a zlib stream that ends without its end and checksum",
+            &name,
+        );
+    }
+}
 // --- recipes ----------------------------------------------------------------------------------
 
 /// The recipe JSON of the image at `path`.
