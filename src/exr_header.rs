@@ -79,6 +79,54 @@ const REQUIRED: [(&str, &str); 4] = [
     ("screenWindowWidth", "float"),
 ];
 
+/// The size in bytes of a value of each attribute type OpenEXR gives a fixed size (and
+/// `floatvector`'s, a whole number of floats).
+const SIZES: [(&str, usize); 24] = [
+    ("box2i", 16),
+    ("box2f", 16),
+    ("chromaticities", 32),
+    ("compression", 1),
+    ("deepImageState", 1),
+    ("double", 8),
+    ("envmap", 1),
+    ("float", 4),
+    ("int", 4),
+    ("keycode", 28),
+    ("lineOrder", 1),
+    ("m33f", 36),
+    ("m33d", 72),
+    ("m44f", 64),
+    ("m44d", 128),
+    ("rational", 8),
+    ("tiledesc", 9),
+    ("timecode", 8),
+    ("v2i", 8),
+    ("v2f", 8),
+    ("v2d", 16),
+    ("v3i", 12),
+    ("v3f", 12),
+    ("v3d", 24),
+];
+
+/// What is said of the attribute `name` of type `kind` whose value is `len` bytes long when
+/// that is not the size of its type: OpenEXR refuses a header of such an attribute, whatever
+/// its name, where the `exr` crate reads what it needs of it (the first byte of a
+/// `compression` of two, the first float of a `pixelAspectRatio` of eight) or keeps it.
+fn misfit(name: &str, kind: &str, len: usize) -> Option<String> {
+    let fits = match SIZES.iter().find(|(k, _)| *k == kind) {
+        Some(&(_, size)) => len == size,
+        None => kind != "floatvector" || len.is_multiple_of(4),
+    };
+    (!fits).then(|| {
+        format!(
+            "an attribute `{}` of type {} of {len} bytes, not the size of its type, which \
+             OpenEXR refuses: viewers built on it refuse the file",
+            name.escape_debug(),
+            kind.escape_debug()
+        )
+    })
+}
+
 /// What is said of each attribute of `REQUIRED` missing from `attributes` (the names and
 /// types of a header's attributes), as a change in how a viewer shows the picture.
 fn lacking(attributes: &[(String, String)]) -> impl Iterator<Item = String> + '_ {
@@ -210,6 +258,7 @@ pub fn display_changes<R: Read>(r: R, len: u64) -> Result<Vec<String>, String> {
     let (mut changes, mut attributes) = (Vec::new(), Vec::new());
     walk(r, len, &mut |name, kind, value| {
         attributes.push((name.to_owned(), kind.to_owned()));
+        changes.extend(misfit(name, kind, value.len()));
         changes.extend(display_change(name, kind, &value)?);
         Ok(())
     })?;
@@ -328,6 +377,7 @@ pub fn read<R: Read>(r: R, len: u64) -> Result<ExrHeader, String> {
     let (mut tiles, mut compression) = (None, None);
     let header_len = walk(r, len, &mut |name, kind, value| {
         attributes.push((name.to_owned(), kind.to_owned()));
+        display_changes.extend(misfit(name, kind, value.len()));
         match (name, kind) {
             ("compression", "compression") => compression = value.first().copied(),
             ("dataWindow", "box2i") => data = Some(box2i(&value, "dataWindow")?),

@@ -336,6 +336,46 @@ fn an_exr_lacking_an_attribute_openexr_requires_differs() {
     }
 }
 
+/// An attribute whose value is not the size of its type (a float of 5 bytes, a v2f of 12, a
+/// compression of 2): OpenEXR refuses the header, so every viewer built on it shows nothing,
+/// but the `exr` crate reads it, and it was `identical`.
+#[test]
+fn an_exr_with_an_attribute_of_the_wrong_size_for_its_type_differs() {
+    let dir = temp_dir("hostile-exr-attribute-size");
+    let exr = std::fs::read(rendered(&dir, "a.exr")).unwrap();
+    for (kind, size) in [
+        ("float", 5),
+        ("v2f", 12),
+        ("compression", 2),
+        ("floatvector", 6),
+    ] {
+        let grown = exr_with_attributes(&exr, &exr_attr("note", kind, &vec![0; size]));
+        let file = format!("{kind}.exr");
+        std::fs::write(dir.join(&file), &grown).unwrap();
+        let why = format!("an attribute `note` of type {kind} of {size} bytes");
+        let o = run(&["reproduce", &file, "-q"], &dir);
+        assert_eq!(o.status.code(), Some(1), "{kind}: {}", stderr(&o));
+        let said = stdout(&o);
+        assert!(
+            said.starts_with("differs:") && said.contains(&why),
+            "{kind}: {said}"
+        );
+        let o = run(&["compare", &file, "a.exr"], &dir);
+        let said = stdout(&o);
+        assert!(
+            !said.contains("identical") && said.contains(&why),
+            "{kind}: {said}"
+        );
+    }
+    // Of the right size, the attribute changes nothing.
+    let fits = exr_with_attributes(&exr, &exr_attr("note", "v2f", &[0; 8]));
+    std::fs::write(dir.join("fits.exr"), &fits).unwrap();
+    assert_eq!(
+        run(&["reproduce", "fits.exr", "-q"], &dir).status.code(),
+        Some(0)
+    );
+}
+
 /// OpenEXR reads each tile at its offset table's entry and refuses a chunk there that says
 /// it is another tile's; the `exr` crate puts each chunk where the chunk itself says. A
 /// table of two entries swapped was `identical`, though no viewer built on OpenEXR shows it.
