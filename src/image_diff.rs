@@ -165,9 +165,17 @@ impl RgbImage {
             // for the EXIF ones, which its decoder reads otherwise than viewers do.
             let mut file = reader.into_inner();
             let walked = match format {
-                image::ImageFormat::Png => {
-                    crate::png_header::read(&mut file, len).map(|h| h.display_changes)
-                }
+                // The pixels' zlib stream is inflated to its end first, checksum included:
+                // the decoder stops at the last row and takes no notice of the checksum,
+                // where libpng refuses a stream without its end or of a wrong checksum. At
+                // most 8 bytes a pixel (16-bit RGBA) and a filter byte a row of each pass.
+                image::ImageFormat::Png => crate::png_header::read(&mut file, len).and_then(|h| {
+                    file.seek(std::io::SeekFrom::Start(0))
+                        .map_err(|e| format!("could not be read: {e}"))?;
+                    crate::png_header::check_zlib_stream_ends(&mut file, MAX_COMPARED_PIXELS * 10)
+                        .map_err(|why| format!("has pixels that do not decode: {why}"))?;
+                    Ok(h.display_changes)
+                }),
                 image::ImageFormat::Pnm => {
                     crate::pnm_header::check_bounds(&mut file).map(|()| Vec::new())
                 }

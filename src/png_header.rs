@@ -220,7 +220,9 @@ pub fn check_zlib_stream_ends<R: Read>(r: R, most: u64) -> Result<(), String> {
     let mut input = vec![0u8; 64 << 10];
     for _ in 0..MAX_PNG_CHUNKS {
         let mut head = [0u8; 8];
-        r.read_exact(&mut head).map_err(io)?;
+        if r.read_exact(&mut head).is_err() {
+            break;
+        }
         let length = u64::from(u32::from_be_bytes(head[..4].try_into().expect("4 bytes")));
         if &head[4..] != b"IDAT" {
             if idat_seen {
@@ -267,7 +269,9 @@ pub fn check_zlib_stream_ends<R: Read>(r: R, most: u64) -> Result<(), String> {
         let mut crc = [0u8; 4];
         r.read_exact(&mut crc).map_err(io)?;
     }
-    if inflater.is_done() {
+    if !idat_seen {
+        Err("no IDAT chunk, where a PNG keeps them".to_owned())
+    } else if inflater.is_done() {
         Ok(())
     } else {
         Err(

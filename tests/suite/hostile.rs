@@ -739,6 +739,48 @@ fn a_png_whose_zlib_stream_ends_without_its_checksum_is_not_identical() {
         );
     }
 }
+
+/// Where the chunk of type `kind` begins in `png`, and its data's length.
+fn png_chunk_at(png: &[u8], kind: &[u8; 4]) -> (usize, usize) {
+    let mut at = 8;
+    loop {
+        let length = u32::from_be_bytes(png[at..at + 4].try_into().unwrap()) as usize;
+        if &png[at + 4..at + 8] == kind {
+            return (at, length);
+        }
+        at += 12 + length;
+    }
+}
+
+/// `compare` read a PNG's zlib stream as its decoder does, to the last row and without its
+/// checksum: a stream cut there, or of a wrong checksum, both of which libpng refuses, was
+/// `inf dB (identical)` beside the file it was made from.
+#[test]
+fn compare_refuses_a_png_whose_zlib_stream_libpng_refuses() {
+    let dir = temp_dir("hostile-png-zlib-compare");
+    let png = std::fs::read(rendered(&dir, "a.png")).unwrap();
+    let cut = png_with_stream(&png, |s| s.truncate(s.len() - 4));
+    let checksum = png_with_stream(&png, |s| *s.last_mut().unwrap() ^= 1);
+    for (name, bytes, why) in [
+        ("cut.png", cut, "ends without its end and checksum"),
+        ("checksum.png", checksum, "checksum is wrong"),
+    ] {
+        std::fs::write(dir.join(name), bytes).unwrap();
+        let o = run(&["compare", "a.png", name], &dir);
+        refused(&o, why, name);
+        assert!(!stdout(&o).contains("identical"), "{name}: {}", stdout(&o));
+    }
+    // A PNG without pixels says so, not that the file ended.
+    let (at, length) = png_chunk_at(&png, b"IDAT");
+    let no_idat = [&png[..at], &png[at + 12 + length..]].concat();
+    std::fs::write(dir.join("none.png"), no_idat).unwrap();
+    let o = run(&["compare", "a.png", "none.png"], &dir);
+    refused(&o, "no IDAT chunk", "none.png");
+    assert_eq!(
+        run(&["compare", "a.png", "a.png"], &dir).status.code(),
+        Some(0)
+    );
+}
 // --- recipes ----------------------------------------------------------------------------------
 
 /// The recipe JSON of the image at `path`.
