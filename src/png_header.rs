@@ -243,18 +243,9 @@ pub fn check_zlib_stream_ends<R: Read>(r: R, most: u64) -> Result<(), String> {
                     output.copy_within(filled - WINDOW.., 0);
                     filled = WINDOW;
                 }
-                let (read, made) =
-                    inflater
-                        .read(data, &mut output, filled, false)
-                        .map_err(|e| {
-                            match e {
-                        fdeflate::DecompressionError::WrongChecksum => {
-                            "a zlib stream whose Adler-32 checksum is wrong, which libpng refuses"
-                                .to_owned()
-                        }
-                        e => format!("a zlib stream that does not inflate ({e:?})"),
-                    }
-                        })?;
+                let (read, made) = inflater
+                    .read(data, &mut output, filled, false)
+                    .map_err(inflate_failure)?;
                 data = &data[read..];
                 filled += made;
                 made_in_all += made as u64;
@@ -279,6 +270,16 @@ pub fn check_zlib_stream_ends<R: Read>(r: R, most: u64) -> Result<(), String> {
              (\"Not enough image data\")"
                 .to_owned(),
         )
+    }
+}
+
+/// What a failure to inflate the pixels' stream says of it.
+fn inflate_failure(e: fdeflate::DecompressionError) -> String {
+    match e {
+        fdeflate::DecompressionError::WrongChecksum => {
+            "a zlib stream whose Adler-32 checksum is wrong, which libpng refuses".to_owned()
+        }
+        e => format!("a zlib stream that does not inflate ({e:?})"),
     }
 }
 
