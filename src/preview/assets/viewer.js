@@ -229,7 +229,10 @@ function listen() {
     show(status);
     // A render that has ended sends nothing more, and its server goes once this page has
     // the last frame and the file: asking again would ask whoever takes the port next.
-    if (status.state !== "rendering" && !status.about.held) events.close();
+    if (status.state !== "rendering" && !status.about.held) {
+      events.close();
+      $("state").textContent = `${status.state} · viewer closed`;
+    }
   });
   events.onerror = () => {
     errors += 1;
