@@ -79,6 +79,7 @@ pub fn threads(text: &str) -> Result<usize, String> {
 
 /// A thread count a recorded run may have (`results history --threads`): 1 to what an
 /// import takes, which is more than a render may start.
+#[cfg(feature = "results")]
 pub fn recorded_threads(text: &str) -> Result<usize, String> {
     whole(text, 1, tessera::record::result::MAX_THREADS as u128).map(|n| n as usize)
 }
@@ -121,6 +122,7 @@ mod tests {
     }
 
     #[test]
+    #[cfg(feature = "results")]
     fn a_recorded_run_s_thread_count_is_chosen_up_to_what_an_import_takes() {
         // An imported run may have used more threads than a render here may start: `history`
         // still picks it out.
