@@ -39,6 +39,17 @@ fn results(dir: &Path, db: &Path, args: &[&str]) -> Output {
         .unwrap()
 }
 
+/// A database `r.db` in `dir` holding one run, imported from the corpus's one-thread result
+/// (written beside it as `quick.json`), and that result.
+fn database_of_one_run(dir: &Path) -> (PathBuf, Value) {
+    let db = dir.join("r.db");
+    let v = json(&root().join("fuzz/corpus/result/quick-one-thread.json"));
+    write_json(&dir.join("quick.json"), &v);
+    let o = results(dir, &db, &["import", "quick.json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    (db, v)
+}
+
 fn stdout(o: &Output) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()
 }
@@ -341,11 +352,7 @@ fn results_within_a_minute(dir: &Path, db: &Path, args: &[&str]) -> Output {
 #[test]
 fn a_report_of_speeds_near_the_largest_number_ends() {
     let dir = temp_dir("results-huge-speed");
-    let db = dir.join("r.db");
-    let v = json(&root().join("fuzz/corpus/result/quick-one-thread.json"));
-    write_json(&dir.join("quick.json"), &v);
-    let o = results(&dir, &db, &["import", "quick.json"]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    let (db, _) = database_of_one_run(&dir);
     let conn = rusqlite::Connection::open(&db).unwrap();
     conn.execute(
         "UPDATE runs SET sps_max = 1.7e308,
@@ -1503,11 +1510,7 @@ fn a_database_on_a_read_only_file_system_reads() {
 #[test]
 fn another_user_s_wal_file_beside_the_database_is_refused() {
     let dir = temp_dir("results-strangers-wal");
-    let db = dir.join("r.db");
-    let v = json(&root().join("fuzz/corpus/result/quick-one-thread.json"));
-    write_json(&dir.join("quick.json"), &v);
-    let o = results(&dir, &db, &["import", "quick.json"]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    let (db, _) = database_of_one_run(&dir);
     // Their database: a copy, changed in a transaction left in its WAL.
     let theirs = dir.join("theirs.db");
     std::fs::copy(&db, &theirs).unwrap();
@@ -1552,11 +1555,7 @@ fn another_user_s_wal_file_beside_the_database_is_refused() {
 #[test]
 fn another_user_s_database_is_read_but_never_written() {
     let dir = temp_dir("results-strangers-db");
-    let db = dir.join("r.db");
-    let v = json(&root().join("fuzz/corpus/result/quick-one-thread.json"));
-    write_json(&dir.join("quick.json"), &v);
-    let o = results(&dir, &db, &["import", "quick.json"]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    let (db, v) = database_of_one_run(&dir);
     let mine = as_if(&v, "m-mine000000000000", "abcd", 1_700_000_000, 1.0);
     write_json(&dir.join("mine.json"), &mine);
     std::fs::set_permissions(&db, std::fs::Permissions::from_mode(0o666)).unwrap();
@@ -1603,11 +1602,7 @@ fn another_user_s_database_is_read_but_never_written() {
 #[test]
 fn reading_another_user_s_database_leaves_nothing_beside_it() {
     let dir = temp_dir("results-strangers-read");
-    let db = dir.join("r.db");
-    let v = json(&root().join("fuzz/corpus/result/quick-one-thread.json"));
-    write_json(&dir.join("quick.json"), &v);
-    let o = results(&dir, &db, &["import", "quick.json"]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    let (db, _) = database_of_one_run(&dir);
     // Changes kept in a -wal file, as a writer that has not yet checkpointed leaves them.
     let conn = rusqlite::Connection::open(&db).unwrap();
     conn.pragma_update(None, "wal_autocheckpoint", 0).unwrap();
@@ -1649,11 +1644,7 @@ fn reading_another_user_s_database_leaves_nothing_beside_it() {
 #[test]
 fn an_output_naming_the_database_is_refused() {
     let dir = temp_dir("results-output-is-db");
-    let db = dir.join("r.db");
-    let v = json(&root().join("fuzz/corpus/result/quick-one-thread.json"));
-    write_json(&dir.join("quick.json"), &v);
-    let o = results(&dir, &db, &["import", "quick.json"]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    let (db, _) = database_of_one_run(&dir);
     std::os::unix::fs::symlink("r.db", dir.join("link.db")).unwrap();
     let before = bytes(&db);
     for name in ["r.db", "link.db", "./r.db"] {
