@@ -364,7 +364,8 @@ pub fn read_pixels(path: &Path, header: &ImageHeader) -> Result<Pixels> {
             let mut file = open_as_checked(path, header)?;
             let budget = count as usize * 8 + (1 << 24);
             // A stream that ends after its last row without its end and checksum decodes
-            // here, as libpng refuses it; it is inflated to its end first.
+            // here, as libpng refuses it; it is inflated to its end first, its Adler-32
+            // checked (so the decoder need not check it again).
             png_header::check_zlib_stream_ends(&mut file, budget as u64).map_err(|why| {
                 image_error(path, format!("has pixels that do not decode: {why}"))
             })?;
@@ -377,9 +378,6 @@ pub fn read_pixels(path: &Path, header: &ImageHeader) -> Result<Pixels> {
                 png::Limits { bytes: budget },
             );
             decoder.set_ignore_text_chunk(true);
-            // The zlib stream's checksum too, which libpng and Python's zlib check: a stream
-            // whose checksum is wrong is a damaged file there.
-            decoder.ignore_checksums(false);
             let mut reader = decoder
                 .read_info()
                 .map_err(|e| image_error(path, format!("is not a readable PNG file: {e}")))?;
