@@ -121,6 +121,25 @@ fn exr_with_attributes(exr: &[u8], extra: &[u8]) -> Vec<u8> {
     out
 }
 
+/// Writes `bytes` as `file` in `dir`, beside tessera's own `a.exr`: `reproduce` says the file
+/// differs (exit 1) and `compare` does not call it identical, each naming `why`.
+fn differs_naming(dir: &Path, file: &str, bytes: &[u8], why: &str) {
+    std::fs::write(dir.join(file), bytes).unwrap();
+    let o = run(&["reproduce", file, "-q"], dir);
+    assert_eq!(o.status.code(), Some(1), "{file}: {}", stderr(&o));
+    let said = stdout(&o);
+    assert!(
+        said.starts_with("differs:") && said.contains(why),
+        "{file}: {said}"
+    );
+    let o = run(&["compare", file, "a.exr"], dir);
+    let said = stdout(&o);
+    assert!(
+        !said.contains("identical") && said.contains(why),
+        "{file}: {said}"
+    );
+}
+
 #[test]
 fn exr_layouts_tessera_does_not_write_are_refused_before_anything_is_allocated() {
     let dir = temp_dir("hostile-exr");
@@ -281,21 +300,7 @@ fn an_exr_whose_attributes_change_its_display_differs() {
         ),
     ];
     for (name, bytes, why) in cases {
-        let file = format!("{name}.exr");
-        std::fs::write(dir.join(&file), &bytes).unwrap();
-        let o = run(&["reproduce", &file, "-q"], &dir);
-        assert_eq!(o.status.code(), Some(1), "{name}: {}", stderr(&o));
-        let said = stdout(&o);
-        assert!(
-            said.starts_with("differs:") && said.contains(why),
-            "{name}: {said}"
-        );
-        let o = run(&["compare", &file, "a.exr"], &dir);
-        let said = stdout(&o);
-        assert!(
-            !said.contains("identical") && said.contains(why),
-            "{name}: {said}"
-        );
+        differs_naming(&dir, &format!("{name}.exr"), &bytes, why);
     }
 }
 
@@ -317,22 +322,8 @@ fn an_exr_lacking_an_attribute_openexr_requires_differs() {
         let start = found.0.as_ptr() as usize - exr.as_ptr() as usize;
         let mut renamed = exr.clone();
         renamed[start] ^= 0x20;
-        let file = format!("no-{name}.exr");
-        std::fs::write(dir.join(&file), &renamed).unwrap();
         let why = format!("no attribute {name} of type");
-        let o = run(&["reproduce", &file, "-q"], &dir);
-        assert_eq!(o.status.code(), Some(1), "{name}: {}", stderr(&o));
-        let said = stdout(&o);
-        assert!(
-            said.starts_with("differs:") && said.contains(&why),
-            "{name}: {said}"
-        );
-        let o = run(&["compare", &file, "a.exr"], &dir);
-        let said = stdout(&o);
-        assert!(
-            !said.contains("identical") && said.contains(&why),
-            "{name}: {said}"
-        );
+        differs_naming(&dir, &format!("no-{name}.exr"), &renamed, &why);
     }
 }
 
@@ -350,22 +341,8 @@ fn an_exr_with_an_attribute_of_the_wrong_size_for_its_type_differs() {
         ("floatvector", 6),
     ] {
         let grown = exr_with_attributes(&exr, &exr_attr("note", kind, &vec![0; size]));
-        let file = format!("{kind}.exr");
-        std::fs::write(dir.join(&file), &grown).unwrap();
         let why = format!("an attribute `note` of type {kind} of {size} bytes");
-        let o = run(&["reproduce", &file, "-q"], &dir);
-        assert_eq!(o.status.code(), Some(1), "{kind}: {}", stderr(&o));
-        let said = stdout(&o);
-        assert!(
-            said.starts_with("differs:") && said.contains(&why),
-            "{kind}: {said}"
-        );
-        let o = run(&["compare", &file, "a.exr"], &dir);
-        let said = stdout(&o);
-        assert!(
-            !said.contains("identical") && said.contains(&why),
-            "{kind}: {said}"
-        );
+        differs_naming(&dir, &format!("{kind}.exr"), &grown, &why);
     }
     // Of the right size, the attribute changes nothing.
     let fits = exr_with_attributes(&exr, &exr_attr("note", "v2f", &[0; 8]));
