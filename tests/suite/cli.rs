@@ -529,6 +529,38 @@ fn an_output_naming_the_scene_file_is_refused_before_rendering() {
     }
 }
 
+/// `render scene.toml -o earth.png` where the scene reads earth.png as a texture replaced the
+/// texture with the render (and `reproduce` of it then read its own image as the texture).
+/// Refused before rendering, however the name is spelt.
+#[test]
+fn an_output_naming_a_texture_the_scene_reads_is_refused_before_rendering() {
+    let scene = "[image]\nwidth = 16\nheight = 9\nsamples_per_pixel = 1\nmax_depth = 5\n\
+                 [textures.t]\ntype = \"image\"\nfile = \"tex.ppm\"\n\
+                 [materials.m]\ntype = \"lambertian\"\nalbedo = \"t\"\n\
+                 [[spheres]]\ncenter = [0.0, 0.0, -1.0]\nradius = 0.5\nmaterial = \"m\"\n";
+    let dir = dir_with_scene("output-is-texture", scene);
+    let texture = b"P3\n1 1\n255\n10 20 30\n";
+    std::fs::write(dir.join("tex.ppm"), texture).unwrap();
+    for flags in [
+        &["-o", "tex.ppm"][..],
+        &["-o", "./tex.ppm"],
+        &["--shard", "0/2", "-o", "tex.ppm"],
+        &["-o", "a.png", "--preview-file", "tex.ppm"],
+    ] {
+        let mut args = vec!["render", "scene.toml", "--width", "8", "--spp", "2"];
+        args.extend_from_slice(flags);
+        let o = run(&args, &dir);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{flags:?}: {err}");
+        assert!(
+            err.contains("names the texture file `tex.ppm` the scene reads"),
+            "{flags:?}: {err}"
+        );
+        assert_eq!(std::fs::read(dir.join("tex.ppm")).unwrap(), texture);
+        assert!(!dir.join("a.png").exists());
+    }
+}
+
 #[test]
 fn an_unwritable_checkpoint_is_refused_before_rendering() {
     let dir = dir_with_scene("ckpt-missing-dir", GOOD);

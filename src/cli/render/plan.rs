@@ -255,6 +255,7 @@ impl RenderPlan {
                 checkpoint.as_ref().map(|c| c.path.as_path()),
             ),
         ];
+        let scene_dir = (args.scene.scene.parent()).unwrap_or(Path::new(""));
         for (i, (flag, path)) in files.iter().enumerate() {
             // Nor the scene file: a part is written whatever -o's extension, and
             // `--shard 0/2 -o cover.toml` replaced the scene with it.
@@ -265,6 +266,18 @@ impl RenderPlan {
                     "{flag} {} names the scene file being rendered: give the output a name of \
                      its own",
                     path.display()
+                );
+            }
+            // Nor an image the scene reads as a texture: the render would replace it.
+            if let Some(path) = path
+                && let Some(texture) =
+                    (scene.texture_files.iter()).find(|t| same_file(path, &scene_dir.join(&t.name)))
+            {
+                bail!(
+                    "{flag} {} names the texture file `{}` the scene reads: give the output a \
+                     name of its own",
+                    path.display(),
+                    texture.name
                 );
             }
             for (earlier, earlier_path) in &files[..i] {
