@@ -130,3 +130,19 @@ pub fn same_file(a: &Path, b: &Path) -> bool {
     matches!((place(a), place(b)), (Some(a), Some(b)) if a == b)
         || matches!((inode(a), inode(b)), (Some(a), Some(b)) if a == b)
 }
+
+/// What of the results database at `db` the output `output` names, if any: the database
+/// itself, or the write-ahead log, shared memory or rollback journal beside it, whose loss
+/// takes the runs not yet in the database with it.
+pub fn names_database_file(output: &Path, db: &Path) -> Option<String> {
+    ["", "-wal", "-shm", "-journal"]
+        .into_iter()
+        .find_map(|suffix| {
+            let mut companion = db.as_os_str().to_owned();
+            companion.push(suffix);
+            same_file(output, Path::new(&companion)).then(|| match suffix {
+                "" => "the results database".to_owned(),
+                _ => format!("the results database's {} file", &suffix[1..]),
+            })
+        })
+}

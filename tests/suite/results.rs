@@ -1673,3 +1673,33 @@ fn an_output_naming_the_database_is_refused() {
     let o = results(&dir, &db, &["list"]);
     assert!(o.status.success(), "{}", stderr(&o));
 }
+
+/// `results report -o r.db-wal` (or `bench --out r.db-wal`) replaced the database's
+/// write-ahead log with the page, and with it the runs not yet checkpointed into the
+/// database; each of the database's companion files is refused as the database is.
+#[test]
+fn an_output_naming_the_database_s_companion_file_is_refused() {
+    let dir = temp_dir("results-output-is-wal");
+    let (db, _) = database_of_one_run(&dir);
+    for (name, what) in [
+        ("r.db-wal", "the results database's wal file"),
+        ("./r.db-shm", "the results database's shm file"),
+        ("r.db-journal", "the results database's journal file"),
+    ] {
+        let o = results(&dir, &db, &["report", "-o", name]);
+        assert_eq!(o.status.code(), Some(2), "{name}: {}", stderr(&o));
+        assert!(stderr(&o).contains(what), "{name}: {}", stderr(&o));
+        let mut c = tessera();
+        c.args(["bench", &cover()])
+            .args("--width 8 --spp 1 --repeat 1 --warmup 0 --no-scaling".split(' '))
+            .args(["--out", name])
+            .env("TESSERA_DB", &db)
+            .current_dir(&dir);
+        let o = c.output().unwrap();
+        assert_eq!(o.status.code(), Some(2), "{name}: {}", stderr(&o));
+        assert!(stderr(&o).contains(what), "{name}: {}", stderr(&o));
+        assert!(!dir.join(name).exists(), "{name}");
+    }
+    let o = results(&dir, &db, &["list"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}

@@ -10,7 +10,7 @@ mod measure;
 use super::charts;
 use super::flags::{self, DbArg, SimdArg};
 use super::output::{note, out};
-use super::writable::{check_output, same_file};
+use super::writable::{check_output, names_database_file, same_file};
 use anyhow::{Result, bail};
 use measure::Measure;
 use std::collections::BTreeSet;
@@ -267,13 +267,13 @@ impl BenchMode {
         let scaling = tessera::record::measure::scaling_counts(cpus);
         let save = measure::save_to(args.no_save, args.db.db);
         // The result file replaces whatever file it is written to: the database would be
-        // lost, every earlier run with it.
+        // lost, every earlier run with it (or, for its write-ahead log, the runs not yet in it).
         if let (Some(out), Some(save)) = (&args.out, &save)
-            && same_file(out, &save.path)
+            && let Some(what) = names_database_file(out, &save.path)
         {
             bail!(
-                "--out {} names the results database the result is recorded in: give it a \
-                 name of its own (or --no-save)",
+                "--out {} names {what} the result is recorded in: give it a name of its own \
+                 (or --no-save)",
                 out.display()
             );
         }

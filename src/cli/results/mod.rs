@@ -9,7 +9,7 @@ mod html;
 
 use super::flags::DbArg;
 use super::output::{count, note, out};
-use super::writable::{check_output, same_file};
+use super::writable::{check_output, names_database_file};
 use anyhow::{Result, bail};
 use clap::Subcommand;
 use std::collections::HashMap;
@@ -448,10 +448,11 @@ fn history(
 /// `results report`: one HTML page, a section for each workload (or the one named).
 fn report(path: &Path, output: &Path, workload: Option<&str>, all: bool) -> Result<()> {
     check_output(output)?;
-    // The page replaces whatever file it is written to: the database would be lost.
-    if same_file(output, path) {
+    // The page replaces whatever file it is written to: the database would be lost, or
+    // its write-ahead log and the runs not yet in the database.
+    if let Some(what) = names_database_file(output, path) {
         bail!(
-            "-o {} names the results database: give the report a name of its own",
+            "-o {} names {what}: give the report a name of its own",
             output.display()
         );
     }
