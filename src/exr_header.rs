@@ -252,18 +252,51 @@ pub fn check_bounds<R: Read>(r: R, len: u64) -> Result<(), String> {
     walk(r, len, &mut |_, _, _| Ok(())).map(drop)
 }
 
-/// `check_bounds`, and what the header holds that changes how a viewer shows the picture
-/// (`ExrHeader::display_changes`), whatever its channels: for `compare`.
-pub fn display_changes<R: Read>(r: R, len: u64) -> Result<Vec<String>, String> {
+/// `check_bounds`, and what the file holds that changes how a viewer shows the picture
+/// (`ExrHeader::display_changes`), whatever its channels, with an offset table entry that
+/// points to another chunk's data (`misplaced_chunk`): for `compare`.
+pub fn display_changes<R: Read + std::io::Seek>(mut r: R, len: u64) -> Result<Vec<String>, String> {
     let (mut changes, mut attributes) = (Vec::new(), Vec::new());
-    walk(r, len, &mut |name, kind, value| {
+    let (mut tiles, mut compression, mut data) = (None, None, None);
+    let header_len = walk(&mut r, len, &mut |name, kind, value| {
         attributes.push((name.to_owned(), kind.to_owned()));
         changes.extend(misfit(name, kind, value.len()));
+        // What places the chunks; a value of the wrong size leaves the table unchecked,
+        // the decoder the judge.
+        match (name, kind) {
+            ("compression", "compression") => compression = value.first().copied(),
+            ("dataWindow", "box2i") => data = box2i(&value, "dataWindow").ok(),
+            ("tiles", "tiledesc") if value.len() >= 8 => {
+                let size = |at: usize| u32::from_le_bytes([0, 1, 2, 3].map(|i| value[at + i]));
+                tiles = Some((size(0), size(4)));
+            }
+            _ => {}
+        }
         changes.extend(display_change(name, kind, &value)?);
         Ok(())
     })?;
     changes.extend(lacking(&attributes));
+    if let Some(data) = data
+        && let (Some(width), Some(height)) = (extent(data[0], data[2]), extent(data[1], data[3]))
+    {
+        let layout = ExrLayout {
+            header_len,
+            tiles,
+            compression,
+            top: data[1],
+        };
+        let misplaced = misplaced_chunk(&mut r, width, height, &layout)
+            .map_err(|e| format!("could not be read: {e}"))?;
+        changes.extend(misplaced);
+    }
     Ok(changes)
+}
+
+/// The pixels a data window spans from `min` to `max` along one axis, None for none.
+fn extent(min: i32, max: i32) -> Option<u32> {
+    u32::try_from(i64::from(max) - i64::from(min) + 1)
+        .ok()
+        .filter(|&n| n > 0)
 }
 
 /// How the attribute `name` of type `kind` holding `value` changes how a viewer shows the
@@ -435,11 +468,6 @@ pub fn read<R: Read>(r: R, len: u64) -> Result<ExrHeader, String> {
             "a displayWindow other than its dataWindow: viewers show another frame".to_owned(),
         );
     }
-    let extent = |min: i32, max: i32| {
-        u32::try_from(i64::from(max) - i64::from(min) + 1)
-            .ok()
-            .filter(|&n| n > 0)
-    };
     let (Some(width), Some(height)) = (extent(data[0], data[2]), extent(data[1], data[3])) else {
         return Err(format!("has an empty or inverted dataWindow {data:?}"));
     };

@@ -355,7 +355,8 @@ fn an_exr_with_an_attribute_of_the_wrong_size_for_its_type_differs() {
 
 /// OpenEXR reads each tile at its offset table's entry and refuses a chunk there that says
 /// it is another tile's; the `exr` crate puts each chunk where the chunk itself says. A
-/// table of two entries swapped was `identical`, though no viewer built on OpenEXR shows it.
+/// table of two entries swapped was `identical` to `reproduce` and to `compare`, though no
+/// viewer built on OpenEXR shows it.
 #[test]
 fn an_exr_whose_offset_table_points_to_other_tiles_differs() {
     let dir = temp_dir("hostile-exr-offsets");
@@ -384,6 +385,19 @@ fn an_exr_whose_offset_table_points_to_other_tiles_differs() {
             "entry 0 of its offset table, for tile (0, 0), points to the chunk of tile (1, 0)"
         ),
         "{said}"
+    );
+    // `compare` measures the same values and lists it as what changes how the file is
+    // shown: it once called the two files identical.
+    let o = run(&["compare", "a.exr", "swapped.exr"], &dir);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let said = stdout(&o);
+    assert!(
+        said.contains("entry 0 of its offset table") && !said.contains("identical"),
+        "{said}"
+    );
+    assert_eq!(
+        run(&["compare", "a.exr", "a.exr"], &dir).status.code(),
+        Some(0)
     );
 }
 
