@@ -116,6 +116,15 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
                 display_changes.push(said);
             }
         }
+        // A critical chunk after the pixels: libpng refuses an unknown one there (and takes
+        // no palette there), so a viewer built on it shows nothing or another picture, where
+        // the decoder here stops at the last row.
+        if idat_seen && kind[0].is_ascii_uppercase() && !matches!(&kind, b"IDAT" | b"IEND") {
+            display_changes.push(format!(
+                "a {} chunk after the pixels, a critical chunk where libpng refuses one",
+                String::from_utf8_lossy(&kind).escape_debug()
+            ));
+        }
         match &kind {
             b"IHDR" => {
                 let mut data = [0u8; 13];
@@ -485,5 +494,36 @@ mod tests {
         assert_eq!(header_of(&[&[0x08], &[0x78, 0x9c, 1]]), None);
         assert_eq!(header_of(&[&[], &[0x78, 0x9c, 1]]), None);
         assert_eq!(header_of(&[]), None);
+    }
+
+    /// A critical chunk after the pixels (a palette, or one libpng does not know) makes
+    /// libpng refuse the file, where the decoder here stops at the last row: it was called
+    /// identical. It is listed; an ancillary one there is not.
+    #[test]
+    fn a_critical_chunk_after_the_pixels_is_listed() {
+        let ihdr = chunk(b"IHDR", &[0, 0, 0, 4, 0, 0, 0, 2, 8, 2, 0, 0, 0]);
+        let changes_with = |after: &[u8]| {
+            let png = [
+                &PNG_SIGNATURE[..],
+                &ihdr,
+                &chunk(b"IDAT", &[0x78, 0x9c, 1]),
+                after,
+                &chunk(b"IEND", &[]),
+            ]
+            .concat();
+            read(Cursor::new(&png), png.len() as u64)
+                .unwrap()
+                .display_changes
+        };
+        for kind in [b"PLTE", b"ABCD"] {
+            let changes = changes_with(&chunk(kind, &[0; 3]));
+            assert!(
+                changes.len() == 1 && changes[0].contains("chunk after the pixels, a critical"),
+                "{changes:?}"
+            );
+        }
+        assert!(changes_with(&chunk(b"abCD", &[0; 3])).is_empty());
+        assert!(changes_with(&chunk(b"IDAT", &[0; 3])).is_empty());
+        assert!(changes_with(&[]).is_empty());
     }
 }
