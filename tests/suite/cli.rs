@@ -512,21 +512,24 @@ fn an_output_naming_the_scene_file_is_refused_before_rendering() {
         &["-o", "a.png", "--checkpoint", "scene.toml"],
     ];
     for flags in cases {
-        let mut args = vec!["render", "scene.toml", "--width", "8", "--spp", "2"];
-        args.extend_from_slice(flags);
-        let o = run(&args, &dir);
-        let err = stderr(&o);
-        assert_eq!(o.status.code(), Some(2), "{flags:?}: {err}");
-        assert!(
-            err.contains("names the scene file being rendered"),
-            "{flags:?}: {err}"
-        );
+        refused_before_rendering(&dir, flags, "names the scene file being rendered");
         assert_eq!(
             std::fs::read(dir.join("scene.toml")).unwrap(),
             GOOD.as_bytes()
         );
-        assert!(!dir.join("a.png").exists());
     }
+}
+
+/// Renders `scene.toml` in `dir` with `flags`, which must be refused for `why` (exit 2)
+/// before an image is written.
+fn refused_before_rendering(dir: &Path, flags: &[&str], why: &str) {
+    let mut args = vec!["render", "scene.toml", "--width", "8", "--spp", "2"];
+    args.extend_from_slice(flags);
+    let o = run(&args, dir);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{flags:?}: {err}");
+    assert!(err.contains(why), "{flags:?}: {err}");
+    assert!(!dir.join("a.png").exists());
 }
 
 /// `render scene.toml -o earth.png` where the scene reads earth.png as a texture replaced the
@@ -547,17 +550,9 @@ fn an_output_naming_a_texture_the_scene_reads_is_refused_before_rendering() {
         &["--shard", "0/2", "-o", "tex.ppm"],
         &["-o", "a.png", "--preview-file", "tex.ppm"],
     ] {
-        let mut args = vec!["render", "scene.toml", "--width", "8", "--spp", "2"];
-        args.extend_from_slice(flags);
-        let o = run(&args, &dir);
-        let err = stderr(&o);
-        assert_eq!(o.status.code(), Some(2), "{flags:?}: {err}");
-        assert!(
-            err.contains("names the texture file `tex.ppm` the scene reads"),
-            "{flags:?}: {err}"
-        );
+        let why = "names the texture file `tex.ppm` the scene reads";
+        refused_before_rendering(&dir, flags, why);
         assert_eq!(std::fs::read(dir.join("tex.ppm")).unwrap(), texture);
-        assert!(!dir.join("a.png").exists());
     }
 }
 

@@ -1640,51 +1640,22 @@ fn reading_another_user_s_database_leaves_nothing_beside_it() {
 /// `bench --out F` with F the database it records in (`--db F`, `TESSERA_DB=F`, or a link to
 /// it), and `results report -o F` on database F, replaced the database with the JSON result
 /// or the page (exit 0, "recorded in same.db"): every earlier run was lost, and the next
-/// command said "not an SQLite database". Both are refused now, the database left as it was.
+/// command said "not an SQLite database". `-o r.db-wal` replaced its write-ahead log, and
+/// with it the runs not yet checkpointed into the database. All are refused now, the
+/// database left as it was.
 #[test]
 fn an_output_naming_the_database_is_refused() {
     let dir = temp_dir("results-output-is-db");
     let (db, _) = database_of_one_run(&dir);
     std::os::unix::fs::symlink("r.db", dir.join("link.db")).unwrap();
     let before = bytes(&db);
-    for name in ["r.db", "link.db", "./r.db"] {
-        let o = results(&dir, &db, &["report", "-o", name]);
-        assert_eq!(o.status.code(), Some(2), "{name}: {}", stderr(&o));
-        assert!(
-            stderr(&o).contains("names the results database"),
-            "{name}: {}",
-            stderr(&o)
-        );
-        let mut c = tessera();
-        c.args(["bench", &cover()])
-            .args("--width 8 --spp 1 --repeat 1 --warmup 0 --no-scaling".split(' '))
-            .args(["--out", name])
-            .env("TESSERA_DB", &db)
-            .current_dir(&dir);
-        let o = c.output().unwrap();
-        assert_eq!(o.status.code(), Some(2), "{name}: {}", stderr(&o));
-        assert!(
-            stderr(&o).contains("names the results database"),
-            "{name}: {}",
-            stderr(&o)
-        );
-        assert_eq!(bytes(&db), before, "{name}");
-    }
-    let o = results(&dir, &db, &["list"]);
-    assert!(o.status.success(), "{}", stderr(&o));
-}
-
-/// `results report -o r.db-wal` (or `bench --out r.db-wal`) replaced the database's
-/// write-ahead log with the page, and with it the runs not yet checkpointed into the
-/// database; each of the database's companion files is refused as the database is.
-#[test]
-fn an_output_naming_the_database_s_companion_file_is_refused() {
-    let dir = temp_dir("results-output-is-wal");
-    let (db, _) = database_of_one_run(&dir);
     for (name, what) in [
-        ("r.db-wal", "the results database's wal file"),
-        ("./r.db-shm", "the results database's shm file"),
-        ("r.db-journal", "the results database's journal file"),
+        ("r.db", "names the results database"),
+        ("link.db", "names the results database"),
+        ("./r.db", "names the results database"),
+        ("r.db-wal", "names the results database's wal file"),
+        ("./r.db-shm", "names the results database's shm file"),
+        ("r.db-journal", "names the results database's journal file"),
     ] {
         let o = results(&dir, &db, &["report", "-o", name]);
         assert_eq!(o.status.code(), Some(2), "{name}: {}", stderr(&o));
@@ -1698,7 +1669,8 @@ fn an_output_naming_the_database_s_companion_file_is_refused() {
         let o = c.output().unwrap();
         assert_eq!(o.status.code(), Some(2), "{name}: {}", stderr(&o));
         assert!(stderr(&o).contains(what), "{name}: {}", stderr(&o));
-        assert!(!dir.join(name).exists(), "{name}");
+        assert_eq!(bytes(&db), before, "{name}");
+        assert!(name.ends_with("db") || !dir.join(name).exists(), "{name}");
     }
     let o = results(&dir, &db, &["list"]);
     assert!(o.status.success(), "{}", stderr(&o));
