@@ -13,13 +13,15 @@ use hyper::{Method, Request, Response, StatusCode};
 use hyper_util::rt::{TokioIo, TokioTimer};
 use std::convert::Infallible;
 use std::net::SocketAddr;
-use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex, Weak};
 use std::time::{Duration, Instant};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
-/// Connections served at once; a browser tab uses one to three. Further ones are answered
-/// 503 and closed.
+/// Connections served at once; a browser tab uses one to three. When all are taken, a new
+/// one takes the place of the oldest that has not asked for anything under the key (so
+/// that clients without it, another local user's, cannot keep the viewer from its owner);
+/// when every place has shown the key, it is answered 503 and closed.
 pub const MAX_CLIENTS: usize = 8;
 /// The most a request's line and headers may take; more is answered 431 (hyper's smallest
 /// read buffer).
@@ -68,6 +70,8 @@ pub struct ServerStats {
     pub downloads: AtomicU64,
     /// Connections refused because too many were open.
     pub refused: AtomicU64,
+    /// Connections closed to make room, as none of their requests had the key.
+    pub evicted: AtomicU64,
 }
 
 /// A running viewer server; `stop` ends it.
@@ -186,6 +190,9 @@ struct Shared {
 async fn accept_loop(listener: tokio::net::TcpListener, shared: Arc<Shared>) {
     let mut stopping = shared.stopping.clone();
     let refusals = Arc::new(AtomicUsize::new(0));
+    // Every connection's place, oldest first (those whose connection has ended are dropped
+    // when room is needed).
+    let mut places: Vec<Weak<Place>> = Vec::new();
     loop {
         let accepted = tokio::select! {
             accepted = listener.accept() => accepted,
@@ -198,6 +205,21 @@ async fn accept_loop(listener: tokio::net::TcpListener, shared: Arc<Shared>) {
         };
         let _ = stream.set_nodelay(true);
         if shared.stats.clients.load(Ordering::Relaxed) >= MAX_CLIENTS {
+            places.retain(|place| place.strong_count() > 0);
+            let keyless = (places.iter().filter_map(Weak::upgrade))
+                .find(|place| !place.keyed.load(Ordering::Relaxed) && !place.leaving());
+            if let Some(place) = keyless {
+                // Its connection ends at once; the pause lets it go, and lets the new one
+                // show its key before another newcomer could take its place in turn.
+                place.evict();
+                shared.stats.evicted.fetch_add(1, Ordering::Relaxed);
+                let place = Arc::new(Place::default());
+                places.push(Arc::downgrade(&place));
+                let client = Client::enter(&shared.stats);
+                tokio::spawn(serve(stream, Arc::clone(&shared), client, place));
+                tokio::time::sleep(REFUSAL_PAUSE).await;
+                continue;
+            }
             shared.stats.refused.fetch_add(1, Ordering::Relaxed);
             if refusals.load(Ordering::Relaxed) < MAX_REFUSALS {
                 refusals.fetch_add(1, Ordering::Relaxed);
@@ -210,8 +232,30 @@ async fn accept_loop(listener: tokio::net::TcpListener, shared: Arc<Shared>) {
             tokio::time::sleep(REFUSAL_PAUSE).await;
             continue;
         }
+        let place = Arc::new(Place::default());
+        places.push(Arc::downgrade(&place));
         let client = Client::enter(&shared.stats);
-        tokio::spawn(serve(stream, Arc::clone(&shared), client));
+        tokio::spawn(serve(stream, Arc::clone(&shared), client, place));
+    }
+}
+
+/// A connection's place among the `MAX_CLIENTS`: whether it has asked for anything under
+/// the key, and the call to end it when it has not and its place is needed.
+#[derive(Default)]
+struct Place {
+    keyed: AtomicBool,
+    leave: tokio::sync::Notify,
+    leaving: AtomicBool,
+}
+
+impl Place {
+    fn evict(&self) {
+        self.leaving.store(true, Ordering::Relaxed);
+        self.leave.notify_one();
+    }
+
+    fn leaving(&self) -> bool {
+        self.leaving.load(Ordering::Relaxed)
     }
 }
 
@@ -254,21 +298,23 @@ async fn refuse(mut stream: tokio::net::TcpStream) {
     }
 }
 
-async fn serve<S>(stream: S, shared: Arc<Shared>, client: Client)
+async fn serve<S>(stream: S, shared: Arc<Shared>, client: Client, place: Arc<Place>)
 where
     S: tokio::io::AsyncRead + tokio::io::AsyncWrite + Unpin + Send + 'static,
 {
     let bucket = Arc::new(Mutex::new(Bucket::new()));
     let service = {
         let shared = Arc::clone(&shared);
+        let place = Arc::clone(&place);
         hyper::service::service_fn(move |request| {
             let (shared, bucket) = (Arc::clone(&shared), Arc::clone(&bucket));
+            let place = Arc::clone(&place);
             async move {
                 let wait = bucket.lock().map_or(Duration::ZERO, |mut b| b.take());
                 if !wait.is_zero() {
                     tokio::time::sleep(wait).await;
                 }
-                Ok::<_, Infallible>(respond(&shared, &request))
+                Ok::<_, Infallible>(respond(&shared, &place, &request))
             }
         })
     };
@@ -297,6 +343,8 @@ where
             connection.as_mut().graceful_shutdown();
             let _ = tokio::time::timeout(STOP_GRACE, connection.as_mut()).await;
         }
+        // Its place is needed, and it never showed the key: nothing of the render is lost.
+        _ = place.leave.notified() => {}
     }
     drop(client);
 }
@@ -333,7 +381,8 @@ pub fn answer_in_memory(
         let until = tokio::time::Instant::now() + at_most;
         let (client_side, server_side) = tokio::io::duplex(64 << 10);
         let client = Client::enter(&shared.stats);
-        let served = tokio::spawn(serve(server_side, Arc::clone(&shared), client));
+        let place = Arc::new(Place::default());
+        let served = tokio::spawn(serve(server_side, Arc::clone(&shared), client, place));
         let (mut reader, mut writer) = tokio::io::split(client_side);
         let mut answer = Vec::new();
         {
@@ -411,7 +460,7 @@ impl Bucket {
 
 type Body = http_body_util::combinators::BoxBody<Bytes, Infallible>;
 
-fn respond(shared: &Arc<Shared>, request: &Request<Incoming>) -> Response<Body> {
+fn respond(shared: &Arc<Shared>, place: &Place, request: &Request<Incoming>) -> Response<Body> {
     if request.method() != Method::GET && request.method() != Method::HEAD {
         let mut r = text(StatusCode::METHOD_NOT_ALLOWED, "only GET and HEAD\n");
         r.headers_mut()
@@ -435,6 +484,7 @@ fn respond(shared: &Arc<Shared>, request: &Request<Incoming>) -> Response<Body> 
             "not found: the viewer answers at the address tessera printed, key and all\n",
         );
     }
+    place.keyed.store(true, Ordering::Relaxed);
     if !uri.path().ends_with('/') && path.is_empty() {
         // The page's links are relative to the key's folder.
         let mut r = text(
@@ -773,6 +823,72 @@ mod tests {
         assert_ne!(key_a, key_b);
         assert!(same_key(&key_a, &key_a) && !same_key(&key_a, &key_b));
         assert!(!same_key(&key_a[..31], &key_a) && !same_key("", &key_a));
+    }
+
+    /// Reads one answer from `stream` (its head, then its body by length), as text.
+    fn read_answer(stream: &mut std::net::TcpStream) -> String {
+        use std::io::Read;
+        let mut got = Vec::new();
+        let mut byte = [0u8; 1];
+        while !got.ends_with(b"\r\n\r\n") {
+            match stream.read(&mut byte) {
+                Ok(1) => got.push(byte[0]),
+                _ => return String::from_utf8_lossy(&got).into_owned(),
+            }
+        }
+        let head = String::from_utf8_lossy(&got).to_ascii_lowercase();
+        let length = (head.lines())
+            .find_map(|l| l.strip_prefix("content-length:"))
+            .map_or(0, |v| v.trim().parse().unwrap());
+        let mut body = vec![0u8; length];
+        stream.read_exact(&mut body).unwrap();
+        got.extend_from_slice(&body);
+        String::from_utf8_lossy(&got).into_owned()
+    }
+
+    /// Another local user, without the key, opens connection after connection and keeps
+    /// them (asking for keyless paths, or saying nothing): each takes the place of none that
+    /// showed the key, so the owner's page is still served; only places that have shown it
+    /// fill the server.
+    #[test]
+    fn clients_without_the_key_cannot_keep_the_owner_out() {
+        use std::io::Write;
+        let previewer = blank_previewer();
+        let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        let server = Server::start(listener, previewer.hub()).unwrap();
+        let (addr, key) = (server.addr(), server.key().to_owned());
+        let connect = || {
+            let s = std::net::TcpStream::connect(addr).unwrap();
+            s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+            s
+        };
+        let ask = |s: &mut std::net::TcpStream, path: &str| {
+            write!(s, "GET {path} HTTP/1.1\r\nHost: {addr}\r\n\r\n").unwrap();
+            read_answer(s)
+        };
+        let mut strangers = Vec::new();
+        for i in 0..2 * MAX_CLIENTS {
+            let mut s = connect();
+            if i % 2 == 0 {
+                let answer = ask(&mut s, "/status");
+                assert!(answer.starts_with("HTTP/1.1 404"), "{answer}");
+            }
+            strangers.push(s);
+        }
+        let mut owners = Vec::new();
+        for _ in 0..MAX_CLIENTS {
+            let mut s = connect();
+            let answer = ask(&mut s, &format!("/{key}/status"));
+            assert!(answer.starts_with("HTTP/1.1 200"), "{answer}");
+            owners.push(s);
+        }
+        // Every place has shown the key now: one more is refused, whoever it is.
+        let mut one_more = connect();
+        let answer = ask(&mut one_more, &format!("/{key}/status"));
+        assert!(answer.starts_with("HTTP/1.1 503"), "{answer}");
+        assert!(server.stats().evicted.load(Ordering::Relaxed) >= MAX_CLIENTS as u64);
+        drop((strangers, owners));
+        server.stop();
     }
 
     #[test]
