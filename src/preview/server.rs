@@ -50,6 +50,10 @@ const MAX_REFUSALS: usize = 16;
 const REFUSAL_PAUSE: Duration = Duration::from_millis(5);
 
 const INDEX_HTML: &str = include_str!("assets/index.html");
+/// Where the page holds its run's token (`Shared::run`), filled in when the server starts.
+const RUN_SLOT: &str = r#"<meta name="tessera-run" content="">"#;
+/// The header of every answer under the key that carries the run's token.
+const RUN_HEADER: &str = "x-tessera-run";
 const VIEWER_CSS: &str = include_str!("assets/viewer.css");
 const VIEWER_JS: &str = include_str!("assets/viewer.js");
 
@@ -89,6 +93,7 @@ impl Server {
     pub fn start(listener: std::net::TcpListener, hub: Arc<Hub>) -> std::io::Result<Server> {
         let addr = listener.local_addr()?;
         let key = new_key()?;
+        let run = new_key()?;
         listener.set_nonblocking(true)?;
         let runtime = tokio::runtime::Builder::new_current_thread()
             .enable_io()
@@ -104,6 +109,8 @@ impl Server {
             hub,
             addr,
             key: key.clone(),
+            page: page_of(&run),
+            run,
             stats: Arc::clone(&stats),
             png: Mutex::new(None),
             patch: Mutex::new(None),
@@ -179,6 +186,14 @@ struct Shared {
     addr: SocketAddr,
     /// The first segment of every path served (`new_key`).
     key: String,
+    /// The run's token (drawn as the key is): written into the page, sent with every answer
+    /// under the key and first in every event stream, and never part of a request. A program
+    /// that takes the port once the server has gone (another user's) learns the key from
+    /// the paths a page still asks for, but not this, so the page knows its answers are not
+    /// its render's and stops asking.
+    run: String,
+    /// The page, with the run's token in it.
+    page: Bytes,
     stats: Arc<ServerStats>,
     /// The newest frame's PNGs, made once for every client that asks: the whole frame and
     /// the patch from the frame before, each with its frame version.
@@ -372,6 +387,8 @@ pub fn answer_in_memory(
         hub,
         addr,
         key: key.to_owned(),
+        page: page_of(RUN_IN_MEMORY),
+        run: RUN_IN_MEMORY.to_owned(),
         stats: Arc::new(ServerStats::default()),
         png: Mutex::new(None),
         patch: Mutex::new(None),
@@ -422,6 +439,15 @@ pub fn answer_in_memory(
             _ => Ok(answer),
         }
     })
+}
+
+/// The run's token of a server in memory (`answer_in_memory`).
+pub const RUN_IN_MEMORY: &str = "0123456789abcdef0123456789abcdef";
+
+/// The page, its run's token filled in.
+fn page_of(run: &str) -> Bytes {
+    let slot = format!(r#"<meta name="tessera-run" content="{run}">"#);
+    Bytes::from(INDEX_HTML.replacen(RUN_SLOT, &slot, 1))
 }
 
 /// Whether `answer` has come to the end of an event stream's head.
@@ -496,10 +522,16 @@ fn respond(shared: &Arc<Shared>, place: &Place, request: &Request<Incoming>) -> 
         }
         return r;
     }
-    match path {
-        "" | "index.html" => asset(INDEX_HTML, "text/html; charset=utf-8"),
-        "viewer.css" => asset(VIEWER_CSS, "text/css; charset=utf-8"),
-        "viewer.js" => asset(VIEWER_JS, "text/javascript; charset=utf-8"),
+    let mut r = match path {
+        "" | "index.html" => asset(shared.page.clone(), "text/html; charset=utf-8"),
+        "viewer.css" => asset(
+            Bytes::from_static(VIEWER_CSS.as_bytes()),
+            "text/css; charset=utf-8",
+        ),
+        "viewer.js" => asset(
+            Bytes::from_static(VIEWER_JS.as_bytes()),
+            "text/javascript; charset=utf-8",
+        ),
         "status" => {
             let latest = shared.hub.latest();
             dynamic(
@@ -511,7 +543,11 @@ fn respond(shared: &Arc<Shared>, place: &Place, request: &Request<Incoming>) -> 
         "download" => download(shared),
         "events" => events(shared),
         _ => text(StatusCode::NOT_FOUND, "not found\n"),
+    };
+    if let Ok(run) = HeaderValue::from_str(&shared.run) {
+        r.headers_mut().insert(RUN_HEADER, run);
     }
+    r
 }
 
 /// A new key of the viewer's: 128 bits from the kernel's random source, as 32 hex digits.
@@ -674,10 +710,12 @@ fn events(shared: &Arc<Shared>) -> Response<Body> {
     let mut snapshots = shared.hub.subscribe();
     snapshots.mark_changed();
     let mut stopping = shared.stopping.clone();
+    // The run's token comes first: the page takes a stream's statuses only after it.
+    let first = Bytes::from(format!("retry: 1000\nevent: run\ndata: {}\n\n", shared.run));
     tokio::spawn(async move {
         let deadline = tokio::time::sleep(STREAM_LIFETIME);
         tokio::pin!(deadline);
-        let mut message = Some(Bytes::from_static(b"retry: 1000\n\n"));
+        let mut message = Some(first);
         loop {
             if let Some(m) = message.take() {
                 tokio::select! {
@@ -702,8 +740,8 @@ fn events(shared: &Arc<Shared>) -> Response<Body> {
     dynamic(body.boxed(), "text/event-stream")
 }
 
-fn asset(body: &'static str, content_type: &'static str) -> Response<Body> {
-    let mut r = Response::new(Full::new(Bytes::from_static(body.as_bytes())).boxed());
+fn asset(body: Bytes, content_type: &'static str) -> Response<Body> {
+    let mut r = Response::new(Full::new(body).boxed());
     let h = r.headers_mut();
     h.insert(header::CONTENT_TYPE, HeaderValue::from_static(content_type));
     h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-cache"));

@@ -504,6 +504,131 @@ fn a_page_keeps_the_final_image_after_the_viewer_has_gone() {
     );
 }
 
+/// A render whose process dies (killed, out of memory) leaves its page asking the port, key
+/// and all, and another local user's program can take the port at once. Its answers, a
+/// forged "finished" with a frame and a download of its own, were taken: the page showed
+/// them and asked it for the frame. The page now takes only answers that carry its run's
+/// token, which no request carries, and at the first that does not it stops asking.
+#[test]
+fn a_page_takes_nothing_from_whoever_has_the_port_after_its_server() {
+    if !heavy("a browser test") {
+        return;
+    }
+    let Some(binary) = chromium() else {
+        return skip(
+            "a_page_takes_nothing_from_whoever_has_the_port",
+            "no chromium (Debian's `chromium` package; or set TESSERA_CHROMIUM)",
+        );
+    };
+    let dir = temp_dir("browser-port-taken");
+    let mut viewer = KillOnDrop(
+        tessera()
+            .args(["render", &cover(), "--width", "64", "--spp", "65536"])
+            .args(["--threads", "1", "-o", "small.png", "--preview"])
+            .current_dir(&dir)
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("start tessera"),
+    );
+    let mut err = BufReader::new(viewer.0.stderr.take().unwrap()).lines();
+    let url = loop {
+        let line = err.next().expect("tessera prints the address").unwrap();
+        if let Some(rest) = line.strip_prefix("tessera: preview at ") {
+            break rest.to_owned();
+        }
+    };
+    std::thread::spawn(move || err.for_each(drop));
+    let addr = url["http://".len()..].split('/').next().unwrap().to_owned();
+    let mut browser = Browser::open(&binary, &url, dir.join("profile"));
+    let state = "document.getElementById('state').textContent";
+    browser.wait_for(
+        "the first frame",
+        "document.getElementById('image').width",
+        |v| v == 64,
+    );
+    browser.wait_for("the render's status", state, |v| v == "rendering");
+
+    // The render dies; another program takes the port and answers whatever it is asked.
+    viewer.0.kill().unwrap();
+    viewer.0.wait().unwrap();
+    let start = Instant::now();
+    let taken = loop {
+        match std::net::TcpListener::bind(&addr) {
+            Ok(l) => break l,
+            Err(e) => assert!(start.elapsed() < PATIENCE, "{addr}: {e}"),
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    };
+    let forged = json!({
+        "state": "finished", "spp_done": 9, "spp_max": 9, "spp_total": 9, "percent": 100.0,
+        "pass": 1, "passes": 1, "pass_spp": 9, "elapsed_s": 1.0, "eta_s": 0.0,
+        "samples_per_sec": 1.0, "mrays_per_sec": 1.0, "tiles": [],
+        "frame": {"version": 999, "width": 64, "height": 43, "scale": 1},
+        "download": {"name": "small.png", "bytes": 100},
+        "about": {"scene": "forged", "scene_file": "forged.toml", "width": 64, "height": 43,
+            "spp": 9, "max_depth": 5, "seed": 0, "shading": "path", "threads": 1, "tile": 16,
+            "simd": "x", "region": [0, 0, 64, 43], "samples": [0, 9], "job": "whole image",
+            "output": "small.png", "held": true}
+    })
+    .to_string();
+    let asked = std::sync::Arc::new(std::sync::Mutex::new(Vec::<String>::new()));
+    {
+        let asked = std::sync::Arc::clone(&asked);
+        std::thread::spawn(move || {
+            for stream in taken.incoming() {
+                let Ok(mut stream) = stream else { continue };
+                let mut head = Vec::new();
+                let mut byte = [0u8; 1];
+                while !head.ends_with(b"\r\n\r\n") && stream.read(&mut byte).unwrap_or(0) == 1 {
+                    head.push(byte[0]);
+                }
+                let line = String::from_utf8_lossy(&head);
+                let path = line.split(' ').nth(1).unwrap_or("").to_owned();
+                asked.lock().unwrap().push(path.clone());
+                let answer = if path.ends_with("/events") {
+                    format!(
+                        "HTTP/1.1 200 OK\r\ncontent-type: text/event-stream\r\n\r\n\
+                         event: status\ndata: {forged}\n\n"
+                    )
+                } else {
+                    format!(
+                        "HTTP/1.1 200 OK\r\ncontent-type: application/json\r\n\
+                         content-length: {}\r\n\r\n{forged}",
+                        forged.len()
+                    )
+                };
+                let _ = stream.write_all(answer.as_bytes());
+                std::thread::spawn(move || {
+                    std::thread::sleep(Duration::from_secs(5));
+                    drop(stream);
+                });
+            }
+        });
+    }
+    browser.wait_for("the page to be asked of another", state, |v| {
+        v != "rendering" && v != "connecting"
+    });
+    std::thread::sleep(Duration::from_secs(4));
+    let shown = browser.eval(
+        "(() => ({ state: document.getElementById('state').textContent, \
+         scene: document.getElementById('scene').textContent, \
+         link: !document.getElementById('download').hidden }))()",
+    );
+    let asked = asked.lock().unwrap().clone();
+    assert_eq!(
+        shown["state"], "connection lost",
+        "{shown}; asked {asked:?}"
+    );
+    assert_ne!(shown["scene"], "forged", "{shown}");
+    assert_eq!(shown["link"], false, "{shown}");
+    assert!(
+        !asked.is_empty() && asked.iter().all(|p| !p.contains("frame.png")),
+        "{asked:?}"
+    );
+    assert!(asked.len() <= 2, "the page went on asking: {asked:?}");
+}
+
 fn http_status(host: &str, key: &str) -> Value {
     serde_json::from_slice(&http_get(host, &format!("/{key}/status"))).expect("status JSON")
 }

@@ -351,6 +351,26 @@ fn the_page_its_assets_and_the_event_stream_are_served() {
         !html.contains("http://") && !html.contains("https://"),
         "nothing from outside"
     );
+    // The run's token: in the page, with every answer and first in the event stream, and
+    // not the key (which every request carries): a program that takes the port after the
+    // server has gone cannot send it, and the page takes nothing without it.
+    let slot = "<meta name=\"tessera-run\" content=\"";
+    let run = html
+        .split(slot)
+        .nth(1)
+        .expect("the page holds its run's token");
+    let run = &run[..run.find('"').unwrap()];
+    assert!(
+        run.len() == 32 && run.bytes().all(|c| c.is_ascii_hexdigit()) && run != viewer.key,
+        "{run}"
+    );
+    for path in ["/", "/status", "/frame.png", "/download"] {
+        assert_eq!(
+            viewer.get(path).header("x-tessera-run"),
+            Some(run),
+            "{path}"
+        );
+    }
     let head = request(
         viewer.addr,
         &format!(
@@ -384,6 +404,11 @@ fn the_page_its_assets_and_the_event_stream_are_served() {
     let text = String::from_utf8_lossy(&seen);
     assert!(text.contains("text/event-stream"), "{text}");
     assert!(text.contains("event: status\ndata: {"), "{text}");
+    let first = text.find("event: ").unwrap();
+    assert!(
+        text[first..].starts_with(&format!("event: run\ndata: {run}\n\n")),
+        "{text}"
+    );
     drop(stream);
     assert_eq!(viewer.interrupt_held().0, 0);
 }

@@ -15,6 +15,28 @@ let polling = null;
 let pending = null;   // a status waiting for its frame to load
 let kept = null;      // the finished image, kept in the page as a blob: URL
 let keeping = false;  // it is being fetched
+let events = null;    // the event stream
+let trusted = false;  // its connection has sent this run's token
+let gone = false;     // an answer came that is not this render's: the page asks no more
+
+// This render's token: the server wrote it into the page, sends it with every answer and
+// first in every event stream, and no request carries it. A program that takes the port once
+// the server has gone (another user's) learns the key from the paths the page asks for, but
+// not this: its answers are not taken, and the page stops asking.
+const run = document.querySelector('meta[name="tessera-run"]').content;
+
+function ours(response) {
+  return run !== "" && response.headers.get("x-tessera-run") === run;
+}
+
+// An answer without this run's token: the server has gone and another program answers.
+function foreign() {
+  gone = true;
+  if (events) events.close();
+  if (polling) clearInterval(polling);
+  pending = null;
+  lost();
+}
 
 function clock(seconds) {
   if (seconds == null || !isFinite(seconds)) return "–";
@@ -38,6 +60,10 @@ async function loadFrame() {
     const since = shown > 0 ? `&since=${shown}` : "";
     const r = await fetch(`frame.png?v=${wanted}${since}`, { cache: "no-store" });
     if (!r.ok) throw new Error(`frame: ${r.status}`);
+    if (!ours(r)) {
+      foreign();
+      throw new Error("frame: not this render's");
+    }
     const version = Number(r.headers.get("x-frame-version"));
     const rows = (r.headers.get("x-frame-rows") || "").split(",").map((a) => a.split("-").map(Number));
     const [width, height] = (r.headers.get("x-frame-size") || "").split(",").map(Number);
@@ -120,6 +146,7 @@ function drawTiles() {
 
 // Takes a new status: its text is shown at once, or with its frame when it brings one.
 function show(status) {
+  if (gone) return;
   last = status;
   wanted = Math.max(wanted, status.frame.version);
   if (status.frame.version > shown && !loading) {
@@ -181,7 +208,10 @@ function offer(status) {
   if (kept || keeping) return;
   keeping = true;
   fetch("download", { cache: "no-store" })
-    .then((r) => (r.ok ? r.blob() : Promise.reject(new Error(`download: ${r.status}`))))
+    .then((r) => {
+      if (r.ok && !ours(r)) foreign();
+      return r.ok && !gone ? r.blob() : Promise.reject(new Error(`download: ${r.status}`));
+    })
     .then((blob) => {
       kept = URL.createObjectURL(blob);
       link.href = kept;
@@ -196,10 +226,11 @@ function offer(status) {
 }
 
 function poll() {
-  if (polling) return;
+  if (polling || gone) return;
   polling = setInterval(async () => {
     try {
       const r = await fetch("status", { cache: "no-store" });
+      if (r.ok && !ours(r)) return foreign();
       if (r.ok) show(await r.json());
     } catch (e) {
       lost();
@@ -221,9 +252,21 @@ function lost() {
 
 function listen() {
   if (!("EventSource" in window)) return poll();
-  const events = new EventSource("events");
+  events = new EventSource("events");
   let errors = 0;
+  // Each connection of the stream shows the run's token before its statuses are taken.
+  // Until it has, a link to the server's file is not offered: whoever answers may not be it.
+  events.addEventListener("open", () => {
+    trusted = false;
+    if (!kept) $("download").hidden = true;
+  });
+  events.addEventListener("run", (e) => {
+    trusted = e.data === run && run !== "";
+    if (!trusted) return foreign();
+    if (last) offer(last);
+  });
   events.addEventListener("status", (e) => {
+    if (!trusted) return foreign();
     errors = 0;
     const status = JSON.parse(e.data);
     show(status);
