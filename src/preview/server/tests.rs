@@ -1,0 +1,195 @@
+//! The viewer server's own tests: its key, its places, its answers in memory.
+
+use super::*;
+
+#[test]
+fn buckets_allow_a_burst_then_pace() {
+    let mut b = Bucket::new();
+    for _ in 0..BURST as usize {
+        assert_eq!(b.take(), Duration::ZERO);
+    }
+    let wait = b.take();
+    assert!(
+        wait > Duration::ZERO && wait <= Duration::from_millis(60),
+        "{wait:?}"
+    );
+}
+
+/// A viewer of a small blank job.
+fn blank_previewer() -> super::super::Previewer {
+    use crate::job::{Job, JobState, SampleRange};
+    let job = Job {
+        region: crate::math::PixelRect::full(16, 9),
+        samples: SampleRange { start: 0, end: 4 },
+    };
+    let about = super::super::About {
+        scene: "blank".into(),
+        scene_file: "blank.toml".into(),
+        width: 16,
+        height: 9,
+        spp: 4,
+        max_depth: 5,
+        seed: 0,
+        shading: "path".into(),
+        threads: 1,
+        tile: 4,
+        simd: "portable".into(),
+        region: [0, 0, 16, 9],
+        samples: [0, 4],
+        job: "whole image".into(),
+        output: "blank.png".into(),
+        held: false,
+    };
+    super::super::Previewer::new(about, &JobState::new(job, 4), 2.0)
+}
+
+/// The key of the paths served in memory here.
+const KEY: &str = "k3y";
+
+/// Every run's server has a key of its own, 128 bits the kernel drew: the address
+/// printed is all that reaches the page.
+#[test]
+fn each_server_has_a_key_of_its_own() {
+    let previewer = blank_previewer();
+    let url_and_key = || {
+        let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        let server = Server::start(listener, previewer.hub()).unwrap();
+        let found = (server.url(), server.key().to_owned());
+        server.stop();
+        found
+    };
+    let ((a, key_a), (_, key_b)) = (url_and_key(), url_and_key());
+    assert!(a.starts_with("http://127.0.0.1:") && a.ends_with(&format!("/{key_a}/")));
+    assert_eq!(key_a.len(), 32, "{a}");
+    assert!(key_a.bytes().all(|c| c.is_ascii_hexdigit()), "{a}");
+    assert_ne!(key_a, key_b);
+    assert!(same_key(&key_a, &key_a) && !same_key(&key_a, &key_b));
+    assert!(!same_key(&key_a[..31], &key_a) && !same_key("", &key_a));
+}
+
+/// Reads one answer from `stream` (its head, then its body by length), as text.
+fn read_answer(stream: &mut std::net::TcpStream) -> String {
+    use std::io::Read;
+    let mut got = Vec::new();
+    let mut byte = [0u8; 1];
+    while !got.ends_with(b"\r\n\r\n") {
+        match stream.read(&mut byte) {
+            Ok(1) => got.push(byte[0]),
+            _ => return String::from_utf8_lossy(&got).into_owned(),
+        }
+    }
+    let head = String::from_utf8_lossy(&got).to_ascii_lowercase();
+    let length = (head.lines())
+        .find_map(|l| l.strip_prefix("content-length:"))
+        .map_or(0, |v| v.trim().parse().unwrap());
+    let mut body = vec![0u8; length];
+    stream.read_exact(&mut body).unwrap();
+    got.extend_from_slice(&body);
+    String::from_utf8_lossy(&got).into_owned()
+}
+
+/// Another local user, without the key, opens connection after connection and keeps
+/// them (asking for keyless paths, or saying nothing): each takes the place of none that
+/// showed the key, so the owner's page is still served; only places that have shown it
+/// fill the server.
+#[test]
+fn clients_without_the_key_cannot_keep_the_owner_out() {
+    use std::io::Write;
+    let previewer = blank_previewer();
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let server = Server::start(listener, previewer.hub()).unwrap();
+    let (addr, key) = (server.addr(), server.key().to_owned());
+    let connect = || {
+        let s = std::net::TcpStream::connect(addr).unwrap();
+        s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+        s
+    };
+    let ask = |s: &mut std::net::TcpStream, path: &str| {
+        write!(s, "GET {path} HTTP/1.1\r\nHost: {addr}\r\n\r\n").unwrap();
+        read_answer(s)
+    };
+    let mut strangers = Vec::new();
+    for i in 0..2 * MAX_CLIENTS {
+        let mut s = connect();
+        if i % 2 == 0 {
+            let answer = ask(&mut s, "/status");
+            assert!(answer.starts_with("HTTP/1.1 404"), "{answer}");
+        }
+        strangers.push(s);
+    }
+    let mut owners = Vec::new();
+    for _ in 0..MAX_CLIENTS {
+        let mut s = connect();
+        let answer = ask(&mut s, &format!("/{key}/status"));
+        assert!(answer.starts_with("HTTP/1.1 200"), "{answer}");
+        owners.push(s);
+    }
+    // Every place has shown the key now: one more is refused, whoever it is.
+    let mut one_more = connect();
+    let answer = ask(&mut one_more, &format!("/{key}/status"));
+    assert!(answer.starts_with("HTTP/1.1 503"), "{answer}");
+    assert!(server.stats().evicted.load(Ordering::Relaxed) >= MAX_CLIENTS as u64);
+    drop((strangers, owners));
+    server.stop();
+}
+
+#[test]
+fn a_connection_in_memory_is_answered_as_a_socket_s_is() {
+    let previewer = blank_previewer();
+    let addr = SocketAddr::from(([127, 0, 0, 1], 8000));
+    let ask = |request: &[u8]| {
+        let started = Instant::now();
+        let answer =
+            answer_in_memory(previewer.hub(), addr, KEY, request, Duration::from_secs(5)).unwrap();
+        (
+            String::from_utf8_lossy(&answer).into_owned(),
+            started.elapsed(),
+        )
+    };
+    // Answered, and at once: the connection closes when the client's side has.
+    let (status, took) = ask(b"GET /k3y/status HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
+    assert!(status.starts_with("HTTP/1.1 200"), "{status}");
+    assert!(took < Duration::from_secs(2), "{took:?}");
+    let (keyless, _) = ask(b"GET /status HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
+    assert!(keyless.starts_with("HTTP/1.1 404"), "{keyless}");
+    let (folder, _) = ask(b"GET /k3y HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
+    assert!(
+        folder.starts_with("HTTP/1.1 308") && folder.contains("location: /k3y/\r\n"),
+        "{folder}"
+    );
+    let (two, _) = ask(
+        b"GET /k3y/viewer.css HTTP/1.1\r\nHost: localhost:8000\r\n\r\n\
+          GET /k3y/nothing HTTP/1.1\r\nHost: localhost\r\n\r\n",
+    );
+    assert!(
+        two.starts_with("HTTP/1.1 200") && two.contains("HTTP/1.1 404"),
+        "{two}"
+    );
+    let (foreign, _) = ask(b"GET / HTTP/1.1\r\nHost: example.com\r\n\r\n");
+    assert!(foreign.starts_with("HTTP/1.1 421"), "{foreign}");
+    let (other_port, _) = ask(b"GET / HTTP/1.1\r\nHost: 127.0.0.1:8001\r\n\r\n");
+    assert!(other_port.starts_with("HTTP/1.1 421"), "{other_port}");
+    let (post, _) = ask(b"POST / HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
+    assert!(post.starts_with("HTTP/1.1 405"), "{post}");
+    let (garbage, _) = ask(b"\x16\x03\x01 not http\r\n\r\n");
+    assert!(
+        garbage.is_empty() || garbage.starts_with("HTTP/1.1 400"),
+        "{garbage}"
+    );
+    // An event stream is cut off after its head, well before `at_most`.
+    let (events, took) = ask(b"GET /k3y/events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
+    assert!(events.contains("text/event-stream"), "{events}");
+    assert!(took < Duration::from_secs(2), "{took:?}");
+}
+
+#[test]
+fn download_names_are_plain() {
+    assert_eq!(safe_name("cover.png"), "cover.png");
+    assert_eq!(
+        safe_name("img-1.16-glass-hollow.png"),
+        "img-1.16-glass-hollow.png"
+    );
+    assert_eq!(safe_name("../../etc/passwd\"\r\n"), "etcpasswd.png");
+    assert_eq!(safe_name(".hidden"), "hidden.png");
+    assert_eq!(safe_name("é"), "render.png");
+}
