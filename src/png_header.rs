@@ -107,6 +107,18 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
                 "has an IHDR chunk of {length} bytes, not the 13 of a PNG"
             ));
         }
+        // A chunk's type is four ASCII letters: libpng refuses a file of any other ("invalid
+        // chunk type"), where the PNG decoder skips it as an unknown chunk of no importance.
+        if !kind.iter().all(u8::is_ascii_alphabetic) {
+            let said = format!(
+                "a chunk of the type `{}`, not four letters as a PNG chunk's type is: libpng \
+                 refuses the file, and viewers built on it show nothing",
+                String::from_utf8_lossy(&kind).escape_debug()
+            );
+            if !display_changes.contains(&said) {
+                display_changes.push(said);
+            }
+        }
         if let Some((_, how)) = DISPLAY_CHUNKS.iter().find(|(k, _)| **k == kind) {
             let said = format!(
                 "a {} chunk, which tessera does not write: {how}",
@@ -442,6 +454,33 @@ mod tests {
         damaged[33 + 8 + recipe.len() - 1] ^= 1;
         let e = read(Cursor::new(&damaged), png.len() as u64).unwrap_err();
         assert!(e.contains("bad CRC"), "{e}");
+    }
+
+    /// A chunk whose type is not four letters (a control character, a digit, a byte past
+    /// ASCII): the PNG decoder skips it, libpng refuses the file ("invalid chunk type"), so
+    /// it is listed as changing how the picture is shown; a chunk of letters unknown to both
+    /// is not.
+    #[test]
+    fn a_chunk_whose_type_is_not_four_letters_is_listed() {
+        let ihdr = chunk(b"IHDR", &[0, 0, 0, 4, 0, 0, 0, 2, 8, 2, 0, 0, 0]);
+        let end = chunk(b"IEND", &[]);
+        let listed = |kind: &[u8; 4]| {
+            let png = [&PNG_SIGNATURE[..], &ihdr, &chunk(kind, b"xx"), &end].concat();
+            read(Cursor::new(&png), png.len() as u64)
+                .unwrap()
+                .display_changes
+        };
+        for (kind, shown) in [
+            (b"a\x01bc", "`a\\u{1}bc`"),
+            (b"ab1d", "`ab1d`"),
+            (b"ab\xffd", "`ab\u{fffd}d`"),
+        ] {
+            let said = listed(kind);
+            assert_eq!(said.len(), 1, "{said:?}");
+            assert!(said[0].contains(shown), "{said:?}");
+            assert!(said[0].contains("libpng refuses the file"), "{said:?}");
+        }
+        assert!(listed(b"abCd").is_empty());
     }
 
     /// A recipe in a tEXt or zTXt chunk beside the iTXt one checked: Python's PIL showed the
