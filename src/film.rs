@@ -9,7 +9,8 @@ use crate::math::PixelRect;
 /// below what 8-bit or half-float output can show.
 pub const FRAC_BITS: u32 = 24;
 pub(crate) const ONE: f64 = (1u64 << FRAC_BITS) as f64;
-/// Per-sample radiance is clamped to this, which bounds a sum of 2²⁰ samples below 2⁶⁴.
+/// Per-sample radiance is clamped to this, which bounds a sum of fewer than 2²⁰ samples
+/// below 2⁶⁴; a larger sum stays at 2⁶⁴ - 1, the brightest value (every sum saturates).
 const MAX_SAMPLE: f32 = (1u32 << 20) as f32;
 
 /// Converts one sample's channel to fixed point; NaN and negative values count as zero.

@@ -592,10 +592,7 @@ fn render_tile_on<I: Isa, const FULL: bool>(
             u32::MAX
         };
         let finished = integrator::trace_tile(isa, scene, tile, range, stopped, run, |i, c, r| {
-            let acc = &mut sums[i];
-            acc[0] += to_fixed(c.x);
-            acc[1] += to_fixed(c.y);
-            acc[2] += to_fixed(c.z);
+            add_sample(&mut sums[i], c);
             rays += u64::from(r);
         });
         return finished.then_some(TileResult { sums, rays });
@@ -621,9 +618,7 @@ fn render_tile_on<I: Isa, const FULL: bool>(
                     None => range.end,
                 };
                 pixels.evaluate_as::<FULL>(x, y, SampleRange { start, end }, |c: Color, r: u32| {
-                    acc[0] += to_fixed(c.x);
-                    acc[1] += to_fixed(c.y);
-                    acc[2] += to_fixed(c.z);
+                    add_sample(&mut acc, c);
                     rays += u64::from(r);
                 });
                 start = end;
@@ -637,9 +632,62 @@ fn render_tile_on<I: Isa, const FULL: bool>(
     Some(TileResult { sums, rays })
 }
 
+/// Adds one sample's value to its pixel's sums, saturating as `film::add_run` does: a
+/// scene may ask for 2^32 - 1 samples of a pixel, and 2^20 at the brightest value a sample
+/// keeps already make 2^64, which wrapped round to black in one render and stayed the
+/// brightest value when the same samples were rendered in parts and merged. Below that, the
+/// same sums as plain addition.
+#[inline(always)]
+fn add_sample(acc: &mut [u64; 3], c: Color) {
+    acc[0] = acc[0].saturating_add(to_fixed(c.x));
+    acc[1] = acc[1].saturating_add(to_fixed(c.y));
+    acc[2] = acc[2].saturating_add(to_fixed(c.z));
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::film::add_sums;
+    use crate::scene::Overrides;
+    use std::path::Path;
+
+    /// A pixel of 2^20 samples at the brightest value a sample keeps (a background of
+    /// 10^7) sums to the brightest value, as its samples rendered in two parts and added
+    /// do, in each of the three ways a tile is traced (the first book's, The Next Week's,
+    /// a few quads' paths sixteen at a time): the sum once wrapped round to 0, a black
+    /// pixel, where the parts merged gave white.
+    #[test]
+    fn a_pixel_s_sums_past_64_bits_are_the_brightest_however_its_samples_are_split() {
+        let samples = 1u32 << 20;
+        let head = format!(
+            "[image]\nwidth = 1\nheight = 1\nsamples_per_pixel = {samples}\nmax_depth = 1\n\
+             [materials.g]\ntype = \"lambertian\"\nalbedo = [0.5, 0.5, 0.5]\n"
+        );
+        let far = "[[spheres]]\ncenter = [0.0, 0.0, -100.0]\nradius = 0.001\nmaterial = \"g\"\n";
+        let quad = "[[quads]]\ncorner = [0.0, 0.0, -100.0]\nu = [0.001, 0.0, 0.0]\n\
+                    v = [0.0, 0.001, 0.0]\nmaterial = \"g\"\n";
+        let gradient = "[background]\ntype = \"gradient\"\nbottom = [1e7, 1e7, 1e7]\n\
+                        top = [1e7, 1e7, 1e7]\n";
+        let uniform = "[background]\ntype = \"uniform\"\ncolor = [1e7, 1e7, 1e7]\n";
+        let tile = PixelRect::full(1, 1);
+        for (what, body) in [
+            ("the first book's", format!("{gradient}{far}")),
+            ("The Next Week's", format!("{uniform}{far}")),
+            ("a few quads'", format!("{uniform}{quad}")),
+        ] {
+            let text = format!("{head}{body}");
+            let scene = Scene::parse(&text, Path::new("s.toml"), &Overrides::default()).unwrap();
+            let range = |start, end| SampleRange { start, end };
+            let whole = render_tile(&scene, &tile, range(0, samples), simd::Path::best());
+            let mut parts = vec![[0u64; 3]];
+            for half in [range(0, samples / 2), range(samples / 2, samples)] {
+                let part = render_tile(&scene, &tile, half, simd::Path::best());
+                add_sums(&mut parts, tile, &part.sums, tile);
+            }
+            assert_eq!(whole.sums, vec![[u64::MAX; 3]], "{what}");
+            assert_eq!(whole.sums, parts, "{what}");
+        }
+    }
 
     #[test]
     fn a_stop_is_looked_at_within_stop_rays_however_long_the_paths() {
