@@ -176,8 +176,16 @@ impl RgbImage {
                         .map_err(|why| format!("has pixels that do not decode: {why}"))?;
                     Ok(h.display_changes)
                 }),
+                // A sample past the maxval is taken as the brightest by the decoder, where
+                // Netpbm refuses the file: the samples are walked for one.
                 image::ImageFormat::Pnm => {
-                    crate::pnm_header::check_bounds(&mut file).map(|()| Vec::new())
+                    crate::pnm_header::check_bounds(&mut file).and_then(|()| {
+                        file.seek(std::io::SeekFrom::Start(0))
+                            .map_err(|e| format!("could not be read: {e}"))?;
+                        Ok(crate::pnm_header::sample_past_maxval(&mut file)
+                            .into_iter()
+                            .collect())
+                    })
                 }
                 image::ImageFormat::Jpeg => Ok(jpeg_display_changes(&mut file)),
                 _ => crate::exr_header::display_changes(&mut file, len),
@@ -429,6 +437,19 @@ mod tests {
     /// colour type 4 or 6, an EXR with an `A` channel, a PAM of tuple type RGB_ALPHA) once
     /// compared `identical` with an opaque one of the same colours, though a viewer shows
     /// it transparent. It is listed, as a PNG's tRNS chunk is.
+    /// A PPM whose samples go past its maxval (200 where it is 100) was measured as white
+    /// and called identical with a white PPM, though Netpbm refuses it; it is listed now.
+    #[test]
+    fn a_pnm_sample_past_its_maxval_is_listed() {
+        let white: &[u8] = b"P6\n2 1\n255\n\xff\xff\xff\xff\xff\xff";
+        let past: &[u8] = b"P6\n2 1\n100\n\x64\x64\x64\xc8\xc8\xc8";
+        let said = listed("pnm-maxval", ("white.ppm", white), ("past.ppm", past));
+        assert_eq!(said.len(), 1, "{said:?}");
+        assert!(said[0].contains("past its maxval of 100"), "{said:?}");
+        let within: &[u8] = b"P6\n2 1\n100\n\x64\x64\x64\x64\x64\x64";
+        assert!(listed("pnm-within", ("white.ppm", white), ("within.ppm", within)).is_empty());
+    }
+
     #[test]
     fn an_alpha_channel_is_listed_not_called_identical() {
         let opaque = png(png::ColorType::Rgb, &[200, 100, 50, 200, 100, 50]);

@@ -2,7 +2,9 @@
 //! `MAX_HEADER_BYTES` before a decoder reads the file. The `image` crate's decoder reads each
 //! line of a PAM header, comments included, into memory whatever its length, so a PAM of one
 //! comment line of 4 GiB (a sparse file, a few KiB of disk) once took 4.2 GB and then ended
-//! tessera on a failed allocation. Below the image textures and `compare`, which walk it so.
+//! tessera on a failed allocation. Below the image textures and `compare`, which walk it so;
+//! `compare` also looks for samples past the header's maxval, which the decoder takes as the
+//! brightest value where Netpbm refuses the file.
 
 use std::io::BufRead;
 
@@ -26,6 +28,97 @@ pub fn check_bounds(reader: impl BufRead) -> Result<(), String> {
     }
 }
 
+/// The first sample past its maxval of the PNM file `reader` is at the start of (its header
+/// already checked by `check_bounds`), said in words: the decoder scales such a sample to
+/// the brightest value, where Netpbm refuses the file ("exceeds maxval") and other readers
+/// scale it past the brightest (GIMP's wraps round). `None` when every sample is within
+/// it, the file is a bitmap, its maxval is the largest its samples can hold (255, 65535),
+/// or a sample is not one the decoder reads (its error then says so).
+pub fn sample_past_maxval(reader: impl BufRead) -> Option<String> {
+    use image::codecs::pnm::{PnmDecoder, SampleEncoding};
+    let (mut reader, header) = PnmDecoder::new(reader).ok()?.into_inner();
+    let maxval = header.maximal_sample();
+    if header.as_bitmap().is_some() || maxval == 255 || maxval == 65535 {
+        return None;
+    }
+    let said = |value: u32, at: u64| {
+        Some(format!(
+            "sample {} of its pixels' values is {value}, past its maxval of {maxval}: Netpbm \
+             refuses the file, and viewers differ in what they show for it (compare measured \
+             it as the brightest)",
+            at + 1
+        ))
+    };
+    // The raster's samples only: what follows it is no sample of the picture.
+    let components = header
+        .as_arbitrary()
+        .map_or(if header.as_pixmap().is_some() { 3 } else { 1 }, |a| {
+            u64::from(a.depth)
+        });
+    let count = u64::from(header.width()) * u64::from(header.height()) * components;
+    let mut at = 0u64;
+    match header.subtype().sample_encoding() {
+        SampleEncoding::Binary => {
+            let wide = maxval > 255;
+            let mut high = None;
+            while at < count {
+                let buf = reader.fill_buf().ok()?;
+                if buf.is_empty() {
+                    break;
+                }
+                let n = buf.len();
+                for &b in buf {
+                    let value = match (wide, high.take()) {
+                        (false, _) => u32::from(b),
+                        (true, None) => {
+                            high = Some(b);
+                            continue;
+                        }
+                        (true, Some(h)) => u32::from(u16::from_be_bytes([h, b])),
+                    };
+                    if value > maxval {
+                        return said(value, at);
+                    }
+                    at += 1;
+                    if at == count {
+                        break;
+                    }
+                }
+                reader.consume(n);
+            }
+        }
+        SampleEncoding::Ascii => {
+            let mut digits = Vec::new();
+            for byte in reader.bytes() {
+                if at == count {
+                    break;
+                }
+                let b = byte.ok()?;
+                if b.is_ascii_digit() {
+                    digits.push(b);
+                    continue;
+                }
+                if !b.is_ascii_whitespace() {
+                    return None;
+                }
+                if !digits.is_empty() {
+                    let value = std::str::from_utf8(&digits).ok()?.parse::<u32>().ok()?;
+                    if value > maxval {
+                        return said(value, at);
+                    }
+                    at += 1;
+                    digits.clear();
+                }
+            }
+            let value = std::str::from_utf8(&digits).ok()?.parse::<u32>().ok();
+            if let Some(value) = value.filter(|&v| v > maxval && at < count) {
+                return said(value, at);
+            }
+        }
+    }
+    None
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -39,6 +132,48 @@ mod tests {
             b"\nWIDTH 1\nHEIGHT 1\nDEPTH 3\nMAXVAL 255\nTUPLTYPE RGB\nENDHDR\n\x01\x02\x03",
         );
         bytes
+    }
+
+    /// A sample past the maxval (200 where it is 100), binary, plain or 16-bit: the decoder
+    /// took it as the brightest, so that `compare` called such a file identical with a white
+    /// one, which Netpbm refuses. Samples within it, and files whose maxval is the largest
+    /// their samples hold, are not listed.
+    #[test]
+    fn a_sample_past_the_maxval_is_said() {
+        let past = |bytes: &[u8]| sample_past_maxval(Cursor::new(bytes.to_vec()));
+        let said = past(b"P6\n2 1\n100\n\x64\x64\x64\x64\xc8\x64").unwrap();
+        assert!(
+            said.starts_with("sample 5 of its pixels' values is 200, past its maxval of 100"),
+            "{said}"
+        );
+        let said = past(b"P3\n2 1\n100\n100 100 100\n100 100 200\n").unwrap();
+        assert!(
+            said.starts_with("sample 6 of its pixels' values is 200,"),
+            "{said}"
+        );
+        let said = past(b"P5\n1 1\n1000\n\x03\xe9").unwrap();
+        assert!(
+            said.starts_with("sample 1 of its pixels' values is 1001,"),
+            "{said}"
+        );
+        let pam = b"P7\nWIDTH 1\nHEIGHT 1\nDEPTH 3\nMAXVAL 7\nTUPLTYPE RGB\nENDHDR\n\x07\x08\x00";
+        let said = past(pam).unwrap();
+        assert!(
+            said.starts_with("sample 2 of its pixels' values is 8,"),
+            "{said}"
+        );
+        for within in [
+            &b"P6\n2 1\n100\n\x64\x64\x64\x00\x00\x00"[..],
+            b"P3\n2 1\n100\n100 0 100 0 0 99",
+            b"P6\n1 1\n255\n\xff\xff\xff",
+            b"P5\n1 1\n1000\n\x03\xe8",
+            b"P1\n2 1\n1 0\n",
+            // What follows the raster is no sample.
+            b"P6\n1 1\n100\n\x64\x64\x64\xc8",
+            b"P3\n1 1\n100\n1 2 3 200\n",
+        ] {
+            assert_eq!(past(within), None, "{}", String::from_utf8_lossy(within));
+        }
     }
 
     #[test]
