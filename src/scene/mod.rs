@@ -269,6 +269,32 @@ impl Scene {
 mod tests {
     use super::*;
 
+    /// A medium's density at the bounds the docs give (10^-30 and 10^30) is taken; past
+    /// them, refused. 1e30 was refused as "must be positive, between 1e-30 and 1e30, got
+    /// 1e30": the check compared f32's 1e30 (1.0000000150e30) with f64's.
+    #[test]
+    fn a_medium_s_density_at_its_documented_bounds_is_taken() {
+        let scene = |density: &str| {
+            let text = format!(
+                "[image]\nwidth = 4\nheight = 2\nsamples_per_pixel = 1\nmax_depth = 2\n\
+                 [materials.smoke]\ntype = \"isotropic\"\nalbedo = [1.0, 1.0, 1.0]\n\
+                 [[media]]\ndensity = {density}\nmaterial = \"smoke\"\n\
+                 sphere = {{ center = [0.0, 0.0, -1.0], radius = 0.5 }}\n"
+            );
+            Scene::parse(&text, Path::new("s.toml"), &Overrides::default())
+        };
+        for within in ["1e30", "1e-30", "1.0"] {
+            assert!(scene(within).is_ok(), "{within}: {:?}", scene(within).err());
+        }
+        for past in ["1.1e30", "9e-31"] {
+            let e = scene(past).err().unwrap().to_string();
+            assert!(
+                e.contains("must be positive, between 1e-30 and 1e30"),
+                "{e}"
+            );
+        }
+    }
+
     #[test]
     fn a_missing_key_names_its_table_at_the_tables_line() {
         let error = |text: &str| {

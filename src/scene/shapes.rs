@@ -567,7 +567,10 @@ fn medium(
     let density = ck.in_range(
         &d.density,
         &format!("{field}.density"),
-        |x| (1e-30..=1e30).contains(&x),
+        // The bounds as f32 holds them, as it holds the density: 1e30 written is
+        // 1.0000000150e30 in f32, which a bound of f64's 1e30 refused with "must be between
+        // 1e-30 and 1e30, got 1e30".
+        |x| (f64::from(1e-30f32)..=f64::from(1e30f32)).contains(&x),
         "positive, between 1e-30 and 1e30",
     )?;
     let boundary = match (&d.sphere, &d.cuboid) {
