@@ -5,7 +5,7 @@
 use super::host::{Build, Busy, Host};
 use anyhow::{Context, Result, bail};
 use serde::{Deserialize, Serialize};
-use std::io::Read;
+use std::io::{BufRead, Read};
 use std::path::Path;
 
 /// The schema this build writes.
@@ -15,6 +15,9 @@ pub const SCHEMA: &str = "tessera-bench/3";
 pub const READS: [&str; 3] = ["tessera-bench/1", "tessera-bench/2", SCHEMA];
 /// The largest result file read: real ones are a few kilobytes.
 pub const MAX_FILE: u64 = 1 << 20;
+/// The most results one file of JSON lines (`results export --jsonl`) may hold: a lab's
+/// database of a million runs.
+pub const MAX_LINES: usize = 1 << 20;
 /// The longest text field accepted (a CPU model, a commit, a scene name).
 const MAX_TEXT: usize = 256;
 /// The most threads a result may claim; more is no machine's.
@@ -142,6 +145,61 @@ impl BenchResult {
             .read_to_end(&mut bytes)
             .with_context(|| format!("could not read {what}"))?;
         Self::parse(&bytes, &what)
+    }
+
+    /// Reads a result file, or a file of JSON lines, one result a line, as `results export
+    /// --jsonl` writes (a file whose first line is a whole JSON value), refusing the whole
+    /// file where one result of it is refused, naming its line (`FILE:N`). The lines are read
+    /// one at a time, each of at most `MAX_FILE` bytes, so memory follows the results, not
+    /// the file's longest line.
+    pub fn read_all(path: &Path) -> Result<Vec<Self>> {
+        let what = path.display().to_string();
+        let file = crate::input_file::open_regular(path)
+            .with_context(|| format!("could not open {what}"))?;
+        let mut reader = std::io::BufReader::new(file);
+        let mut line = Vec::new();
+        let read_line = |reader: &mut std::io::BufReader<std::fs::File>, line: &mut Vec<u8>| {
+            line.clear();
+            reader
+                .by_ref()
+                .take(MAX_FILE + 1)
+                .read_until(b'\n', line)
+                .with_context(|| format!("could not read {what}"))
+        };
+        read_line(&mut reader, &mut line)?;
+        let one_value = |line: &[u8]| {
+            line.len() as u64 <= MAX_FILE
+                && serde_json::from_slice::<serde::de::IgnoredAny>(line).is_ok()
+        };
+        if !one_value(&line) {
+            // One result, as `bench --out` writes it, over many lines.
+            let mut bytes = std::mem::take(&mut line);
+            let left = (MAX_FILE + 1).saturating_sub(bytes.len() as u64);
+            (reader.take(left).read_to_end(&mut bytes))
+                .with_context(|| format!("could not read {what}"))?;
+            return Ok(vec![Self::parse(&bytes, &what)?]);
+        }
+        let mut results = Vec::new();
+        for n in 1.. {
+            if n > 1 && read_line(&mut reader, &mut line)? == 0 {
+                break;
+            }
+            let at = format!("{what}:{n}");
+            if line.len() as u64 > MAX_FILE {
+                bail!(
+                    "{at}: a line longer than {} KiB: not a tessera bench result",
+                    MAX_FILE >> 10
+                );
+            }
+            if line.iter().all(u8::is_ascii_whitespace) {
+                continue;
+            }
+            if results.len() == MAX_LINES {
+                bail!("{at}: more than {MAX_LINES} results in one file");
+            }
+            results.push(Self::parse(&line, &at)?);
+        }
+        Ok(results)
     }
 
     /// A result from the bytes of a file named `what`.

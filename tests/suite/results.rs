@@ -1062,14 +1062,71 @@ fn rank_compare_history_and_export_read_the_kept_runs() {
     let o = results(&dir, &db, &["export", "--jsonl"]);
     let text = stdout(&o);
     assert_eq!(text.lines().count(), 5);
-    let mut exported = Vec::new();
-    for (i, line) in text.lines().enumerate() {
-        exported.push(format!("e{i}.json"));
-        std::fs::write(dir.join(&exported[i]), line).unwrap();
-    }
-    let exported: Vec<&str> = exported.iter().map(String::as_str).collect();
-    let o = results(&dir, &db, &[&["import"][..], &exported].concat());
+    std::fs::write(dir.join("export.jsonl"), &text).unwrap();
+    let o = results(&dir, &db, &["import", "export.jsonl"]);
     assert_eq!(stdout(&o), "imported 0 new results, 5 already present\n");
+}
+
+/// The docs promise that importing an export into another database recreates its runs, but
+/// `results import export.jsonl` refused the file ("not JSON: trailing characters at line 2
+/// column 1"): each line had to be written to a file of its own first. A file whose first
+/// line is a whole JSON value is read as JSON lines, each line a result checked as a file
+/// is, a refused one named by its line, and one bad line adds nothing.
+#[test]
+fn an_export_imports_into_another_database_as_it_is() {
+    let dir = temp_dir("results-export-imports");
+    let (a, b) = two_results(&dir);
+    let from = dir.join("from.db");
+    let o = results(
+        &dir,
+        &from,
+        &["import", a.to_str().unwrap(), b.to_str().unwrap()],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = results(&dir, &from, &["export", "--jsonl"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = stdout(&o);
+    std::fs::write(dir.join("export.jsonl"), &text).unwrap();
+
+    let to = dir.join("to.db");
+    let o = results(&dir, &to, &["import", "export.jsonl"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(stdout(&o), "imported 2 new results, 0 already present\n");
+    let o = results(&dir, &to, &["export", "--jsonl"]);
+    assert_eq!(
+        stdout(&o),
+        text,
+        "the runs recreated are not the runs exported"
+    );
+    let o = results(&dir, &from, &["import", "export.jsonl"]);
+    assert_eq!(stdout(&o), "imported 0 new results, 2 already present\n");
+
+    // A line no result makes refuses the file, naming the line; nothing is added.
+    let lines: Vec<&str> = text.lines().collect();
+    let bad = format!(
+        "{}\n\n{}\n{{\"schema\": \"tessera-bench/3\"}}\n",
+        lines[0], lines[1]
+    );
+    std::fs::write(dir.join("bad.jsonl"), bad).unwrap();
+    let fresh = dir.join("fresh.db");
+    let o = results(&dir, &fresh, &["import", "bad.jsonl"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("bad.jsonl:4: not a valid result"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!fresh.exists() || listed(&dir, &fresh, &[]).is_empty());
+    // A line longer than a result file may be is refused before it is read whole.
+    let long = format!("{}\n{}\n", lines[0], " ".repeat(2 << 20));
+    std::fs::write(dir.join("long.jsonl"), long).unwrap();
+    let o = results(&dir, &fresh, &["import", "long.jsonl"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("long.jsonl:2: a line longer than 1024 KiB"),
+        "{}",
+        stderr(&o)
+    );
 }
 
 /// `compare m-3f2a …` pooled the runs of every machine whose id begins so, and `commit:aaaa`

@@ -48,8 +48,9 @@ enum ResultsCommand {
         #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = super::flags::positive_u32)]
         limit: Option<u32>,
     },
-    /// Add results (JSON files of `bench --out`) from other machines; a result already in
-    /// the database is not added twice, and one bad file adds nothing.
+    /// Add results (JSON files of `bench --out`, or of `export --jsonl`: one result a line)
+    /// from other machines; a result already in the database is not added twice, and one
+    /// bad file adds nothing.
     Import {
         #[arg(required = true, value_name = "FILE")]
         files: Vec<PathBuf>,
@@ -175,9 +176,10 @@ fn list(path: &Path, filter: &Filter) -> Result<()> {
 /// `results import`: every file is read and checked before anything is added, so one bad
 /// file adds nothing.
 fn import(path: &Path, files: &[PathBuf]) -> Result<()> {
-    let results = (files.iter())
-        .map(|f| BenchResult::read(f))
-        .collect::<Result<Vec<_>>>()?;
+    let mut results = Vec::new();
+    for file in files {
+        results.extend(BenchResult::read_all(file)?);
+    }
     let mut db = ResultsDb::open(path)?;
     let added = db.add_all(&results, "import")?;
     let new = added.iter().filter(|a| matches!(a, Added::New(_))).count();
