@@ -456,6 +456,50 @@ fn a_database_whose_numbers_no_import_takes_is_refused() {
     }
 }
 
+/// A STRICT text column holds text, but SQLite keeps its bytes as given, so a database made
+/// elsewhere may hold text that is not UTF-8 (`CAST(x'ff41' AS TEXT)`). Every command
+/// refused it with "invalid utf-8 sequence of 1 bytes from index 0 at index 8", naming
+/// neither the database, the run nor the column (8 was the column's place in a query).
+/// Each says them now (exit 2).
+#[test]
+fn a_database_whose_text_is_not_utf_8_is_refused_naming_the_run_and_column() {
+    let dir = temp_dir("results-not-utf-8");
+    let v = json(&root().join("fuzz/corpus/result/quick-scaling.json"));
+    write_json(&dir.join("q.json"), &v);
+    for (column, readers) in [
+        (
+            "workload",
+            &[
+                &["list"][..],
+                &["rank"],
+                &["history"],
+                &["compare", "1", "1"],
+            ][..],
+        ),
+        ("cpu_model", &[&["list"][..], &["rank"]][..]),
+        ("result", &[&["export", "--jsonl"][..]][..]),
+    ] {
+        let db = dir.join(format!("{column}.db"));
+        let o = results(&dir, &db, &["import", "q.json"]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let conn = rusqlite::Connection::open(&db).unwrap();
+        let sql = format!("UPDATE runs SET {column} = CAST(x'ff41' AS TEXT)");
+        conn.execute(&sql, []).unwrap();
+        drop(conn);
+        for args in readers {
+            let o = results_within_a_minute(&dir, &db, args);
+            let err = stderr(&o);
+            assert_eq!(o.status.code(), Some(2), "{column} {args:?}: {err}");
+            assert!(
+                err.contains(&format!(
+                    "{column}.db: run 1: {column} cannot be read (not UTF-8 text)"
+                )),
+                "{column} {args:?}: {err}"
+            );
+        }
+    }
+}
+
 /// Copies run 1 of `db` as runs 2 to `n`, each of its own workload (`workload_id`) or its own
 /// machine: what 50,000 imported results of as many scenes or machines leave.
 fn copies_of_the_first_run(db: &Path, n: usize, own: &str) {

@@ -370,6 +370,8 @@ impl ResultsDb {
             })
         };
         let limit = filter.limit.map_or(-1, i64::from);
+        // The run being read, to name it where one of its values cannot be.
+        let reading = std::cell::Cell::new(None);
         let rows = stmt.query_map(
             params![
                 filter.workload,
@@ -379,6 +381,7 @@ impl ResultsDb {
                 limit
             ],
             |r| {
+                reading.set(r.get(0).ok());
                 Ok(Run {
                     id: r.get(0)?,
                     started_unix_s: r.get(1)?,
@@ -397,7 +400,8 @@ impl ResultsDb {
                 })
             },
         )?;
-        let runs = rows.collect::<rusqlite::Result<Vec<Run>>>()?;
+        let runs = (rows.collect::<rusqlite::Result<Vec<Run>>>())
+            .map_err(|e| self.unreadable(reading.get(), &stmt, e))?;
         for run in &runs {
             self.sound(run.id, "", run.threads, run.sps)?;
             if !(1..=MAX_THREADS as i64).contains(&run.logical_cpus) {
@@ -445,6 +449,38 @@ impl ResultsDb {
         Ok(())
     }
 
+    /// The error for a value of run `id` (where known) that `stmt` read but that cannot be
+    /// taken as its type: text that is not UTF-8, which SQLite keeps as it is given, and
+    /// which tessera never writes. It names the column, not the position in the query.
+    fn unreadable(
+        &self,
+        id: Option<i64>,
+        stmt: &rusqlite::Statement,
+        e: rusqlite::Error,
+    ) -> anyhow::Error {
+        let column = |i: usize| stmt.column_name(i).unwrap_or("?").to_owned();
+        let (column, why) = match &e {
+            rusqlite::Error::Utf8Error(i, _) => (column(*i), "not UTF-8 text".to_owned()),
+            rusqlite::Error::FromSqlConversionFailure(i, _, cause) => {
+                (column(*i), cause.to_string())
+            }
+            rusqlite::Error::InvalidColumnType(i, _, found) => (
+                column(*i),
+                format!("{found} where tessera writes another type"),
+            ),
+            rusqlite::Error::IntegralValueOutOfRange(i, value) => {
+                (column(*i), format!("{value} is out of range"))
+            }
+            _ => return explain(&self.path, e, "could not read it", Instant::now()),
+        };
+        let run = id.map_or("a run".to_owned(), |id| format!("run {id}"));
+        anyhow!(
+            "{}: {run}: {column} cannot be read ({why}); tessera records none such, so the \
+             database was changed by something else",
+            self.path.display()
+        )
+    }
+
     /// The error for run `id` of this database, whose `what` no import makes.
     fn unsound(&self, id: i64, what: String) -> anyhow::Error {
         anyhow!(
@@ -480,18 +516,23 @@ impl ResultsDb {
 
     /// Run `id`'s result JSON, as it was recorded.
     pub fn result_json(&self, id: i64) -> Result<String> {
-        Ok(self
-            .conn
-            .query_row("SELECT result FROM runs WHERE id = ?1", [id], |r| r.get(0))?)
+        let mut stmt = self.conn.prepare("SELECT result FROM runs WHERE id = ?1")?;
+        let json = stmt.query_row([id], |r| r.get(0));
+        json.map_err(|e| self.unreadable(Some(id), &stmt, e))
     }
 
     /// Every run's result JSON, oldest first.
     pub fn results_json(&self) -> Result<Vec<String>> {
         let mut stmt = self
             .conn
-            .prepare("SELECT result FROM runs ORDER BY started_unix_s, id")?;
-        let rows = stmt.query_map([], |r| r.get(0))?;
-        Ok(rows.collect::<rusqlite::Result<Vec<_>>>()?)
+            .prepare("SELECT result, id FROM runs ORDER BY started_unix_s, id")?;
+        let reading = std::cell::Cell::new(None);
+        let rows = stmt.query_map([], |r| {
+            reading.set(r.get(1).ok());
+            r.get(0)
+        })?;
+        (rows.collect::<rusqlite::Result<Vec<_>>>())
+            .map_err(|e| self.unreadable(reading.get(), &stmt, e))
     }
 }
 
