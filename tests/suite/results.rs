@@ -285,6 +285,27 @@ fn hostile_imports_are_refused_with_the_reason() {
             "longer than",
         ),
         (
+            "long-listed-text",
+            edited(&|v| v["build"]["simd_supported"][0] = Value::from("x".repeat(300_000))),
+            "build.simd_supported holds a text longer than 256",
+        ),
+        (
+            "long-image-hashes",
+            edited(&|v| {
+                v["validation"]["status"] = Value::from("invalid");
+                v["validation"]["images"] = Value::from(vec!["z".repeat(900); 1024]);
+            }),
+            "validation.images holds a text longer than 256",
+        ),
+        (
+            "long-expected-hash",
+            edited(&|v| {
+                v["validation"]["status"] = Value::from("invalid");
+                v["validation"]["expected"] = Value::from("y".repeat(300_000));
+            }),
+            "validation.expected is longer than 256",
+        ),
+        (
             "forged-validation",
             edited(&|v| {
                 v["validation"]["status"] = Value::from("valid");
