@@ -378,3 +378,36 @@ fn a_chart_named_as_one_of_its_results_is_refused() {
     }
     ok(&["bench", "--chart", "c.svg", "r.json"], &dir);
 }
+
+/// `bench --chart` naming the results database (here TESSERA_DB's, or a link to it)
+/// replaced it with the SVG, exit 0: every run recorded was lost. It is refused, as `--out`
+/// naming it is, and the database is left as it was.
+#[test]
+fn a_chart_named_as_the_results_database_is_refused() {
+    let dir = temp_dir("bench-chart-over-database");
+    let result = root().join("fuzz/corpus/result/quick-scaling.json");
+    std::fs::copy(&result, dir.join("r.json")).unwrap();
+    let db = dir.join("r.db");
+    ok_in_env(
+        &["results", "import", "r.json"],
+        &[("TESSERA_DB", db.to_str().unwrap())],
+        &dir,
+    );
+    std::os::unix::fs::symlink("r.db", dir.join("link.db")).unwrap();
+    let before = std::fs::read(&db).unwrap();
+    for (out, env) in [
+        ("r.db", &[("TESSERA_DB", db.to_str().unwrap())][..]),
+        ("./link.db", &[("TESSERA_DB", "r.db")]),
+    ] {
+        let o = run_in_env(&["bench", "--chart", out, "r.json"], env, &dir);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{out}: {err}");
+        assert!(err.contains("names the results database"), "{out}: {err}");
+        assert_eq!(std::fs::read(&db).unwrap(), before, "{out}");
+    }
+    let o = run(
+        &["bench", "--chart", "r.db", "r.json", "--db", "other.db"],
+        &dir,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+}

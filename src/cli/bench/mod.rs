@@ -200,6 +200,16 @@ impl BenchMode {
                     result.display()
                 );
             }
+            // Nor is the results database (`--db`, TESSERA_DB or the default): every run
+            // recorded would be lost.
+            if let Some(save) = measure::save_to(false, args.db.db)
+                && same_file(&out, &save.path)
+            {
+                bail!(
+                    "--chart {} names the results database: give the chart a name of its own",
+                    out.display()
+                );
+            }
             return Ok(Self::Chart {
                 out,
                 results: files,
