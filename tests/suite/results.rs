@@ -737,8 +737,9 @@ fn a_database_with_tessera_s_header_but_sql_of_its_own_is_refused() {
 /// Python package's tests read it too).
 const FIRST_SCHEMA: &str = include_str!("../data/results-schema-1.sql");
 
-/// A database someone else made may hold a result that is not JSON, or JSON over several
-/// lines: export once wrote it out as it was, lines that are no results, and exited 0.
+/// A database someone else made may hold a result that is not JSON, JSON over several
+/// lines, or JSON that is no result: export once wrote it out as it was, lines that are no
+/// results, and exited 0.
 #[test]
 fn export_refuses_a_result_that_is_not_one_line_of_json() {
     let dir = temp_dir("results-export-not-json");
@@ -752,6 +753,13 @@ fn export_refuses_a_result_that_is_not_one_line_of_json() {
             "lines",
             "{\"a\":\n1}",
             "result 1 (oldest first) is not one line of JSON (it spans",
+        ),
+        // One line of JSON but no result: exported (exit 0), an export that no import took.
+        (
+            "not-a-result",
+            "{\"a\":1}",
+            "result 1 (oldest first) is not a result an import takes (it: not a tessera bench \
+             result (no `schema` field))",
         ),
     ] {
         let db = dir.join(format!("{name}.db"));

@@ -532,8 +532,8 @@ fn report(path: &Path, output: &Path, workload: Option<&str>, all: bool) -> Resu
 }
 
 /// `results export --jsonl`: every result, oldest first. A database tessera did not write may
-/// hold a result that is not JSON, or JSON over several lines, which would make lines that
-/// are not results: it is refused, and nothing is written.
+/// hold a result that is not JSON, JSON over several lines, or JSON that is no result, which
+/// would make lines that are not results: it is refused, and nothing is written.
 fn export(path: &Path) -> Result<()> {
     let db = ResultsDb::open_to_read(path)?;
     let mut text = String::new();
@@ -549,6 +549,15 @@ fn export(path: &Path) -> Result<()> {
             bail!(
                 "{}: result {} (oldest first) is not one line of JSON ({not}); tessera writes \
                  none such: nothing exported",
+                path.display(),
+                n + 1
+            );
+        }
+        // A line of JSON that no import takes would make an export that does not import.
+        if let Err(why) = BenchResult::parse(json.as_bytes(), "it") {
+            bail!(
+                "{}: result {} (oldest first) is not a result an import takes ({why:#}); \
+                 tessera writes none such: nothing exported",
                 path.display(),
                 n + 1
             );
