@@ -16,8 +16,12 @@ here=$(dirname "$0")
 n=${1:?usage: submit.sh N [sbatch options...]}
 shift
 case $n in
-'' | *[!0-9]* | 0) echo "submit.sh: N must be a positive number of tasks, got '$n'" >&2 && exit 2 ;;
+'' | *[!0-9]*) echo "submit.sh: N must be a positive number of tasks, got '$n'" >&2 && exit 2 ;;
 esac
+# Decimal, whatever zeros lead it: bash reads 010 as octal (8) and 08 as an error.
+given=$n
+n=$((10#$n))
+[ "$n" -gt 0 ] || { echo "submit.sh: N must be a positive number of tasks, got '$given'" >&2 && exit 2; }
 export SCENE=${SCENE:-scenes/cover.toml} OUTDIR=${OUTDIR:-parts} EXTRA=${EXTRA:-}
 export IMAGE=${IMAGE:-render.png} TESSERA=${TESSERA:-tessera}
 if [ -n "${CONTAINER:-}" ]; then

@@ -299,3 +299,58 @@ fn a_task_requeued_while_running_still_gives_the_same_bytes() {
     assert_eq!(restarts.as_deref(), Some("1"), "task 0 was not requeued");
     render.assert_merged_equals_single();
 }
+
+/// `submit.sh 010` queued an array of 8 tasks (bash read 010 as octal), `submit.sh 08` failed
+/// with bash's "value too great for base" (exit 1), and `00` passed as a number of tasks.
+/// N is read as decimal. No cluster needed: a stand-in `sbatch` records what it is given.
+#[test]
+fn the_number_of_tasks_is_read_as_decimal() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = temp_dir("slurm-submit-decimal");
+    let bin = dir.join("bin");
+    std::fs::create_dir_all(&bin).unwrap();
+    let sbatch = bin.join("sbatch");
+    std::fs::write(
+        &sbatch,
+        "#!/bin/sh\necho \"$*\" >> \"$SBATCH_LOG\"\necho 7\n",
+    )
+    .unwrap();
+    std::fs::set_permissions(&sbatch, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let path = format!(
+        "{}:{}",
+        bin.display(),
+        std::env::var("PATH").unwrap_or_default()
+    );
+    let submit = |n: &str, log: &std::path::Path| {
+        Command::new(root().join("deploy/slurm/submit.sh"))
+            .arg(n)
+            .env("PATH", &path)
+            .env("CPUS_PER_TASK", "2")
+            .env("SBATCH_LOG", log)
+            .current_dir(&dir)
+            .output()
+            .expect("run submit.sh")
+    };
+    for (n, array) in [
+        ("8", "--array=0-7 "),
+        ("010", "--array=0-9 "),
+        ("08", "--array=0-7 "),
+    ] {
+        let log = dir.join(format!("sbatch-{n}.log"));
+        let o = submit(n, &log);
+        assert!(o.status.success(), "{n}: {}", text(&o.stderr));
+        let queued = std::fs::read_to_string(&log).unwrap();
+        assert!(queued.contains(array), "{n}: {queued}");
+    }
+    for n in ["0", "00", "x", "-1"] {
+        let log = dir.join("refused.log");
+        let o = submit(n, &log);
+        assert_eq!(o.status.code(), Some(2), "{n}: {}", text(&o.stderr));
+        assert!(
+            text(&o.stderr).contains("N must be a positive number of tasks"),
+            "{n}: {}",
+            text(&o.stderr)
+        );
+        assert!(!log.exists(), "{n}: queued");
+    }
+}
