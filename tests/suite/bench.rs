@@ -379,11 +379,12 @@ fn a_chart_named_as_one_of_its_results_is_refused() {
     ok(&["bench", "--chart", "c.svg", "r.json"], &dir);
 }
 
-/// `bench --chart` naming the results database (here TESSERA_DB's, or a link to it)
-/// replaced it with the SVG, exit 0: every run recorded was lost. It is refused, as `--out`
-/// naming it is, and the database is left as it was.
+/// `bench --chart` naming the results database (here TESSERA_DB's, or a link to it, or its
+/// write-ahead log) replaced it with the SVG, exit 0: every run recorded was lost;
+/// `--write-workloads` with the workloads file. Both are refused, as `--out` naming it is,
+/// and the database is left as it was.
 #[test]
-fn a_chart_named_as_the_results_database_is_refused() {
+fn a_chart_or_workloads_file_named_as_the_results_database_is_refused() {
     let dir = temp_dir("bench-chart-over-database");
     let result = root().join("fuzz/corpus/result/quick-scaling.json");
     std::fs::copy(&result, dir.join("r.json")).unwrap();
@@ -398,6 +399,7 @@ fn a_chart_named_as_the_results_database_is_refused() {
     for (out, env) in [
         ("r.db", &[("TESSERA_DB", db.to_str().unwrap())][..]),
         ("./link.db", &[("TESSERA_DB", "r.db")]),
+        ("r.db-wal", &[("TESSERA_DB", "r.db")]),
     ] {
         let o = run_in_env(&["bench", "--chart", out, "r.json"], env, &dir);
         let err = stderr(&o);
@@ -405,6 +407,17 @@ fn a_chart_named_as_the_results_database_is_refused() {
         assert!(err.contains("names the results database"), "{out}: {err}");
         assert_eq!(std::fs::read(&db).unwrap(), before, "{out}");
     }
+    // `--write-workloads` replaced it with the workloads file in the same way.
+    let db_env = [("TESSERA_DB", db.to_str().unwrap())];
+    let o = run_in_env(
+        &["bench", "--write-workloads", "r.db", "--workload", "cover"],
+        &db_env,
+        &dir,
+    );
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("names the results database"), "{err}");
+    assert!(std::fs::read(&db).unwrap() == before);
     let o = run(
         &["bench", "--chart", "r.db", "r.json", "--db", "other.db"],
         &dir,

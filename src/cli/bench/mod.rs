@@ -200,13 +200,13 @@ impl BenchMode {
                     result.display()
                 );
             }
-            // Nor is the results database (`--db`, TESSERA_DB or the default): every run
-            // recorded would be lost.
+            // Nor is the results database (`--db`, TESSERA_DB or the default) or its
+            // write-ahead log: every run recorded would be lost.
             if let Some(save) = measure::save_to(false, args.db.db)
-                && same_file(&out, &save.path)
+                && let Some(what) = names_database_file(&out, &save.path)
             {
                 bail!(
-                    "--chart {} names the results database: give the chart a name of its own",
+                    "--chart {} names {what}: give the chart a name of its own",
                     out.display()
                 );
             }
@@ -223,6 +223,16 @@ impl BenchMode {
         let simd = args.simd.path()?;
         if let Some(path) = args.write_workloads {
             check_output(&path)?;
+            // The workloads file replaces whatever file it is written to.
+            if let Some(save) = measure::save_to(false, args.db.db.clone())
+                && let Some(what) = names_database_file(&path, &save.path)
+            {
+                bail!(
+                    "--write-workloads {} names {what}: the workloads file goes elsewhere \
+                     (benches/workloads.toml)",
+                    path.display()
+                );
+            }
             let options = RenderOptions {
                 threads: Some(threads),
                 tile: render::DEFAULT_TILE,
