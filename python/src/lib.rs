@@ -403,7 +403,7 @@ fn render(
     };
     let path = simd_path(simd.as_deref())?;
     let options = RenderOptions {
-        threads,
+        threads: Some(threads_or_cpus(threads)),
         tile: DEFAULT_TILE,
         simd: path,
     };
@@ -440,6 +440,14 @@ fn render(
             simd: path.name(),
         })
     })
+}
+
+/// The worker threads of a render: `threads`, else one per CPU. A render always has a pool
+/// of its own, never rayon's global one: a process forked after a render (`multiprocessing`'s
+/// default on Linux) holds that pool's state without its threads, and a render there waited
+/// for them forever.
+fn threads_or_cpus(threads: Option<usize>) -> usize {
+    threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
 }
 
 /// The SIMD path named `simd` (None: `auto`).
@@ -554,7 +562,7 @@ fn reproduce<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let path = simd_path(simd.as_deref())?;
     let options = RenderOptions {
-        threads,
+        threads: Some(threads_or_cpus(threads)),
         tile: DEFAULT_TILE,
         simd: path,
     };
@@ -649,10 +657,10 @@ fn bench_workload(
     let path = simd_path(simd.as_deref())?;
     let workload = Workload::named(workload)
         .map_err(|e| PyValueError::new_err(safe(&format!("workload: {e:#}"))))?;
-    let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let cpus = threads_or_cpus(None);
     let plan = measure::Plan {
         workload,
-        threads: threads.unwrap_or(cpus),
+        threads: threads_or_cpus(threads),
         scaling: if scaling {
             measure::scaling_counts(cpus)
         } else {

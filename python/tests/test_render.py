@@ -174,6 +174,28 @@ def test_other_threads_run_while_it_renders():
     assert len(during) >= took / 0.01 / 3, (len(during), took)
 
 
+# Forked after a render, as `multiprocessing` does on Linux, a process once inherited rayon's
+# global pool without its threads, and its first render waited for them forever.
+FORKED = textwrap.dedent(
+    """
+    import multiprocessing, tessera
+    def sums(_):
+        return tessera.render("scenes/cover.toml", width=24, spp=2).sums
+    before = sums(0)
+    with multiprocessing.get_context("fork").Pool(2) as pool:
+        print(pool.map_async(sums, range(2)).get(timeout=60) == [before] * 2, flush=True)
+    """
+)
+
+
+def test_a_process_forked_after_a_render_renders():
+    done = subprocess.run(
+        [sys.executable, "-c", FORKED], cwd=ROOT, capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "True"
+
+
 INTERRUPTED = textwrap.dedent(
     """
     import sys, time, tessera
