@@ -216,11 +216,13 @@ def _checked_copy(scene: Mapping) -> Dict[str, Any]:
                 chars += _counted(str.__len__(item), chars)
                 item = str.__str__(item)
             elif isinstance(item, np.ndarray):
-                # Written out as a list of its elements, each a value: counted before it is,
-                # as its shape may claim far more than it holds (`np.broadcast_to` of one
-                # number to 2^26 took 15 s and 3 GB to write out, then to be refused).
+                # Written out as nested lists of its elements, each list and element a
+                # value: counted before it is, as its shape may claim far more than it holds
+                # (`np.broadcast_to` of one number to 2^26 took 15 s and 3 GB to write out,
+                # then to be refused; an empty array of 10^7 x 0, 6.7 s and 750 MB of empty
+                # lists, then to be refused by the scene's parser).
                 item = np.asarray(item)
-                values += item.size - 1
+                values += _array_values(item.shape) - 1
                 chars += _array_chars(item, _place(where, value, key), values)
             elif isinstance(item, (Mapping, list, tuple)):
                 plain: Any = {} if isinstance(item, Mapping) else []
@@ -243,9 +245,24 @@ def _checked_copy(scene: Mapping) -> Dict[str, Any]:
             else:
                 into.append(item)
             values += 1
-        if values > _MAX_SCENE_VALUES or chars > _MAX_SCENE_CHARS:
-            _too_large()
+            # Counted as each item is copied: a dict whose `items()` (or a list whose
+            # `__iter__`) never ends was once copied until memory ran out.
+            if values > _MAX_SCENE_VALUES or chars > _MAX_SCENE_CHARS:
+                _too_large()
     return copy
+
+
+def _array_values(shape: "tuple[int, ...]") -> int:
+    """The values a NumPy array of ``shape`` is written out as: its elements and the lists
+    that hold them, the outermost one not counted (``(2, 3)``: 2 lists of 3, 8 values; an
+    empty ``(n, 0)``, n empty lists)."""
+    values, lists = 0, 1
+    for n in shape:
+        lists *= n
+        values += lists
+        if values > _MAX_SCENE_VALUES:
+            break
+    return values
 
 
 def _counted(n: int, chars: int) -> int:
@@ -269,8 +286,8 @@ def _array_chars(array: np.ndarray, where: Any, values: int) -> int:
     numbers within a scene file's; the characters its strings hold."""
     if values > _MAX_SCENE_VALUES:
         raise ValueError(
-            f"scene: {_shown(where)} is a NumPy array of {array.size} values, more than the "
-            f"{_MAX_SCENE_VALUES} a scene file may hold"
+            f"scene: {_shown(where)} is a NumPy array of shape {array.shape}, written out as "
+            f"more than the {_MAX_SCENE_VALUES} values (elements and lists) a scene file may hold"
         )
     if array.dtype.kind not in "biufU":
         raise ValueError(
