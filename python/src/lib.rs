@@ -8,9 +8,13 @@ use pyo3::exceptions::{PyException, PyFileNotFoundError, PyKeyboardInterrupt, Py
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
+use signal_hook::consts::SIGINT;
+use std::panic::AssertUnwindSafe;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{self, RecvTimeoutError};
+use std::time::Duration;
 use tessera::film::Film;
 use tessera::image_file::Format;
 use tessera::job::{Job, JobState};
@@ -302,26 +306,23 @@ impl NativeImage {
     }
 }
 
-/// Calls `on_pass` with the image after each progressive pass, on the thread that folds
-/// finished tiles (the caller's), taking the interpreter's lock for the call only. A pass is
+/// Hands the image of each progressive pass to `show` (which sends it to the caller's
+/// thread, where `on_pass` is called), from the thread that folds finished tiles. A pass is
 /// over when its last tile is folded: passes run one after another and a batch of tiles
 /// never spans two, so the state then holds exactly the pass's samples in every pixel.
 struct PassWatcher<'a> {
-    on_pass: &'a Py<PyAny>,
+    show: &'a dyn Fn(NativeImage),
     scene: &'a Scene,
     source: &'a Source,
     simd: &'static str,
     passes_seen: usize,
-    stop: &'a AtomicBool,
-    /// What the callback raised: the render stops and the caller raises it.
-    raised: Option<PyErr>,
 }
 
 impl Watch for PassWatcher<'_> {
     fn started(&mut self, _: &JobState, _: &Progress) {}
 
     fn folded(&mut self, state: &JobState, _: &[usize], progress: &Progress) {
-        if progress.pass <= self.passes_seen || self.raised.is_some() {
+        if progress.pass <= self.passes_seen {
             return;
         }
         self.passes_seen = progress.pass;
@@ -333,15 +334,7 @@ impl Watch for PassWatcher<'_> {
             samples_per_pixel: spp,
             sums: state.sums.clone(),
         };
-        let image = pass_image(film, self.scene, self.source, self.simd);
-        let called = Python::attach(|py| {
-            let image = Py::new(py, image)?;
-            self.on_pass.call1(py, (image,)).map(drop)
-        });
-        if let Err(e) = called {
-            self.raised = Some(e);
-            self.stop.store(true, Ordering::Relaxed);
-        }
+        (self.show)(pass_image(film, self.scene, self.source, self.simd));
     }
 }
 
@@ -365,7 +358,6 @@ fn pass_image(film: Film, scene: &Scene, source: &Source, simd: &'static str) ->
 enum Failed {
     Tessera(tessera::Error),
     Pool(String),
-    Raised(PyErr),
     Interrupted,
     Panicked(String),
     /// What else stops the work, in words: a refusal of its cost.
@@ -413,24 +405,17 @@ fn render(
         max_depth: depth,
         seed,
     };
-    interruptible(py, |stop| {
+    interruptible(py, on_pass.as_ref(), |stop, show| {
         let (scene, source) = input.load(overrides).map_err(Failed::Tessera)?;
-        let mut watcher = on_pass.as_ref().map(|on_pass| PassWatcher {
-            on_pass,
+        let mut watcher = on_pass.is_some().then(|| PassWatcher {
+            show,
             scene: &scene,
             source: &source,
             simd: path.name(),
             passes_seen: 0,
-            stop,
-            raised: None,
         });
         let watch = watcher.as_mut().map(|w| w as &mut dyn Watch);
-        let rendered = render_whole(&scene, &options, stop, watch);
-        // What the callback raised stopped the render: it is what the caller sees.
-        if let Some(e) = watcher.and_then(|w| w.raised) {
-            return Err(Failed::Raised(e));
-        }
-        let (film, stats) = rendered?;
+        let (film, stats) = render_whole(&scene, &options, stop, watch)?;
         let recipe = Recipe::new(&source, &scene, &film);
         Ok(NativeImage {
             film,
@@ -480,23 +465,97 @@ fn render_whole<'a>(
     Ok((state.into_film(), stats))
 }
 
-/// Runs `work` with the interpreter's lock released and Ctrl-C setting the flag it is given
-/// (Python's own handler still sees the signal), and raises what it failed with.
+/// How often the caller's thread runs Python's signal handlers while `work` runs.
+const SIGNAL_LOOK: Duration = Duration::from_millis(20);
+
+/// What the thread running `work` tells the caller's.
+enum Event<T> {
+    /// A progressive pass's image, for `on_pass`.
+    Pass(Box<NativeImage>),
+    /// What `work` returned.
+    Done(Result<T, Failed>),
+}
+
+/// Runs `work` on a thread of its own, and raises what it failed with. Meanwhile the
+/// caller's thread, the interpreter's lock released but for a moment every 20 ms, runs
+/// Python's signal handlers and calls `on_pass` with each image `work` hands to `show`;
+/// what a handler raises (Ctrl-C's KeyboardInterrupt) or `on_pass` raises sets the flag
+/// `work` is given, and is raised once `work` ends. So Ctrl-C does what Python's handler of
+/// it says now: ignored (`SIG_IGN`), it stops nothing, and one installed after an earlier
+/// render (as `asyncio.run` installs and restores one) still stops it; a flag set from
+/// tessera's own handler, installed once and then replaced by such a handler, once left
+/// every later render deaf to Ctrl-C. Off the main thread, where Python runs no handler,
+/// Ctrl-C sets the flag itself, unless Python's handler of it is not a function.
 fn interruptible<T: Send>(
     py: Python<'_>,
-    work: impl FnOnce(&AtomicBool) -> Result<T, Failed> + Send,
+    on_pass: Option<&Py<PyAny>>,
+    work: impl FnOnce(&AtomicBool, &dyn Fn(NativeImage)) -> Result<T, Failed> + Send,
 ) -> PyResult<T> {
     let stop = Arc::new(AtomicBool::new(false));
-    let interrupt = signal_hook::flag::register(signal_hook::consts::SIGINT, Arc::clone(&stop))
-        .map_err(|e| PyRuntimeError::new_err(format!("could not watch for Ctrl-C: {e}")))?;
-    // A panic (a bug of tessera's) becomes an exception here, so that it is caught as any
-    // other TesseraError and never ends the interpreter.
-    let done = py.detach(|| {
-        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| work(&stop)))
-            .unwrap_or_else(|panic| Err(Failed::Panicked(panic_message(&panic))))
+    let interrupt = if watches_sigint(py)? {
+        let id = signal_hook::flag::register(SIGINT, Arc::clone(&stop))
+            .map_err(|e| PyRuntimeError::new_err(format!("could not watch for Ctrl-C: {e}")))?;
+        Some(id)
+    } else {
+        None
+    };
+    let (events, mut received) = mpsc::channel::<Event<T>>();
+    let mut raised: Option<PyErr> = None;
+    let done = std::thread::scope(|scope| {
+        let stop = &*stop;
+        scope.spawn(move || {
+            let passes = events.clone();
+            let show = move |image| drop(passes.send(Event::Pass(Box::new(image))));
+            // A panic (a bug of tessera's) becomes an exception, caught as any other
+            // TesseraError: it never ends the interpreter.
+            let done = std::panic::catch_unwind(AssertUnwindSafe(|| work(stop, &show)))
+                .unwrap_or_else(|panic| Err(Failed::Panicked(panic_message(&panic))));
+            drop(events.send(Event::Done(done)));
+        });
+        loop {
+            let (event, back) = py.detach(move || (received.recv_timeout(SIGNAL_LOOK), received));
+            received = back;
+            let failed = match event {
+                Ok(Event::Done(done)) => break done,
+                Ok(Event::Pass(image)) => match on_pass.filter(|_| raised.is_none()) {
+                    Some(on_pass) => (Py::new(py, *image))
+                        .and_then(|image| on_pass.call1(py, (image,)))
+                        .err(),
+                    None => None,
+                },
+                Err(RecvTimeoutError::Timeout) => py.check_signals().err(),
+                // The thread sends `Done` whatever happens, as its last word.
+                Err(RecvTimeoutError::Disconnected) => {
+                    break Err(Failed::Panicked("the render's thread ended unheard".into()));
+                }
+            };
+            if let Some(e) = failed
+                && raised.is_none()
+            {
+                raised = Some(e);
+                stop.store(true, Ordering::Relaxed);
+            }
+        }
     });
-    signal_hook::low_level::unregister(interrupt);
-    done.map_err(|failed| failed.into_py(py))
+    if let Some(id) = interrupt {
+        signal_hook::low_level::unregister(id);
+    }
+    match raised {
+        Some(e) => Err(e),
+        None => done.map_err(|failed| failed.into_py(py)),
+    }
+}
+
+/// Whether Ctrl-C sets a render's flag itself: off the main thread, where Python runs no
+/// signal handler, when Python's handler of it is a function (not `SIG_IGN` or `SIG_DFL`).
+fn watches_sigint(py: Python<'_>) -> PyResult<bool> {
+    let threading = py.import("threading")?;
+    let current = threading.call_method0("current_thread")?;
+    if current.is(&threading.call_method0("main_thread")?) {
+        return Ok(false);
+    }
+    let handler = py.import("signal")?.call_method1("getsignal", (SIGINT,))?;
+    Ok(handler.is_callable())
 }
 
 /// What a caught panic said.
@@ -513,12 +572,11 @@ impl Failed {
             Failed::Pool(e) => {
                 TesseraError::new_err(format!("could not start the thread pool: {e}"))
             }
-            Failed::Raised(e) => e,
             Failed::Other(message) => TesseraError::new_err(safe(&message)),
             Failed::Panicked(message) => TesseraError::new_err(safe(&format!(
                 "internal error (a bug of tessera's; please report it): {message}"
             ))),
-            // Python's own handler saw the signal too: on the main thread it raises now.
+            // Ctrl-C off the main thread (the main thread's handler raises there too).
             Failed::Interrupted => py
                 .check_signals()
                 .err()
@@ -583,7 +641,7 @@ fn reproduce<'py>(
         Some(differs) => (Some(differs), work),
         None => {
             let dirs = recipe::texture_dirs(textures.as_deref(), &image);
-            interruptible(py, |stop| {
+            interruptible(py, None, |stop, _| {
                 let mut scene = recipe.scene(&image, &dirs).map_err(Failed::Tessera)?;
                 let yardstick =
                     Workload::named("quick").map_err(|e| Failed::Other(format!("{e:#}")))?;
@@ -672,10 +730,12 @@ fn bench_workload(
         simd_chosen: chosen,
     };
     // Ctrl-C stops it as it stops any render: each of its renders looks between rays.
-    let result = interruptible(py, |stop| match measure::measure_unless(&plan, stop) {
-        Ok(Some(result)) => Ok(result),
-        Ok(None) => Err(Failed::Interrupted),
-        Err(e) => Err(Failed::Pool(e.to_string())),
+    let result = interruptible(py, None, |stop, _| {
+        match measure::measure_unless(&plan, stop) {
+            Ok(Some(result)) => Ok(result),
+            Ok(None) => Err(Failed::Interrupted),
+            Err(e) => Err(Failed::Pool(e.to_string())),
+        }
     })?;
     serde_json::to_string(&result)
         .map_err(|e| TesseraError::new_err(format!("could not write the result: {e}")))
@@ -740,7 +800,7 @@ fn results<'py>(
 /// exception.
 #[pyfunction]
 fn _panic_for_tests(py: Python<'_>) -> PyResult<()> {
-    interruptible(py, |_| -> Result<(), Failed> {
+    interruptible(py, None, |_, _| -> Result<(), Failed> {
         panic!("a panic on purpose, from tessera._native._panic_for_tests")
     })
 }

@@ -385,7 +385,8 @@ def render(
     Raises SceneError (with ``file``, ``line``, ``column`` and ``field``) for a scene
     tessera cannot render, ValueError for a bad argument, FileNotFoundError for a missing
     scene file, TesseraError for what else tessera refuses, and KeyboardInterrupt when
-    Ctrl-C stops the render.
+    Ctrl-C stops the render (a signal handler runs during it: what it raises stops the
+    render and is raised).
     """
     kind, text = _scene_input(scene)
     if simd is not None and not isinstance(simd, str):

@@ -198,7 +198,8 @@ def test_a_process_forked_after_a_render_renders():
 
 INTERRUPTED = textwrap.dedent(
     """
-    import sys, time, tessera
+    import asyncio, signal, sys, time, tessera
+    BEFORE
     print("rendering", flush=True)
     started = time.monotonic()
     try:
@@ -213,17 +214,25 @@ INTERRUPTED = textwrap.dedent(
 
 # A benchmark renders too: it once went on to its last render after Ctrl-C (the cover's,
 # one thread, twice: 191 s).
+# Python's handler of Ctrl-C, installed again after a first render (`asyncio.run` installs
+# one and restores the default), once replaced tessera's own: every later render went on to
+# its end.
 @pytest.mark.parametrize(
-    "call",
+    "before, call",
     [
-        'tessera.render("scenes/cover.toml", spp=1_000_000)',
-        'tessera.bench("cover", threads=1, repeat=1000, warmup=0)',
+        ("", 'tessera.render("scenes/cover.toml", spp=1_000_000)'),
+        ("", 'tessera.bench("cover", threads=1, repeat=1000, warmup=0)'),
+        (
+            'tessera.render("scenes/cover.toml", width=8, spp=1); asyncio.run(asyncio.sleep(0))',
+            'tessera.render("scenes/cover.toml", spp=1_000_000)',
+        ),
     ],
-    ids=["render", "bench"],
+    ids=["render", "bench", "render-after-asyncio"],
 )
-def test_ctrl_c_stops_a_long_render_within_a_second(call):
+def test_ctrl_c_stops_a_long_render_within_a_second(before, call):
+    script = INTERRUPTED.replace("BEFORE", before).replace("CALL", call)
     child = subprocess.Popen(
-        [sys.executable, "-c", INTERRUPTED.replace("CALL", call)],
+        [sys.executable, "-c", script],
         cwd=ROOT,
         stdout=subprocess.PIPE,
         text=True,
@@ -240,6 +249,42 @@ def test_ctrl_c_stops_a_long_render_within_a_second(call):
     assert child.returncode == 0, child.returncode
     assert rest.strip() == "interrupted"
     assert took < 1.0, took
+
+
+# Ignored (SIG_IGN), Ctrl-C once stopped a render all the same and raised KeyboardInterrupt.
+IGNORED = textwrap.dedent(
+    """
+    import os, signal, threading, tessera
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT)).start()
+    image = tessera.render("scenes/cover.toml", width=160, spp=64, threads=1)
+    print(image.sums == tessera.render("scenes/cover.toml", width=160, spp=64).sums)
+    """
+)
+
+
+def test_an_ignored_ctrl_c_stops_nothing():
+    done = subprocess.run(
+        [sys.executable, "-c", IGNORED], cwd=ROOT, capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "True"
+
+
+def test_what_a_signal_handler_raises_stops_a_render_and_is_raised():
+    def alarm(signum, frame):
+        raise TimeoutError("past its time")
+
+    previous = signal.signal(signal.SIGALRM, alarm)
+    try:
+        signal.setitimer(signal.ITIMER_REAL, 0.3)
+        started = time.monotonic()
+        with pytest.raises(TimeoutError, match="past its time"):
+            tessera.render("scenes/cover.toml", spp=1_000_000)
+        assert time.monotonic() - started < 1.3
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
 
 
 def test_an_image_shows_in_a_notebook():
