@@ -18,7 +18,7 @@ import json
 import numbers
 import operator
 import os
-from typing import Any, Callable, Dict, List, Mapping, Optional, Union
+from typing import Any, Callable, Dict, List, Mapping, NoReturn, Optional, Union
 
 import numpy as np
 
@@ -155,9 +155,28 @@ def _whole(name: str, value: Any, low: int, high: int) -> Optional[int]:
 def _json_value(value: Any) -> Any:
     """A NumPy scalar or array in a scene dict, as JSON takes it."""
     if isinstance(value, np.generic):
-        return value.item()
+        return _plain_scalar(value)
     if isinstance(value, np.ndarray):
+        if value.dtype.kind == "f" and value.dtype.itemsize > 8:
+            # Long doubles, which stay NumPy's in a list: as the float64 a scene file holds.
+            value = value.astype(np.float64)
         return value.tolist()
+    _not_a_value(value)
+
+
+def _plain_scalar(value: np.generic) -> Any:
+    """A NumPy number, boolean or string as the Python one it holds. ``item()`` leaves a
+    long double NumPy's, which JSON handed back to be made plain until a RecursionError: it
+    is the float64 a scene file holds (a complex one is none of a scene's values)."""
+    item = value.item()
+    if isinstance(item, np.floating):
+        return float(item)
+    if isinstance(item, np.generic):
+        _not_a_value(item)
+    return item
+
+
+def _not_a_value(value: Any) -> NoReturn:
     raise ValueError(
         f"a scene dict holds numbers, strings, booleans, lists and dicts; "
         f"{type(value).__name__} is none of them"
@@ -210,7 +229,7 @@ def _checked_copy(scene: Mapping) -> Dict[str, Any]:
                 raise ValueError(f"scene: a dict's keys must be strings, not {key!r}")
             if isinstance(item, np.generic):
                 # A NumPy number, boolean or string, as the Python one it holds.
-                item = np.asarray(item).item()
+                item = _plain_scalar(item)
             if isinstance(item, str):
                 # Its length counted before a string of another type is copied as a `str`.
                 chars += _counted(str.__len__(item), chars)

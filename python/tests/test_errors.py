@@ -134,6 +134,22 @@ def _one_list_held_2_to_the_40_times():
     return {"spheres": shared}
 
 
+def test_numpy_long_doubles_in_a_dict_are_its_floats():
+    # `item()` and `tolist()` leave a long double NumPy's: once a RecursionError.
+    def scene(center):
+        return {
+            "image": {"width": 8, "height": 8, "samples_per_pixel": 1, "max_depth": 2},
+            "materials": {"m": {"type": "lambertian", "albedo": [0.5, 0.5, 0.5]}},
+            "spheres": [{"center": center, "radius": 0.5, "material": "m"}],
+        }
+
+    expected = tessera.render(scene([0.0, 0.0, -1.0])).sums
+    assert tessera.render(scene([np.longdouble(0), 0.0, -1.0])).sums == expected
+    assert tessera.render(scene(np.array([0, 0, -1], dtype=np.longdouble))).sums == expected
+    with pytest.raises(ValueError, match="clongdouble is none of them"):
+        tessera.render(scene([np.clongdouble(0), 0.0, -1.0]))
+
+
 class _EndlessItems(dict):
     def items(self):
         return ((f"k{i}", i) for i in itertools.count())
