@@ -374,7 +374,7 @@ enum Failed {
 fn render(
     py: Python<'_>,
     kind: &str,
-    scene: String,
+    scene: &Bound<'_, PyAny>,
     width: Option<u32>,
     spp: Option<u32>,
     depth: Option<u32>,
@@ -384,9 +384,11 @@ fn render(
     on_pass: Option<Py<PyAny>>,
 ) -> PyResult<NativeImage> {
     let input = match kind {
-        "file" => SceneInput::File(PathBuf::from(scene)),
-        "toml" => SceneInput::Toml(scene),
-        "json" => SceneInput::Json(scene),
+        // A path's `str` as Python's file functions take it: a name that is not UTF-8 holds
+        // surrogates for its bytes, which only a path (not a `String`) takes back.
+        "file" => SceneInput::File(scene.extract()?),
+        "toml" => SceneInput::Toml(scene.extract()?),
+        "json" => SceneInput::Json(scene.extract()?),
         other => {
             return Err(PyValueError::new_err(safe(&format!(
                 "unknown scene kind {other:?}"

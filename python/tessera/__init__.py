@@ -128,7 +128,7 @@ class Image:
         """Writes the image to ``path``, as PNG, EXR or PPM by its extension, whole or not
         at all, with its recipe (PNG and EXR): byte for byte the file `tessera render`
         writes for the same scene and settings."""
-        self._native.save(os.fspath(path))
+        self._native.save(_fspath(path))
 
     def _repr_png_(self) -> bytes:
         return self.png()
@@ -352,10 +352,7 @@ def _scene_input(scene: SceneLike) -> "tuple[str, str]":
             raise ValueError(f"scene: {e}") from None
         return ("json", text)
     if isinstance(scene, os.PathLike):
-        path = os.fspath(scene)
-        if isinstance(path, bytes):
-            path = os.fsdecode(path)
-        return ("file", _existing(path))
+        return ("file", _existing(_fspath(scene)))
     if isinstance(scene, str):
         # A scene file's text has a key (`=`) or a table (`[`); a path has neither.
         if "\n" in scene or "=" in scene or scene.lstrip().startswith("["):
@@ -371,8 +368,24 @@ def _existing(path: str) -> str:
     if "\0" in path:
         raise ValueError("scene: a path cannot hold a NUL character")
     if not os.path.exists(path):
-        raise FileNotFoundError(f"{path}: no such scene file")
+        raise FileNotFoundError(f"{_path_shown(path)}: no such scene file")
     return path
+
+
+def _fspath(path: Union[str, bytes, "os.PathLike[Any]"]) -> str:
+    """A path (a ``str``, ``bytes`` or path-like object) as the ``str`` Python's own file
+    functions take: the bytes of a name that is not UTF-8 as surrogates, which the native
+    side turns back into those bytes. A path given as bytes once raised "'bytes' object is
+    not an instance of 'str'", and a scene file's name that is not UTF-8 a
+    UnicodeEncodeError."""
+    return os.fsdecode(os.fspath(path))
+
+
+def _path_shown(path: Any) -> str:
+    """A path as a message quotes it: its control, bidirectional and other unprintable
+    characters escaped (as ``repr`` escapes them), since a terminal prints a message as it
+    is, and a name in a shared directory is anyone's."""
+    return repr(str(path))[1:-1]
 
 
 def render(
@@ -460,10 +473,10 @@ def reproduce(
     if simd is not None and not isinstance(simd, str):
         raise ValueError(f"simd must be a SIMD path's name, not {simd!r}")
     return _native.reproduce(
-        os.fspath(image),
+        _fspath(image),
         threads=_whole("threads", threads, 1, 4096),
         simd=simd,
-        textures=None if textures is None else os.fspath(textures),
+        textures=None if textures is None else _fspath(textures),
         any_cost=bool(any_cost),
     )
 
@@ -522,7 +535,7 @@ def results(
     if db is None:
         db = os.environ.get("TESSERA_DB") or None
     runs = _native.results(
-        None if db is None else os.fspath(db),
+        None if db is None else _fspath(db),
         workload=workload,
         machine=machine,
         commit=commit,
@@ -535,7 +548,9 @@ def results(
             run["result"] = json.loads(run["result"])
         except (ValueError, RecursionError) as e:
             raise TesseraError(
-                f"{db or 'the results database'}: run {run['id']}: its result is not JSON ({type(e).__name__}); "
+                f"{'the results database' if db is None else _path_shown(_fspath(db))}: "
+                f"run {run['id']}: its result "
+                f"is not JSON ({type(e).__name__}); "
                 "tessera writes none such"
             ) from None
     return runs

@@ -6,6 +6,7 @@ import os
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -148,6 +149,28 @@ def test_numpy_long_doubles_in_a_dict_are_its_floats():
     assert tessera.render(scene(np.array([0, 0, -1], dtype=np.longdouble))).sums == expected
     with pytest.raises(ValueError, match="clongdouble is none of them"):
         tessera.render(scene([np.clongdouble(0), 0.0, -1.0]))
+
+
+def test_a_path_of_any_bytes_is_taken_and_quoted_escaped(tmp_path):
+    # A scene file's name that is not UTF-8 once raised UnicodeEncodeError, and a path given
+    # as bytes to save or results "'bytes' object is not an instance of 'str'".
+    odd = os.path.join(os.fsencode(tmp_path), b"cover-\xff.toml")
+    with open(odd, "wb") as f:
+        f.write((ROOT / "scenes" / "cover.toml").read_bytes())
+    expected = tessera.render("scenes/cover.toml", width=16, spp=1)
+    image = tessera.render(Path(os.fsdecode(odd)), width=16, spp=1)
+    assert image.sums == expected.sums
+    assert tessera.render(os.fsdecode(odd), width=16, spp=1).sums == expected.sums
+    image.save(os.path.join(os.fsencode(tmp_path), b"out-\xfe.png"))
+    assert (tmp_path / os.fsdecode(b"out-\xfe.png")).read_bytes() == image.png()
+    with pytest.raises(tessera.TesseraError, match="no results database yet"):
+        tessera.results(os.path.join(os.fsencode(tmp_path), b"none.db"))
+    # A missing file's name, which anyone may have chosen in a shared directory, is quoted
+    # with its control and bidirectional characters escaped.
+    with pytest.raises(FileNotFoundError) as e:
+        tessera.render(str(tmp_path / "\x1b]0;owned\x07\u202e.toml"))
+    assert "\\x1b]0;owned\\x07\\u202e.toml: no such scene file" in str(e.value)
+    assert not any(c in str(e.value) for c in "\x1b\x07\u202e"), str(e.value)
 
 
 class _EndlessItems(dict):

@@ -184,7 +184,8 @@ def test_results_with_a_result_that_is_not_json_raise_tessera_error(tmp_path, re
     # Once a JSONDecodeError, or a RecursionError, rather than tessera's own.
     import sqlite3
 
-    db = tmp_path / "made.db"
+    # Its name, anyone's in a shared directory, quoted escaped.
+    db = tmp_path / "made\x1b[2J\u202e.db"
     conn = sqlite3.connect(db)
     conn.executescript(FIRST_SCHEMA)
     conn.execute(
@@ -194,5 +195,6 @@ def test_results_with_a_result_that_is_not_json_raise_tessera_error(tmp_path, re
     )
     conn.commit()
     conn.close()
-    with pytest.raises(tessera.TesseraError, match="run 1: its result is not JSON"):
+    with pytest.raises(tessera.TesseraError, match="run 1: its result is not JSON") as e:
         tessera.results(db)
+    assert "made\\x1b[2J\\u202e.db: run 1" in str(e.value), str(e.value)
