@@ -501,7 +501,10 @@ fn interruptible<T: Send>(
     } else {
         None
     };
-    let (events, mut received) = mpsc::channel::<Event<T>>();
+    // Handed over, not queued: a pass's image (a copy of the sums, 120 MB at 3000x1688)
+    // waits for the last to be taken, so that a slow `on_pass` holds up the render's next
+    // image, not the memory of every pass.
+    let (events, mut received) = mpsc::sync_channel::<Event<T>>(0);
     let mut raised: Option<PyErr> = None;
     let done = std::thread::scope(|scope| {
         let stop = &*stop;
