@@ -190,6 +190,10 @@ _MAX_SCENE_VALUES = 1 << 20
 _MAX_SCENE_CHARS = 64 << 20
 
 
+#: The most dicts and lists a scene dict may nest, itself and a NumPy array's dimensions
+#: included: more than any scene needs, fewer than a scene file's parser takes (about 80).
+_MAX_SCENE_DEPTH = 64
+
 #: The whole numbers a scene file holds: TOML's, 64-bit signed.
 _SCENE_INT_RANGE = (-(1 << 63), (1 << 63) - 1)
 
@@ -241,9 +245,11 @@ def _checked_copy(scene: Mapping) -> Dict[str, Any]:
                 # then to be refused; an empty array of 10^7 x 0, 6.7 s and 750 MB of empty
                 # lists, then to be refused by the scene's parser).
                 item = np.asarray(item)
+                _within_depth(len(inside) + item.ndim, where, value, key)
                 values += _array_values(item.shape) - 1
                 chars += _array_chars(item, _place(where, value, key), values)
             elif isinstance(item, (Mapping, list, tuple)):
+                _within_depth(len(inside) + 1, where, value, key)
                 plain: Any = {} if isinstance(item, Mapping) else []
                 pending.append((item, _place(where, value, key), plain))
                 item = plain
@@ -282,6 +288,18 @@ def _array_values(shape: "tuple[int, ...]") -> int:
         if values > _MAX_SCENE_VALUES:
             break
     return values
+
+
+def _within_depth(depth: int, where: Any, value: Any, key: Any) -> None:
+    """Refuses item `key` of `value` (at `where`) where it nests dicts and lists `depth`
+    deep, more than a scene dict may: deeper, a dict was refused four ways as its depth
+    grew, by places in the TOML or JSON the user never wrote and, past a thousand, by a
+    RecursionError of JSON's."""
+    if depth > _MAX_SCENE_DEPTH:
+        raise ValueError(
+            f"scene: {_shown(_place(where, value, key))} nests dicts and lists {depth} deep, "
+            f"more than the {_MAX_SCENE_DEPTH} a scene dict may"
+        )
 
 
 def _counted(n: int, chars: int) -> int:

@@ -173,6 +173,13 @@ def test_a_path_of_any_bytes_is_taken_and_quoted_escaped(tmp_path):
     assert not any(c in str(e.value) for c in "\x1b\x07\u202e"), str(e.value)
 
 
+def _nested(empty, depth):
+    inner = 1
+    for _ in range(depth):
+        inner = {"a": inner} if isinstance(empty, dict) else [inner]
+    return inner
+
+
 class _EndlessItems(dict):
     def items(self):
         return ((f"k{i}", i) for i in itertools.count())
@@ -196,6 +203,10 @@ class _EndlessList(list):
         # and then counted.
         (lambda: {"image": _EndlessItems()}, "more than 1048576 values"),
         (lambda: {"spheres": _EndlessList()}, "more than 1048576 values"),
+        # Nested deeper than a scene's parser takes: once refused by a place in TOML or JSON
+        # the user never wrote, or past a thousand levels by JSON's RecursionError.
+        (lambda: {"image": _nested({}, 100_000)}, "image.a.a.a.a.a.a.a.a"),
+        (lambda: {"image": _nested([], 200)}, "nests dicts and lists 65 deep, more than the 64"),
         # Written as TOML, each table's header repeats the keys above it: a long key over
         # 10,000 empty tables once wrote 10 GB (9.7 GB of memory, 86 s); and a float is
         # written without an exponent, 5e-324 in 326 bytes. Refused before it is written.
