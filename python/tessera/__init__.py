@@ -352,12 +352,23 @@ def _place(where: Any, value: Any, key: Any) -> Any:
 
 
 def _shown(place: Any) -> str:
-    """A place `_place` gave, written out: `image.width`, `spheres[2].center`."""
+    """A place `_place` gave, written out for a message: `image.width`, `spheres[2].center`,
+    its keys escaped (`_escaped`: a dict may come from a stranger's JSON or YAML, and its
+    keys once reached the terminal with their escape sequences) and of at most
+    `_MAX_SHOWN` characters, its start and end kept."""
     parts = []
     while place is not None:
         place, in_dict, key = place
-        parts.append(f".{key}" if in_dict else f"[{key}]")
-    return "".join(reversed(parts)).removeprefix(".")
+        parts.append(f".{_escaped(key)}" if in_dict else f"[{key}]")
+    shown = "".join(reversed(parts)).removeprefix(".")
+    if len(shown) > _MAX_SHOWN:
+        half = _MAX_SHOWN // 2
+        shown = f"{shown[:half]}…{shown[-half:]}"
+    return shown
+
+
+#: The most characters of a place `_shown` writes out.
+_MAX_SHOWN = 400
 
 
 def _scene_input(scene: SceneLike) -> "tuple[str, str]":
@@ -386,7 +397,7 @@ def _existing(path: str) -> str:
     if "\0" in path:
         raise ValueError("scene: a path cannot hold a NUL character")
     if not os.path.exists(path):
-        raise FileNotFoundError(f"{_path_shown(path)}: no such scene file")
+        raise FileNotFoundError(f"{_escaped(path)}: no such scene file")
     return path
 
 
@@ -399,11 +410,11 @@ def _fspath(path: Union[str, bytes, "os.PathLike[Any]"]) -> str:
     return os.fsdecode(os.fspath(path))
 
 
-def _path_shown(path: Any) -> str:
-    """A path as a message quotes it: its control, bidirectional and other unprintable
-    characters escaped (as ``repr`` escapes them), since a terminal prints a message as it
-    is, and a name in a shared directory is anyone's."""
-    return repr(str(path))[1:-1]
+def _escaped(text: Any) -> str:
+    """A path or key as a message quotes it: its control, bidirectional and other
+    unprintable characters escaped (as ``repr`` escapes them), since a terminal prints a
+    message as it is, and a name in a shared directory is anyone's."""
+    return repr(str(text))[1:-1]
 
 
 def render(
@@ -566,7 +577,7 @@ def results(
             run["result"] = json.loads(run["result"])
         except (ValueError, RecursionError) as e:
             raise TesseraError(
-                f"{'the results database' if db is None else _path_shown(_fspath(db))}: "
+                f"{'the results database' if db is None else _escaped(_fspath(db))}: "
                 f"run {run['id']}: its result "
                 f"is not JSON ({type(e).__name__}); "
                 "tessera writes none such"

@@ -135,6 +135,20 @@ def _one_list_held_2_to_the_40_times():
     return {"spheres": shared}
 
 
+def test_a_dict_s_keys_reach_a_python_side_message_escaped_and_bounded():
+    # A dict loaded from a stranger's JSON: its keys once reached the message raw.
+    with pytest.raises(ValueError) as e:
+        tessera.render({"image": {"w\x1b]0;owned\x07\u202e": 2**64}})
+    assert "image.w\\x1b]0;owned\\x07\\u202e is 18446744073709551616" in str(e.value)
+    with pytest.raises(ValueError) as e:
+        tessera.render({"s\x1b[2J": [np.array([{1: 2}], dtype=object)]})
+    assert str(e.value).startswith("scene: s\\x1b[2J[0] is a NumPy array of object")
+    with pytest.raises(ValueError) as e:
+        tessera.render({"k" * 1_000_000: {"a": 2**64}})
+    assert len(str(e.value)) < 600 and "kkk…kkk" in str(e.value)
+    assert "kkk.a is 18446744073709551616" in str(e.value)
+
+
 def test_numpy_long_doubles_in_a_dict_are_its_floats():
     # `item()` and `tolist()` leave a long double NumPy's: once a RecursionError.
     def scene(center):
