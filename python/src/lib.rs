@@ -469,6 +469,8 @@ fn render_whole<'a>(
 
 /// How often the caller's thread runs Python's signal handlers while `work` runs.
 const SIGNAL_LOOK: Duration = Duration::from_millis(20);
+/// The stack of the thread `work` runs on.
+const WORK_STACK: usize = 8 << 20;
 
 /// What the thread running `work` tells the caller's.
 enum Event<T> {
@@ -508,15 +510,23 @@ fn interruptible<T: Send>(
     let mut raised: Option<PyErr> = None;
     let done = std::thread::scope(|scope| {
         let stop = &*stop;
-        scope.spawn(move || {
-            let passes = events.clone();
-            let show = move |image| drop(passes.send(Event::Pass(Box::new(image))));
-            // A panic (a bug of tessera's) becomes an exception, caught as any other
-            // TesseraError: it never ends the interpreter.
-            let done = std::panic::catch_unwind(AssertUnwindSafe(|| work(stop, &show)))
-                .unwrap_or_else(|panic| Err(Failed::Panicked(panic_message(&panic))));
-            drop(events.send(Event::Done(done)));
-        });
+        // The stack of a main thread, as the command line parses a scene and builds its
+        // tree on: a spawned thread's 2 MiB default is no bound a scene file is checked for.
+        let worker = std::thread::Builder::new()
+            .name("tessera-render".into())
+            .stack_size(WORK_STACK)
+            .spawn_scoped(scope, move || {
+                let passes = events.clone();
+                let show = move |image| drop(passes.send(Event::Pass(Box::new(image))));
+                // A panic (a bug of tessera's) becomes an exception, caught as any other
+                // TesseraError: it never ends the interpreter.
+                let done = std::panic::catch_unwind(AssertUnwindSafe(|| work(stop, &show)))
+                    .unwrap_or_else(|panic| Err(Failed::Panicked(panic_message(&panic))));
+                drop(events.send(Event::Done(done)));
+            });
+        if let Err(e) = worker {
+            return Err(Failed::Pool(format!("a thread to render on: {e}")));
+        }
         loop {
             let (event, back) = py.detach(move || (received.recv_timeout(SIGNAL_LOOK), received));
             received = back;
