@@ -386,8 +386,9 @@ fn a_browser_shows_the_render_converging_and_the_final_image() {
     let image = image::open(dir.join("watched.png")).unwrap().to_rgb8();
     assert_shows(&screen, &image, "at the end");
     assert_eq!(browser.eval(download_hidden), false);
+    // The page's own copy, taken with the run's token, even while the server stays.
     let href = browser.eval("document.getElementById('download').href");
-    assert!(href.as_str().unwrap().ends_with("/download"), "{href}");
+    assert!(href.as_str().unwrap().starts_with("blob:"), "{href}");
     assert_eq!(
         browser.eval("document.getElementById('download').download"),
         "watched.png"
@@ -627,6 +628,137 @@ fn a_page_takes_nothing_from_whoever_has_the_port_after_its_server() {
         "{asked:?}"
     );
     assert!(asked.len() <= 2, "the page went on asking: {asked:?}");
+}
+
+/// With `--preview-hold` the finished page linked to the server's `download`: a link the
+/// browser follows without the page seeing the answer. Once the held server had stopped
+/// (Ctrl-C), a program that took its port and answered the event stream's reconnection
+/// with a 404 closed the stream after one error, so the page never said "connection lost"
+/// and kept the link, and a click saved that program's file under its name. The page now
+/// keeps its own copy of the file, taken with the run's token, held or not, and a stream
+/// that cannot reconnect is lost at once.
+#[test]
+fn a_held_page_s_download_is_never_another_program_s_file() {
+    if !heavy("a browser test") {
+        return;
+    }
+    let Some(binary) = chromium() else {
+        return skip(
+            "a_held_page_s_download_is_never_another_program_s_file",
+            "no chromium (Debian's `chromium` package; or set TESSERA_CHROMIUM)",
+        );
+    };
+    let dir = temp_dir("browser-held-port-taken");
+    let mut viewer = KillOnDrop(
+        tessera()
+            .args(["render", &cover(), "--width", "64", "--spp", "16"])
+            .args([
+                "--threads",
+                "1",
+                "-o",
+                "small.png",
+                "--preview",
+                "--preview-hold",
+            ])
+            .current_dir(&dir)
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("start tessera"),
+    );
+    let mut err = BufReader::new(viewer.0.stderr.take().unwrap()).lines();
+    let url = loop {
+        let line = err.next().expect("tessera prints the address").unwrap();
+        if let Some(rest) = line.strip_prefix("tessera: preview at ") {
+            break rest.to_owned();
+        }
+    };
+    let (held_tx, held) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in err.map_while(Result::ok) {
+            if line.contains("until Ctrl-C") {
+                let _ = held_tx.send(());
+            }
+        }
+    });
+    let addr = url["http://".len()..].split('/').next().unwrap().to_owned();
+    let mut browser = Browser::open(&binary, &url, dir.join("profile"));
+    let link = "(() => { const a = document.getElementById('download'); \
+                return { hidden: a.hidden, href: a.href, name: a.download, \
+                state: document.getElementById('state').textContent }; })()";
+    browser.wait_for("the download offered", link, |v| {
+        v["hidden"] == false && v["state"] == "finished"
+    });
+    held.recv_timeout(PATIENCE)
+        .expect("tessera holds the final image");
+
+    // The held viewer is stopped; another program takes the port at once and refuses the
+    // event stream, but has a file of its own to download.
+    let _ = Command::new("kill")
+        .args(["-INT", &viewer.0.id().to_string()])
+        .status();
+    viewer.0.wait().unwrap();
+    let start = Instant::now();
+    let taken = loop {
+        match std::net::TcpListener::bind(&addr) {
+            Ok(l) => break l,
+            Err(e) => assert!(start.elapsed() < PATIENCE, "{addr}: {e}"),
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    };
+    let forged = b"not the render".to_vec();
+    std::thread::spawn(move || {
+        for stream in taken.incoming() {
+            let Ok(mut stream) = stream else { continue };
+            let mut head = Vec::new();
+            let mut byte = [0u8; 1];
+            while !head.ends_with(b"\r\n\r\n") && stream.read(&mut byte).unwrap_or(0) == 1 {
+                head.push(byte[0]);
+            }
+            let line = String::from_utf8_lossy(&head);
+            let path = line.split(' ').nth(1).unwrap_or("").to_owned();
+            let answer = if path.ends_with("/download") {
+                let mut a = format!(
+                    "HTTP/1.1 200 OK\r\ncontent-type: image/png\r\n\
+                     content-disposition: attachment; filename=\"small.png\"\r\n\
+                     content-length: {}\r\nconnection: close\r\n\r\n",
+                    forged.len()
+                )
+                .into_bytes();
+                a.extend_from_slice(&forged);
+                a
+            } else {
+                b"HTTP/1.1 404 Not Found\r\ncontent-length: 0\r\nconnection: close\r\n\r\n".to_vec()
+            };
+            let _ = stream.write_all(&answer);
+        }
+    });
+    std::thread::sleep(Duration::from_secs(6));
+    let shown = browser.eval(link);
+    // A click on the link, if there is one, saves the page's copy of the render's file.
+    let downloads = dir.join("downloads");
+    std::fs::create_dir_all(&downloads).unwrap();
+    browser.call(
+        "Page.setDownloadBehavior",
+        json!({"behavior": "allow", "downloadPath": downloads.to_str().unwrap()}),
+    );
+    browser.eval("document.getElementById('download').click()");
+    std::thread::sleep(Duration::from_secs(3));
+    let saved = std::fs::read(downloads.join("small.png")).ok();
+    if shown["hidden"] == false {
+        assert!(
+            shown["href"].as_str().unwrap().starts_with("blob:"),
+            "{shown}; the click saved {saved:?}"
+        );
+        let file = std::fs::read(dir.join("small.png")).unwrap();
+        assert!(saved == Some(file), "{shown}: the click saved another file");
+    } else {
+        assert_eq!(saved, None, "{shown}");
+    }
+    assert_ne!(
+        shown["state"], "finished",
+        "{shown}: the page did not see its server go"
+    );
 }
 
 fn http_status(host: &str, key: &str) -> Value {

@@ -188,9 +188,10 @@ function showText(status) {
   drawTiles();
 }
 
-// Offers the finished image: the file the render wrote, recipe and all. A viewer that stays
-// (--preview-hold) links to it; otherwise the server goes when the render ends, so the page
-// fetches the file at once and links to its own copy.
+// Offers the finished image: the file the render wrote, recipe and all. The page fetches it
+// at once, takes it only with this run's token, and links to its own copy: the server goes
+// when the render ends, and a link to it (even a held one's) would be followed to whoever
+// holds the port when it is clicked, without the page seeing the answer.
 function offer(status) {
   const link = $("download");
   const file = status.state === "finished" ? status.download : null;
@@ -200,12 +201,7 @@ function offer(status) {
   }
   link.download = file.name;
   link.title = `${file.name}, ${(file.bytes / 1024).toFixed(0)} KiB`;
-  if (status.about.held) {
-    link.href = "download";
-    link.hidden = false;
-    return;
-  }
-  if (kept || keeping) return;
+  if (kept || keeping || gone) return;
   keeping = true;
   fetch("download", { cache: "no-store" })
     .then((r) => {
@@ -279,7 +275,9 @@ function listen() {
   });
   events.onerror = () => {
     errors += 1;
-    if (errors >= 3) {
+    // A stream answered with anything but a stream (a 404, another type) is not retried by
+    // the browser: the server that sent this page is not the one answering.
+    if (errors >= 3 || events.readyState === EventSource.CLOSED) {
       events.close();
       lost();
       if (!last || last.state === "rendering") poll();
