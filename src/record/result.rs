@@ -15,6 +15,10 @@ pub const SCHEMA: &str = "tessera-bench/3";
 pub const READS: [&str; 3] = ["tessera-bench/1", "tessera-bench/2", SCHEMA];
 /// The largest result file read: real ones are a few kilobytes.
 pub const MAX_FILE: u64 = 1 << 20;
+/// The longest line of JSON lines read: a result of `MAX_FILE` bytes as `results export
+/// --jsonl` writes it, every character past ASCII a `\u` escape (at most three times as
+/// long: four bytes of UTF-8 become a pair of six), so what one import took the next takes.
+pub const MAX_LINE: u64 = 3 * MAX_FILE;
 /// The most results one file of JSON lines (`results export --jsonl`) may hold: a lab's
 /// database of a million runs.
 pub const MAX_LINES: usize = 1 << 20;
@@ -150,7 +154,7 @@ impl BenchResult {
     /// Reads a result file, or a file of JSON lines, one result a line, as `results export
     /// --jsonl` writes (a file whose first line is a whole JSON value), refusing the whole
     /// file where one result of it is refused, naming its line (`FILE:N`). The lines are read
-    /// one at a time, each of at most `MAX_FILE` bytes, so memory follows the results, not
+    /// one at a time, each of at most `MAX_LINE` bytes, so memory follows the results, not
     /// the file's longest line.
     pub fn read_all(path: &Path) -> Result<Vec<Self>> {
         let what = path.display().to_string();
@@ -162,13 +166,13 @@ impl BenchResult {
             line.clear();
             reader
                 .by_ref()
-                .take(MAX_FILE + 1)
+                .take(MAX_LINE + 1)
                 .read_until(b'\n', line)
                 .with_context(|| format!("could not read {what}"))
         };
         read_line(&mut reader, &mut line)?;
         let one_value = |line: &[u8]| {
-            line.len() as u64 <= MAX_FILE
+            line.len() as u64 <= MAX_LINE
                 && serde_json::from_slice::<serde::de::IgnoredAny>(line).is_ok()
         };
         if !one_value(&line) {
@@ -185,10 +189,10 @@ impl BenchResult {
                 break;
             }
             let at = format!("{what}:{n}");
-            if line.len() as u64 > MAX_FILE {
+            if line.len() as u64 > MAX_LINE {
                 bail!(
                     "{at}: a line longer than {} KiB: not a tessera bench result",
-                    MAX_FILE >> 10
+                    MAX_LINE >> 10
                 );
             }
             if line.iter().all(u8::is_ascii_whitespace) {
@@ -197,17 +201,22 @@ impl BenchResult {
             if results.len() == MAX_LINES {
                 bail!("{at}: more than {MAX_LINES} results in one file");
             }
-            results.push(Self::parse(&line, &at)?);
+            results.push(Self::parse_within(&line, &at, MAX_LINE)?);
         }
         Ok(results)
     }
 
     /// A result from the bytes of a file named `what`.
     pub fn parse(bytes: &[u8], what: &str) -> Result<Self> {
-        if bytes.len() as u64 > MAX_FILE {
+        Self::parse_within(bytes, what, MAX_FILE)
+    }
+
+    /// A result from at most `most` bytes of a file named `what`.
+    fn parse_within(bytes: &[u8], what: &str, most: u64) -> Result<Self> {
+        if bytes.len() as u64 > most {
             bail!(
                 "{what}: larger than {} KiB: not a tessera bench result",
-                MAX_FILE >> 10
+                most >> 10
             );
         }
         let text = std::str::from_utf8(bytes)
