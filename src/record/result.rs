@@ -32,6 +32,12 @@ pub const MAX_THREADS: usize = 1 << 16;
 pub const MAX_SAMPLES_PER_SEC: f64 = 1e12;
 /// The longest a result's run may claim to have taken, in seconds: a year.
 const MAX_WALL_SECONDS: f64 = 3.2e7;
+/// The slowest rate a result may claim, in samples a second: one sample in the longest run.
+/// A rate of the smallest numbers a double holds (5e-324) reads as 0 in M samples/s, and
+/// drew `NaN%` and `inf%` into the report's efficiency table.
+pub const MIN_SAMPLES_PER_SEC: f64 = 1.0 / MAX_WALL_SECONDS;
+/// The slowest in million rays a second: the slowest rate, a ray a sample.
+const MIN_MRAYS_PER_SEC: f64 = MIN_SAMPLES_PER_SEC / 1e6;
 /// The largest of the other measures (rays per sample, speedups, efficiencies).
 const MAX_MEASURE: f64 = 1e9;
 
@@ -306,10 +312,15 @@ impl BenchResult {
             if row.runs.len() > 1_000_000 {
                 return Err("a row has more runs than any bench makes".into());
             }
-            let within = |name: &str, x: f64, most: f64| {
+            let at_least = |name: &str, x: f64, least: f64, most: f64| {
                 if !(x.is_finite() && x > 0.0) {
                     Err(format!(
                         "{} threads: {name} is {x}, not a positive number",
+                        row.threads
+                    ))
+                } else if x < least {
+                    Err(format!(
+                        "{} threads: {name} is {x:e}, less than any run makes (at least {least:e})",
                         row.threads
                     ))
                 } else if x > most {
@@ -321,15 +332,25 @@ impl BenchResult {
                     Ok(())
                 }
             };
-            let positive = |name: &str, x: f64| within(name, x, MAX_MEASURE);
-            for (name, s, most) in [
-                ("samples/s", row.samples_per_sec, MAX_SAMPLES_PER_SEC),
-                ("Mrays/s", row.mrays_per_sec, MAX_SAMPLES_PER_SEC),
-                ("wall time", row.wall_s, MAX_WALL_SECONDS),
+            let positive = |name: &str, x: f64| at_least(name, x, 0.0, MAX_MEASURE);
+            for (name, s, least, most) in [
+                (
+                    "samples/s",
+                    row.samples_per_sec,
+                    MIN_SAMPLES_PER_SEC,
+                    MAX_SAMPLES_PER_SEC,
+                ),
+                (
+                    "Mrays/s",
+                    row.mrays_per_sec,
+                    MIN_MRAYS_PER_SEC,
+                    MAX_SAMPLES_PER_SEC,
+                ),
+                ("wall time", row.wall_s, 0.0, MAX_WALL_SECONDS),
             ] {
-                within(name, s.min, most)?;
-                within(name, s.median, most)?;
-                within(name, s.max, most)?;
+                at_least(name, s.min, least, most)?;
+                at_least(name, s.median, least, most)?;
+                at_least(name, s.max, least, most)?;
                 if !(s.min <= s.median && s.median <= s.max) {
                     return Err(format!(
                         "{} threads: {name}'s min, median and max are out of order",
@@ -339,7 +360,12 @@ impl BenchResult {
             }
             positive("rays per sample", row.rays_per_sample)?;
             for &x in &row.runs {
-                within("a run's samples/s", x, MAX_SAMPLES_PER_SEC)?;
+                at_least(
+                    "a run's samples/s",
+                    x,
+                    MIN_SAMPLES_PER_SEC,
+                    MAX_SAMPLES_PER_SEC,
+                )?;
             }
             for x in row.speedup.into_iter().chain(row.efficiency) {
                 positive("a speedup or efficiency", x)?;

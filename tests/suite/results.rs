@@ -444,6 +444,11 @@ fn a_database_whose_numbers_no_import_takes_is_refused() {
             "UPDATE scaling SET sps_max = 1e999",
             "a scaling row's sps_max is inf",
         ),
+        (
+            "subnormal-rate",
+            "UPDATE runs SET sps_median = 5e-324, sps_min = 5e-324, sps_max = 5e-324",
+            "sps_median is 5e-324",
+        ),
     ] {
         let db = dir.join(format!("{name}.db"));
         let o = results(&dir, &db, &["import", "q.json"]);
@@ -475,6 +480,34 @@ fn a_database_whose_numbers_no_import_takes_is_refused() {
         }
         assert!(!html.exists(), "{name}");
     }
+}
+
+/// A result of the smallest positive rates a double holds (5e-324 samples/s, where the
+/// slowest run makes a sample in a year, 3.1e-8) was imported, and its M samples/s, 0,
+/// drew `NaN%` and `inf%` into the report's efficiency table. Such a rate is refused, in a
+/// result (naming the row) and in a database (naming the run and column).
+#[test]
+fn a_rate_slower_than_any_run_is_refused() {
+    let dir = temp_dir("results-subnormal-rate");
+    let mut v = json(&root().join("fuzz/corpus/result/quick-one-thread.json"));
+    let tiny = Value::from(5e-324);
+    for key in ["samples_per_sec", "mrays_per_sec"] {
+        for at in ["min", "median", "max"] {
+            v["result"][key][at] = tiny.clone();
+        }
+    }
+    v["result"]["runs"] = Value::from(vec![tiny.clone()]);
+    v["scaling"][0] = v["result"].clone();
+    write_json(&dir.join("slow.json"), &v);
+    let db = dir.join("r.db");
+    let o = results(&dir, &db, &["import", "slow.json"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("1 threads: samples/s is 5e-324, less than any run makes"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!db.exists() || listed(&dir, &db, &[]).is_empty());
 }
 
 /// A STRICT text column holds text, but SQLite keeps its bytes as given, so a database made

@@ -12,7 +12,7 @@
 
 mod file;
 
-use super::result::{BenchResult, MAX_SAMPLES_PER_SEC, MAX_THREADS};
+use super::result::{BenchResult, MAX_SAMPLES_PER_SEC, MAX_THREADS, MIN_SAMPLES_PER_SEC};
 use anyhow::{Context, Result, anyhow, bail};
 use file::{
     cannot_open_wal_files, create, immutable_there, open_immutable, recognise,
@@ -418,8 +418,8 @@ impl ResultsDb {
     }
 
     /// Checks that run `id`'s numbers (its headline, or the scaling row `row` names) are ones
-    /// an import takes: a thread count of 1 to 65,536 and samples/s positive, at most 1e12
-    /// and in order. The columns hold any number of their type, and a database made
+    /// an import takes: a thread count of 1 to 65,536 and samples/s of at least 3.125e-8
+    /// (a sample in a year), at most 1e12 and in order. The columns hold any number of their type, and a database made
     /// elsewhere may hold 0, a negative rate or infinity, which drew `NaN%` and `-inf`
     /// into the report and ranked nonsense: such a database is refused, naming the run.
     fn sound(&self, id: i64, row: &str, threads: i64, sps: [f64; 3]) -> Result<()> {
@@ -430,11 +430,12 @@ impl ResultsDb {
             ));
         }
         for (name, x) in ["sps_median", "sps_min", "sps_max"].into_iter().zip(sps) {
-            if !(x.is_finite() && x > 0.0 && x <= MAX_SAMPLES_PER_SEC) {
+            if !(x.is_finite() && (MIN_SAMPLES_PER_SEC..=MAX_SAMPLES_PER_SEC).contains(&x)) {
                 bail!(self.unsound(
                     id,
                     format!(
-                        "{row}{name} is {x:e}, not a rate above 0 and at most {MAX_SAMPLES_PER_SEC:e}"
+                        "{row}{name} is {x:e}, not a rate of at least {MIN_SAMPLES_PER_SEC:e} \
+                         and at most {MAX_SAMPLES_PER_SEC:e}"
                     )
                 ));
             }
