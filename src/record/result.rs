@@ -22,6 +22,10 @@ pub const MAX_LINE: u64 = 3 * MAX_FILE;
 /// The most results one file of JSON lines (`results export --jsonl`) may hold: a lab's
 /// database of a million runs.
 pub const MAX_LINES: usize = 1 << 20;
+/// The most runs a bench keeps in its result, the headline's counted twice (its row is in
+/// `scaling` too): each run's rate takes at most 31 bytes of the JSON, so a result of as
+/// many stays within `MAX_FILE`, and its import (and an export of it) reads it.
+pub const MAX_RUNS: usize = 1 << 14;
 /// The longest text field accepted (a CPU model, a commit, a scene name).
 const MAX_TEXT: usize = 256;
 /// The most threads a result may claim; more is no machine's.

@@ -424,3 +424,45 @@ fn a_chart_or_workloads_file_named_as_the_results_database_is_refused() {
     );
     assert!(o.status.success(), "{}", stderr(&o));
 }
+
+/// `bench --repeat 30000` of a 4-pixel render wrote a result of 1.56 MB, every run's rate in
+/// it, that `results import` refused ("larger than 1024 KiB"), and recorded it in the
+/// database, whose `results export` then refused every run ("not a result an import takes;
+/// tessera writes none such"). A repeat whose runs a result cannot hold is refused before
+/// anything renders, saying the most it takes.
+#[test]
+fn a_repeat_whose_runs_no_result_holds_is_refused_before_rendering() {
+    let dir = temp_dir("bench-repeat-too-many");
+    let db = dir.join("r.db");
+    let started = std::time::Instant::now();
+    let o = run_in_env(
+        &[
+            "bench",
+            &cover(),
+            "--width",
+            "4",
+            "--spp",
+            "1",
+            "--warmup",
+            "0",
+            "--no-scaling",
+            "--threads",
+            "1",
+            "--repeat",
+            "30000",
+            "--out",
+            "r.json",
+        ],
+        &[("TESSERA_DB", db.to_str().unwrap())],
+        &dir,
+    );
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("--repeat 30000: a result keeps every run's rate"),
+        "{err}"
+    );
+    assert!(err.contains("at most --repeat 8192"), "{err}");
+    assert!(started.elapsed().as_secs() < 5, "{:?}", started.elapsed());
+    assert!(!dir.join("r.json").exists() && !db.exists());
+}

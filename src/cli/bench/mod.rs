@@ -17,7 +17,7 @@ use std::collections::BTreeSet;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use tessera::atomic_file::write_atomically;
-use tessera::record::result::BenchResult;
+use tessera::record::result::{BenchResult, MAX_RUNS};
 use tessera::record::stats::{self, Scaling};
 use tessera::record::workload::{self, Workload, hash_text};
 use tessera::render::{self, RenderOptions};
@@ -285,6 +285,26 @@ impl BenchMode {
             }
         }
         let scaling = tessera::record::measure::scaling_counts(cpus);
+        // The result keeps every run's rate: too many make a result no import reads.
+        let mut counts = if args.no_scaling {
+            Vec::new()
+        } else {
+            scaling.clone()
+        };
+        counts.push(threads);
+        counts.sort_unstable();
+        counts.dedup();
+        let kept = args.repeat as usize * (counts.len() + 1);
+        if kept > MAX_RUNS {
+            bail!(
+                "--repeat {r}: a result keeps every run's rate, {r} at each of {} and again \
+                 for the headline: {kept}, more than the {MAX_RUNS} a result may hold (an \
+                 import reads at most 1 MiB); at most --repeat {}",
+                tessera::text::count(counts.len() as u64, "thread count"),
+                MAX_RUNS / (counts.len() + 1),
+                r = args.repeat,
+            );
+        }
         let save = measure::save_to(args.no_save, args.db.db);
         // The result file replaces whatever file it is written to: the database would be
         // lost, every earlier run with it (or, for its write-ahead log, the runs not yet in it).
