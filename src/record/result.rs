@@ -180,7 +180,12 @@ impl BenchResult {
                 .read_until(b'\n', line)
                 .with_context(|| format!("could not read {what}"))
         };
-        read_line(&mut reader, &mut line)?;
+        // Blank lines are skipped before the first as after it: a file of JSON lines that
+        // begins with one is still JSON lines.
+        let mut first = 1;
+        while read_line(&mut reader, &mut line)? > 0 && line.iter().all(u8::is_ascii_whitespace) {
+            first += 1;
+        }
         let one_value = |line: &[u8]| {
             line.len() as u64 <= MAX_LINE
                 && serde_json::from_slice::<serde::de::IgnoredAny>(line).is_ok()
@@ -194,8 +199,8 @@ impl BenchResult {
             return Ok(vec![Self::parse(&bytes, &what)?]);
         }
         let mut results = Vec::new();
-        for n in 1.. {
-            if n > 1 && read_line(&mut reader, &mut line)? == 0 {
+        for n in first.. {
+            if n > first && read_line(&mut reader, &mut line)? == 0 {
                 break;
             }
             let at = format!("{what}:{n}");

@@ -1206,6 +1206,16 @@ fn an_export_imports_into_another_database_as_it_is() {
     );
     let o = results(&dir, &from, &["import", "export.jsonl"]);
     assert_eq!(stdout(&o), "imported 0 new results, 2 already present\n");
+    // Blank lines before the first are skipped as those after it are: the file was read as
+    // one result over many lines ("not JSON: trailing characters at line 3 column 1").
+    std::fs::write(dir.join("blank.jsonl"), format!("\n\r\n{text}\n")).unwrap();
+    let o = results(&dir, &from, &["import", "blank.jsonl"]);
+    assert_eq!(
+        stdout(&o),
+        "imported 0 new results, 2 already present\n",
+        "{}",
+        stderr(&o)
+    );
 
     // A line no result makes refuses the file, naming the line; nothing is added.
     let lines: Vec<&str> = text.lines().collect();
