@@ -362,6 +362,8 @@ enum Failed {
     Panicked(String),
     /// What else stops the work, in words: a refusal of its cost.
     Other(String),
+    /// The process was forked while the work ran, and this is the child, without its thread.
+    Forked,
 }
 
 /// Loads `scene` and renders it. `kind` says what `scene` is: "file" (a path), "toml" (a
@@ -407,9 +409,10 @@ fn render(
         max_depth: depth,
         seed,
     };
-    interruptible(py, on_pass.as_ref(), |stop, show| {
+    let watching = on_pass.is_some();
+    interruptible(py, on_pass.as_ref(), move |stop, show| {
         let (scene, source) = input.load(overrides).map_err(Failed::Tessera)?;
-        let mut watcher = on_pass.is_some().then(|| PassWatcher {
+        let mut watcher = watching.then(|| PassWatcher {
             show,
             scene: &scene,
             source: &source,
@@ -490,10 +493,10 @@ enum Event<T> {
 /// tessera's own handler, installed once and then replaced by such a handler, once left
 /// every later render deaf to Ctrl-C. Off the main thread, where Python runs no handler,
 /// Ctrl-C sets the flag itself, unless Python's handler of it is not a function.
-fn interruptible<T: Send>(
+fn interruptible<T: Send + 'static>(
     py: Python<'_>,
     on_pass: Option<&Py<PyAny>>,
-    work: impl FnOnce(&AtomicBool, &dyn Fn(NativeImage)) -> Result<T, Failed> + Send,
+    work: impl FnOnce(&AtomicBool, &dyn Fn(NativeImage)) -> Result<T, Failed> + Send + 'static,
 ) -> PyResult<T> {
     let stop = Arc::new(AtomicBool::new(false));
     let interrupt = if watches_sigint(py)? {
@@ -506,58 +509,93 @@ fn interruptible<T: Send>(
     // Handed over, not queued: a pass's image (a copy of the sums, 120 MB at 3000x1688)
     // waits for the last to be taken, so that a slow `on_pass` holds up the render's next
     // image, not the memory of every pass.
-    let (events, mut received) = mpsc::sync_channel::<Event<T>>(0);
-    let mut raised: Option<PyErr> = None;
-    let done = std::thread::scope(|scope| {
-        let stop = &*stop;
-        // The stack of a main thread, as the command line parses a scene and builds its
-        // tree on: a spawned thread's 2 MiB default is no bound a scene file is checked for.
-        let worker = std::thread::Builder::new()
-            .name("tessera-render".into())
-            .stack_size(WORK_STACK)
-            .spawn_scoped(scope, move || {
-                let passes = events.clone();
-                let show = move |image| drop(passes.send(Event::Pass(Box::new(image))));
-                // A panic (a bug of tessera's) becomes an exception, caught as any other
-                // TesseraError: it never ends the interpreter.
-                let done = std::panic::catch_unwind(AssertUnwindSafe(|| work(stop, &show)))
-                    .unwrap_or_else(|panic| Err(Failed::Panicked(panic_message(&panic))));
-                drop(events.send(Event::Done(done)));
-            });
-        if let Err(e) = worker {
-            return Err(Failed::Pool(format!("a thread to render on: {e}")));
-        }
-        loop {
-            let (event, back) = py.detach(move || (received.recv_timeout(SIGNAL_LOOK), received));
-            received = back;
-            let failed = match event {
-                Ok(Event::Done(done)) => break done,
-                Ok(Event::Pass(image)) => match on_pass.filter(|_| raised.is_none()) {
-                    Some(on_pass) => (Py::new(py, *image))
-                        .and_then(|image| on_pass.call1(py, (image,)))
-                        .err(),
-                    None => None,
-                },
-                Err(RecvTimeoutError::Timeout) => py.check_signals().err(),
-                // The thread sends `Done` whatever happens, as its last word.
-                Err(RecvTimeoutError::Disconnected) => {
-                    break Err(Failed::Panicked("the render's thread ended unheard".into()));
-                }
-            };
-            if let Some(e) = failed
-                && raised.is_none()
-            {
-                raised = Some(e);
-                stop.store(true, Ordering::Relaxed);
+    let (events, received) = mpsc::sync_channel::<Event<T>>(0);
+    let flag = Arc::clone(&stop);
+    // The stack of a main thread, as the command line parses a scene and builds its tree
+    // on: a spawned thread's 2 MiB default is no bound a scene file is checked for. Not a
+    // scoped thread: a process forked by `on_pass` or a signal handler holds none of it, and
+    // the end of a scope waited for it there forever.
+    let worker = std::thread::Builder::new()
+        .name("tessera-render".into())
+        .stack_size(WORK_STACK)
+        .spawn(move || {
+            let passes = events.clone();
+            let show = move |image| drop(passes.send(Event::Pass(Box::new(image))));
+            // A panic (a bug of tessera's) becomes an exception, caught as any other
+            // TesseraError: it never ends the interpreter.
+            let done = std::panic::catch_unwind(AssertUnwindSafe(|| work(&flag, &show)))
+                .unwrap_or_else(|panic| Err(Failed::Panicked(panic_message(&panic))));
+            drop(events.send(Event::Done(done)));
+        });
+    let (done, raised) = match worker {
+        Ok(worker) => {
+            let (done, raised) = watch_work(py, on_pass, &stop, received);
+            if matches!(done, Err(Failed::Forked)) {
+                // The thread is the parent's: this process has nothing of it to wait for.
+                std::mem::forget(worker);
+            } else {
+                // It has sent `Done` as its last word.
+                py.detach(|| drop(worker.join()));
             }
+            (done, raised)
         }
-    });
+        Err(e) => (
+            Err(Failed::Pool(format!("a thread to render on: {e}"))),
+            None,
+        ),
+    };
     if let Some(id) = interrupt {
         signal_hook::low_level::unregister(id);
     }
     match raised {
         Some(e) => Err(e),
         None => done.map_err(|failed| failed.into_py(py)),
+    }
+}
+
+/// The caller's side of `interruptible`: runs Python's signal handlers every `SIGNAL_LOOK`
+/// and calls `on_pass` with each pass's image until the work is done; what is raised meanwhile
+/// sets `stop` and is given back with what the work returned. In a process forked meanwhile
+/// (by `on_pass` or a signal handler), where the work's thread is not, it ends at once with
+/// `Forked`: it once waited there forever for an image or an end that never came.
+fn watch_work<T>(
+    py: Python<'_>,
+    on_pass: Option<&Py<PyAny>>,
+    stop: &AtomicBool,
+    mut received: mpsc::Receiver<Event<T>>,
+) -> (Result<T, Failed>, Option<PyErr>)
+where
+    T: Send,
+{
+    let pid = std::process::id();
+    let mut raised: Option<PyErr> = None;
+    loop {
+        let (event, back) = py.detach(move || (received.recv_timeout(SIGNAL_LOOK), received));
+        received = back;
+        let failed = match event {
+            Ok(Event::Done(done)) => return (done, raised),
+            Ok(Event::Pass(image)) => match on_pass.filter(|_| raised.is_none()) {
+                Some(on_pass) => (Py::new(py, *image))
+                    .and_then(|image| on_pass.call1(py, (image,)))
+                    .err(),
+                None => None,
+            },
+            Err(RecvTimeoutError::Timeout) => py.check_signals().err(),
+            // The thread sends `Done` whatever happens, as its last word.
+            Err(RecvTimeoutError::Disconnected) => {
+                let unheard = "the render's thread ended unheard".into();
+                return (Err(Failed::Panicked(unheard)), raised);
+            }
+        };
+        if let Some(e) = failed
+            && raised.is_none()
+        {
+            raised = Some(e);
+            stop.store(true, Ordering::Relaxed);
+        }
+        if std::process::id() != pid {
+            return (Err(Failed::Forked), None);
+        }
     }
 }
 
@@ -588,6 +626,11 @@ impl Failed {
                 TesseraError::new_err(format!("could not start the thread pool: {e}"))
             }
             Failed::Other(message) => TesseraError::new_err(safe(&message)),
+            Failed::Forked => TesseraError::new_err(
+                "this process was forked during the render (by on_pass or a signal handler): \
+                 the render goes on in the parent, and the child holds none of its threads; \
+                 render again in the child",
+            ),
             Failed::Panicked(message) => TesseraError::new_err(safe(&format!(
                 "internal error (a bug of tessera's; please report it): {message}"
             ))),
@@ -656,7 +699,8 @@ fn reproduce<'py>(
         Some(differs) => (Some(differs), work),
         None => {
             let dirs = recipe::texture_dirs(textures.as_deref(), &image);
-            interruptible(py, None, |stop, _| {
+            let image = image.clone();
+            interruptible(py, None, move |stop, _| {
                 let mut scene = recipe.scene(&image, &dirs).map_err(Failed::Tessera)?;
                 let yardstick =
                     Workload::named("quick").map_err(|e| Failed::Other(format!("{e:#}")))?;
@@ -745,7 +789,7 @@ fn bench_workload(
         simd_chosen: chosen,
     };
     // Ctrl-C stops it as it stops any render: each of its renders looks between rays.
-    let result = interruptible(py, None, |stop, _| {
+    let result = interruptible(py, None, move |stop, _| {
         match measure::measure_unless(&plan, stop) {
             Ok(Some(result)) => Ok(result),
             Ok(None) => Err(Failed::Interrupted),

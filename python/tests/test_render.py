@@ -196,6 +196,52 @@ def test_a_process_forked_after_a_render_renders():
     assert done.stdout.strip() == "True"
 
 
+# Forked by `on_pass` while the render's thread runs, as a child that saves a pass in the
+# background may be, the child waited forever for a render whose thread is the parent's.
+FORKED_IN_ON_PASS = textwrap.dedent(
+    """
+    import os, tessera
+    child = False
+    def on_pass(image):
+        global child
+        if image.samples_per_pixel == 1 and os.fork() == 0:
+            child = True
+    try:
+        result = tessera.render("scenes/cover.toml", width=48, spp=64, on_pass=on_pass).sums
+    except tessera.TesseraError as e:
+        result = f"refused: {e}"
+    if child:
+        print("child", result, flush=True)
+        os._exit(0)
+    os.wait()
+    print("parent", result == tessera.render("scenes/cover.toml", width=48, spp=64).sums)
+    """
+)
+
+
+def test_a_process_forked_by_on_pass_is_told_not_left_waiting():
+    child = subprocess.Popen(
+        [sys.executable, "-c", FORKED_IN_ON_PASS],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    try:
+        out, err = child.communicate(timeout=60)
+    finally:
+        # The whole group: a child left waiting, too.
+        try:
+            os.killpg(child.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+    assert child.returncode == 0, err
+    lines = out.splitlines()
+    assert lines[0].startswith("child refused: this process was forked during the render"), out
+    assert lines[1] == "parent True", out
+
+
 INTERRUPTED = textwrap.dedent(
     """
     import asyncio, signal, sys, time, tessera
