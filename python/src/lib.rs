@@ -8,7 +8,6 @@ use pyo3::exceptions::{PyException, PyFileNotFoundError, PyKeyboardInterrupt, Py
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
-use signal_hook::consts::SIGINT;
 use std::panic::AssertUnwindSafe;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -26,6 +25,8 @@ use tessera::render::{
 };
 use tessera::scene::{Overrides, Scene, TextureSource};
 use tessera::verify;
+
+mod sigint;
 
 pyo3::create_exception!(
     _native,
@@ -491,18 +492,19 @@ enum Event<T> {
 /// it says now: ignored (`SIG_IGN`), it stops nothing, and one installed after an earlier
 /// render (as `asyncio.run` installs and restores one) still stops it; a flag set from
 /// tessera's own handler, installed once and then replaced by such a handler, once left
-/// every later render deaf to Ctrl-C. Off the main thread, where Python runs no handler,
-/// Ctrl-C sets the flag itself, unless Python's handler of it is not a function.
+/// every later render deaf to Ctrl-C. Off the main thread, where Python runs no handler, a
+/// Ctrl-C that `sigint` counts sets the flag, unless Python's handler of it is not a
+/// function.
 fn interruptible<T: Send + 'static>(
     py: Python<'_>,
     on_pass: Option<&Py<PyAny>>,
     work: impl FnOnce(&AtomicBool, &dyn Fn(NativeImage)) -> Result<T, Failed> + Send + 'static,
 ) -> PyResult<T> {
     let stop = Arc::new(AtomicBool::new(false));
-    let interrupt = if watches_sigint(py)? {
-        let id = signal_hook::flag::register(SIGINT, Arc::clone(&stop))
+    let interrupts = if watches_sigint(py)? {
+        let seen = sigint::watch()
             .map_err(|e| PyRuntimeError::new_err(format!("could not watch for Ctrl-C: {e}")))?;
-        Some(id)
+        Some(seen)
     } else {
         None
     };
@@ -529,7 +531,7 @@ fn interruptible<T: Send + 'static>(
         });
     let (done, raised) = match worker {
         Ok(worker) => {
-            let (done, raised) = watch_work(py, on_pass, &stop, received);
+            let (done, raised) = watch_work(py, on_pass, &stop, interrupts, received);
             if matches!(done, Err(Failed::Forked)) {
                 // The thread is the parent's: this process has nothing of it to wait for.
                 std::mem::forget(worker);
@@ -544,9 +546,6 @@ fn interruptible<T: Send + 'static>(
             None,
         ),
     };
-    if let Some(id) = interrupt {
-        signal_hook::low_level::unregister(id);
-    }
     match raised {
         Some(e) => Err(e),
         None => done.map_err(|failed| failed.into_py(py)),
@@ -562,6 +561,7 @@ fn watch_work<T>(
     py: Python<'_>,
     on_pass: Option<&Py<PyAny>>,
     stop: &AtomicBool,
+    interrupts: Option<u64>,
     mut received: mpsc::Receiver<Event<T>>,
 ) -> (Result<T, Failed>, Option<PyErr>)
 where
@@ -593,6 +593,10 @@ where
             raised = Some(e);
             stop.store(true, Ordering::Relaxed);
         }
+        // Ctrl-C off the main thread: the render ends `Interrupted`.
+        if interrupts.is_some_and(|before| sigint::seen() != before) {
+            stop.store(true, Ordering::Relaxed);
+        }
         if std::process::id() != pid {
             return (Err(Failed::Forked), None);
         }
@@ -607,7 +611,9 @@ fn watches_sigint(py: Python<'_>) -> PyResult<bool> {
     if current.is(&threading.call_method0("main_thread")?) {
         return Ok(false);
     }
-    let handler = py.import("signal")?.call_method1("getsignal", (SIGINT,))?;
+    let handler = py
+        .import("signal")?
+        .call_method1("getsignal", (libc::SIGINT,))?;
     Ok(handler.is_callable())
 }
 

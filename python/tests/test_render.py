@@ -297,6 +297,49 @@ def test_ctrl_c_stops_a_long_render_within_a_second(before, call):
     assert took < 1.0, took
 
 
+# Off the main thread, Ctrl-C stops a render too; once Python's handler of it was installed
+# again after a first such render (as `asyncio.run` installs and restores one), a render on a
+# thread went on to its end (60 s and more) while the main thread took its KeyboardInterrupt.
+OFF_THE_MAIN_THREAD = textwrap.dedent(
+    """
+    import os, signal, threading, time, tessera
+    def render(spp, said):
+        try:
+            tessera.render("scenes/cover.toml", width=64, spp=spp)
+            said.append("finished")
+        except KeyboardInterrupt:
+            said.append("interrupted")
+    first = []
+    thread = threading.Thread(target=render, args=(1, first)); thread.start(); thread.join()
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    said = []
+    thread = threading.Thread(target=render, args=(1_000_000, said), daemon=True)
+    thread.start()
+    time.sleep(1.0)
+    sent = time.monotonic()
+    try:
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(10)
+    except KeyboardInterrupt:
+        pass
+    thread.join(10)
+    print(first, said, time.monotonic() - sent < 1.5, flush=True)
+    """
+)
+
+
+def test_ctrl_c_stops_a_render_off_the_main_thread_after_python_s_handler_is_installed_again():
+    done = subprocess.run(
+        [sys.executable, "-c", OFF_THE_MAIN_THREAD],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "['finished'] ['interrupted'] True", done.stdout
+
+
 # Ignored (SIG_IGN), Ctrl-C once stopped a render all the same and raised KeyboardInterrupt.
 IGNORED = textwrap.dedent(
     """
