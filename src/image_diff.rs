@@ -230,31 +230,57 @@ const MAX_JPEG_SEGMENTS: usize = 1 << 16;
 /// What a JPEG's segments before its pixels hold that viewers read otherwise than its
 /// decoder: more than one EXIF segment (APP1), of which browsers (Firefox, Chrome) read the
 /// first and the decoder the last, so that a first one saying "turned" and a last one
-/// saying "upright" show a picture turned, whose values are measured upright. A file that
-/// is not a JPEG as far as its pixels is its decoder's to refuse.
+/// saying "upright" show a picture turned, whose values are measured upright; and, in a
+/// file of three components, a JFIF segment (APP0) with an Adobe one (APP14) saying its
+/// colours are not YCbCr (transform 0), where libjpeg takes JFIF's word (YCbCr) and the
+/// decoder Adobe's, measuring colours no viewer built on libjpeg shows. A file that is not
+/// a JPEG as far as its pixels is its decoder's to refuse.
 fn jpeg_display_changes<R: std::io::Read + Seek>(r: &mut std::io::BufReader<R>) -> Vec<String> {
-    let exif = jpeg_exif_segments(r).unwrap_or(0);
-    if exif < 2 {
-        return Vec::new();
+    let segments = jpeg_segments(r).unwrap_or_default();
+    let mut changes = Vec::new();
+    if segments.exif >= 2 {
+        changes.push(format!(
+            "{} EXIF segments (APP1), each of which can turn or flip the picture: viewers \
+             read the first, the decoder measured the last",
+            segments.exif
+        ));
     }
-    vec![format!(
-        "{exif} EXIF segments (APP1), each of which can turn or flip the picture: viewers \
-         read the first, the decoder measured the last"
-    )]
+    if segments.jfif && segments.adobe_transform == Some(0) && segments.components == Some(3) {
+        changes.push(
+            "a JFIF segment (APP0), which says its colours are YCbCr, and an Adobe segment \
+             (APP14) that says they are not: libjpeg, and the viewers built on it, show them \
+             as YCbCr, the decoder measured them as RGB"
+                .to_owned(),
+        );
+    }
+    changes
 }
 
-/// The EXIF segments of the JPEG `r` is at the start of, counted up to its first scan (or
-/// its first `MAX_JPEG_SEGMENTS` segments), each skipped past its first six bytes.
-fn jpeg_exif_segments<R: std::io::Read + Seek>(
+/// What the segments of a JPEG before its first scan say of how it is shown.
+#[derive(Default)]
+struct JpegSegments {
+    /// Its EXIF segments (APP1).
+    exif: usize,
+    /// Whether it has a JFIF segment (APP0).
+    jfif: bool,
+    /// The colour transform of its last Adobe segment (APP14), if it has one.
+    adobe_transform: Option<u8>,
+    /// The components of its frame, if its frame comes before the first scan.
+    components: Option<u8>,
+}
+
+/// The segments of the JPEG `r` is at the start of, up to its first scan (or its first
+/// `MAX_JPEG_SEGMENTS` segments), each skipped past its first twelve bytes.
+fn jpeg_segments<R: std::io::Read + Seek>(
     r: &mut std::io::BufReader<R>,
-) -> std::io::Result<usize> {
+) -> std::io::Result<JpegSegments> {
     use std::io::Read;
+    let mut seen = JpegSegments::default();
     let mut two = [0u8; 2];
     r.read_exact(&mut two)?;
     if two != [0xff, 0xd8] {
-        return Ok(0);
+        return Ok(seen);
     }
-    let mut exif = 0;
     for _ in 0..MAX_JPEG_SEGMENTS {
         let mut byte = [0u8; 1];
         r.read_exact(&mut byte)?;
@@ -273,16 +299,24 @@ fn jpeg_exif_segments<R: std::io::Read + Seek>(
             _ => {}
         }
         r.read_exact(&mut two)?;
-        let mut rest = i64::from(u16::from_be_bytes(two)) - 2;
-        if byte[0] == 0xe1 && rest >= 6 {
-            let mut head = [0u8; 6];
-            r.read_exact(&mut head)?;
-            rest -= 6;
-            exif += usize::from(&head == b"Exif\0\0");
+        let rest = i64::from(u16::from_be_bytes(two)) - 2;
+        let mut head = [0u8; 12];
+        let n = usize::try_from(rest).unwrap_or(0).min(head.len());
+        r.read_exact(&mut head[..n])?;
+        let head = &head[..n];
+        match byte[0] {
+            0xe1 if head.starts_with(b"Exif\0\0") => seen.exif += 1,
+            0xe0 if head.starts_with(b"JFIF\0") => seen.jfif = true,
+            0xee if head.starts_with(b"Adobe") && n == 12 => seen.adobe_transform = Some(head[11]),
+            // A frame's header: precision, height, width, then its components.
+            0xc0..=0xc3 | 0xc5..=0xc7 | 0xc9..=0xcb | 0xcd..=0xcf if n >= 6 => {
+                seen.components = Some(head[5]);
+            }
+            _ => {}
         }
-        r.seek_relative(rest.max(0))?;
+        r.seek_relative(rest.max(0) - n as i64)?;
     }
-    Ok(exif)
+    Ok(seen)
 }
 
 /// What a decoder's failure says of the file: a file that ends within its pixels says so
@@ -544,6 +578,46 @@ mod tests {
             "{changes:?}"
         );
         assert!(listed("jpeg", ("a.jpg", jpeg), ("b.jpg", jpeg)).is_empty());
+    }
+
+    /// libjpeg takes a JFIF segment's word that a three-component JPEG is YCbCr over an
+    /// Adobe segment's (transform 0, RGB); the decoder takes Adobe's. The earth map with
+    /// such a segment added is shown as it was, but was measured at 9.26 dB from it, and
+    /// at 73 dB (near identical) from the picture of its YCbCr values taken as RGB, which
+    /// no viewer built on libjpeg shows. It is listed; without JFIF, both take it as RGB.
+    #[test]
+    fn a_jpeg_of_jfif_and_an_adobe_rgb_transform_is_listed() {
+        let jpeg = include_bytes!("../scenes/earthmap.jpg");
+        let adobe = |transform: u8| {
+            let segment = [&b"Adobe\0\x64\0\0\0\0"[..], &[transform]].concat();
+            let length = u16::try_from(segment.len() + 2).unwrap().to_be_bytes();
+            [&[0xff, 0xee][..], &length, &segment].concat()
+        };
+        // What is listed of `b` against the earth map, whatever the values measured.
+        let changes = |name: &str, b: &[u8]| {
+            let dir = std::env::temp_dir().join(format!("tessera-{name}-{}", std::process::id()));
+            std::fs::create_dir_all(&dir).unwrap();
+            std::fs::write(dir.join("a.jpg"), jpeg).unwrap();
+            std::fs::write(dir.join("b.jpg"), b).unwrap();
+            let d = difference_of_files(&dir.join("a.jpg"), &dir.join("b.jpg")).unwrap();
+            std::fs::remove_dir_all(&dir).unwrap();
+            d.display_changes
+                .into_iter()
+                .map(|(_, change)| change)
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(&jpeg[6..11], b"JFIF\0");
+        let rgb = [&jpeg[..2], &adobe(0), &jpeg[2..]].concat();
+        let listed = changes("jpeg-jfif-adobe", &rgb);
+        assert!(
+            listed.len() == 1 && listed[0].contains("an Adobe segment (APP14)"),
+            "{listed:?}"
+        );
+        let ycbcr = [&jpeg[..2], &adobe(1), &jpeg[2..]].concat();
+        assert_eq!(changes("jpeg-jfif-adobe-1", &ycbcr), Vec::<String>::new());
+        let app0 = 4 + usize::from(u16::from_be_bytes([jpeg[4], jpeg[5]]));
+        let without_jfif = [&jpeg[..2], &adobe(0), &jpeg[app0..]].concat();
+        assert_eq!(changes("jpeg-adobe", &without_jfif), Vec::<String>::new());
     }
 
     /// Browsers read a JPEG's first EXIF segment, its decoder the last: a first one saying
