@@ -174,7 +174,13 @@ impl RgbImage {
                         .map_err(|e| format!("could not be read: {e}"))?;
                     crate::png_header::check_zlib_stream_ends(&mut file, MAX_COMPARED_PIXELS * 10)
                         .map_err(|why| format!("has pixels that do not decode: {why}"))?;
-                    Ok(h.display_changes)
+                    file.seek(std::io::SeekFrom::Start(0))
+                        .map_err(|e| format!("could not be read: {e}"))?;
+                    let past = crate::png_header::palette_index_past_its_entries(
+                        &mut file,
+                        MAX_COMPARED_PIXELS * 2,
+                    );
+                    Ok(h.display_changes.into_iter().chain(past).collect())
                 }),
                 // A sample past the maxval is taken as the brightest by the decoder, where
                 // Netpbm refuses the file: the samples are walked for one.
@@ -465,6 +471,39 @@ mod tests {
         writer.write_image_data(pixels).unwrap();
         writer.finish().unwrap();
         out
+    }
+
+    /// A palette PNG whose pixel's index lies past the palette's entries shows black in
+    /// libpng and the decoder here, the palette's last colour in Chrome: compared with a
+    /// red and black PNG it was `inf dB (identical)`. It is listed.
+    #[test]
+    fn a_palette_index_past_the_palette_s_entries_is_listed() {
+        let indexed = |pixels: &[u8]| {
+            let mut out = Vec::new();
+            let mut encoder = png::Encoder::new(&mut out, 2, 1);
+            encoder.set_color(png::ColorType::Indexed);
+            encoder.set_depth(png::BitDepth::Eight);
+            encoder.set_palette(vec![255, 0, 0]);
+            let mut writer = encoder.write_header().unwrap();
+            writer.write_image_data(pixels).unwrap();
+            writer.finish().unwrap();
+            out
+        };
+        let rgb = png(png::ColorType::Rgb, &[255, 0, 0, 0, 0, 0]);
+        let changes = listed("png-palette", ("a.png", &rgb), ("b.png", &indexed(&[0, 5])));
+        assert!(
+            changes.len() == 1 && changes[0].contains("a pixel (1, 0) of palette index 5"),
+            "{changes:?}"
+        );
+        let red = png(png::ColorType::Rgb, &[255, 0, 0, 255, 0, 0]);
+        assert!(
+            listed(
+                "png-palette-in",
+                ("a.png", &red),
+                ("b.png", &indexed(&[0, 0]))
+            )
+            .is_empty()
+        );
     }
 
     /// compare measures the colour channels only: an image with an alpha channel (a PNG of

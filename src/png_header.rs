@@ -358,6 +358,46 @@ fn recipe_of_itxt(data: &[u8]) -> Result<Option<String>, String> {
         .map_err(|_| "has a recipe that is not UTF-8 text".to_owned())
 }
 
+/// Says where a palette PNG that `r` is at the start of has a pixel whose index lies past
+/// its palette's entries, if one does: libpng and the decoder here show such a pixel
+/// black, Chrome (Skia) the palette's last colour, so that viewers show different
+/// pictures. A file that does not decode, or of another colour type, is none (the decoder
+/// is the judge). At most `most` bytes of rows are held.
+pub fn palette_index_past_its_entries<R: Read + Seek>(r: R, most: u64) -> Option<String> {
+    let mut decoder = png::Decoder::new_with_limits(
+        std::io::BufReader::new(r),
+        png::Limits {
+            bytes: usize::try_from(most).unwrap_or(usize::MAX),
+        },
+    );
+    decoder.set_transformations(png::Transformations::IDENTITY);
+    decoder.set_ignore_text_chunk(true);
+    let mut reader = decoder.read_info().ok()?;
+    let info = reader.info();
+    if info.color_type != png::ColorType::Indexed {
+        return None;
+    }
+    let entries = info.palette.as_ref().map_or(0, |p| p.len() / 3);
+    let (width, depth) = (info.width as usize, info.bit_depth as usize);
+    let mut y = 0;
+    while let Ok(Some(row)) = reader.next_row() {
+        let bits = row.data();
+        let index = |x: usize| {
+            let (byte, shift) = (x * depth / 8, 8 - depth - (x * depth % 8));
+            usize::from(bits[byte] >> shift) & ((1 << depth) - 1)
+        };
+        if let Some(x) = (0..width).find(|&x| index(x) >= entries) {
+            return Some(format!(
+                "a pixel ({x}, {y}) of palette index {}, past the entries of its palette \
+                 ({entries}): libpng shows it black, Chrome the palette's last colour",
+                index(x)
+            ));
+        }
+        y += 1;
+    }
+    None
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
