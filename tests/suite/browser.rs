@@ -13,6 +13,7 @@ use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
+use std::sync::mpsc::Receiver;
 use std::time::{Duration, Instant};
 
 /// How long a page may take: generous, as these tests share two cores with others.
@@ -282,50 +283,24 @@ fn save_for_people(name: &str, img: &image::RgbImage) -> PathBuf {
 
 #[test]
 fn a_browser_shows_the_render_converging_and_the_final_image() {
-    if !heavy("a browser test") {
+    let Some(binary) = browser_for("a_browser_shows_the_render") else {
         return;
-    }
-    let Some(binary) = chromium() else {
-        return skip(
-            "a_browser_shows_the_render",
-            "no chromium (Debian's `chromium` package; or set TESSERA_CHROMIUM)",
-        );
     };
     let dir = temp_dir("browser");
-    let viewer = tessera()
-        .args([
-            "render",
-            &cover(),
+    let (mut viewer, url, held) = watched_render(
+        &dir,
+        &[
             "--width",
             "400",
             "--spp",
             "256",
             "--threads",
             "1",
-        ])
-        .args(["-o", "watched.png", "--preview", "--preview-hold"])
-        .current_dir(&dir)
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("start tessera");
-    let mut viewer = KillOnDrop(viewer);
-    let mut err = BufReader::new(viewer.0.stderr.take().unwrap()).lines();
-    let url = loop {
-        let line = err.next().expect("tessera prints the address").unwrap();
-        if let Some(rest) = line.strip_prefix("tessera: preview at ") {
-            break rest.to_owned();
-        }
-    };
-    // The rest of its messages; the hold message says Ctrl-C is now caught.
-    let (held_tx, held) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        for line in err.map_while(Result::ok) {
-            if line.contains("until Ctrl-C") {
-                let _ = held_tx.send(());
-            }
-        }
-    });
+            "-o",
+            "watched.png",
+            "--preview-hold",
+        ],
+    );
     // `http://ADDR:PORT/KEY/`: every path is under the key.
     let (host, key) = url
         .trim_start_matches("http://")
@@ -414,34 +389,23 @@ fn a_browser_shows_the_render_converging_and_the_final_image() {
 /// enlarged by a whole factor with sharp pixels, not smoothed.
 #[test]
 fn a_page_keeps_the_final_image_after_the_viewer_has_gone() {
-    if !heavy("a browser test") {
+    let Some(binary) = browser_for("a_page_keeps_the_final_image") else {
         return;
-    }
-    let Some(binary) = chromium() else {
-        return skip(
-            "a_page_keeps_the_final_image",
-            "no chromium (Debian's `chromium` package; or set TESSERA_CHROMIUM)",
-        );
     };
     let dir = temp_dir("browser-gone");
-    let mut viewer = KillOnDrop(
-        tessera()
-            .args(["render", &cover(), "--width", "64", "--spp", "16384"])
-            .args(["--threads", "1", "-o", "small.png", "--preview"])
-            .current_dir(&dir)
-            .stdout(Stdio::null())
-            .stderr(Stdio::piped())
-            .spawn()
-            .expect("start tessera"),
+    let (mut viewer, url, _) = watched_render(
+        &dir,
+        &[
+            "--width",
+            "64",
+            "--spp",
+            "16384",
+            "--threads",
+            "1",
+            "-o",
+            "small.png",
+        ],
     );
-    let mut err = BufReader::new(viewer.0.stderr.take().unwrap()).lines();
-    let url = loop {
-        let line = err.next().expect("tessera prints the address").unwrap();
-        if let Some(rest) = line.strip_prefix("tessera: preview at ") {
-            break rest.to_owned();
-        }
-    };
-    std::thread::spawn(move || err.for_each(drop));
     let mut browser = Browser::open(&binary, &url, dir.join("profile"));
     let sizing = "(() => { const c = document.getElementById('image'); \
                   const r = c.getBoundingClientRect(); \
@@ -512,34 +476,23 @@ fn a_page_keeps_the_final_image_after_the_viewer_has_gone() {
 /// token, which no request carries, and at the first that does not it stops asking.
 #[test]
 fn a_page_takes_nothing_from_whoever_has_the_port_after_its_server() {
-    if !heavy("a browser test") {
+    let Some(binary) = browser_for("a_page_takes_nothing_from_whoever_has_the_port") else {
         return;
-    }
-    let Some(binary) = chromium() else {
-        return skip(
-            "a_page_takes_nothing_from_whoever_has_the_port",
-            "no chromium (Debian's `chromium` package; or set TESSERA_CHROMIUM)",
-        );
     };
     let dir = temp_dir("browser-port-taken");
-    let mut viewer = KillOnDrop(
-        tessera()
-            .args(["render", &cover(), "--width", "64", "--spp", "65536"])
-            .args(["--threads", "1", "-o", "small.png", "--preview"])
-            .current_dir(&dir)
-            .stdout(Stdio::null())
-            .stderr(Stdio::piped())
-            .spawn()
-            .expect("start tessera"),
+    let (mut viewer, url, _) = watched_render(
+        &dir,
+        &[
+            "--width",
+            "64",
+            "--spp",
+            "65536",
+            "--threads",
+            "1",
+            "-o",
+            "small.png",
+        ],
     );
-    let mut err = BufReader::new(viewer.0.stderr.take().unwrap()).lines();
-    let url = loop {
-        let line = err.next().expect("tessera prints the address").unwrap();
-        if let Some(rest) = line.strip_prefix("tessera: preview at ") {
-            break rest.to_owned();
-        }
-    };
-    std::thread::spawn(move || err.for_each(drop));
     let addr = url["http://".len()..].split('/').next().unwrap().to_owned();
     let mut browser = Browser::open(&binary, &url, dir.join("profile"));
     let state = "document.getElementById('state').textContent";
@@ -639,48 +592,24 @@ fn a_page_takes_nothing_from_whoever_has_the_port_after_its_server() {
 /// that cannot reconnect is lost at once.
 #[test]
 fn a_held_page_s_download_is_never_another_program_s_file() {
-    if !heavy("a browser test") {
+    let Some(binary) = browser_for("a_held_page_s_download_is_never_another_program_s_file") else {
         return;
-    }
-    let Some(binary) = chromium() else {
-        return skip(
-            "a_held_page_s_download_is_never_another_program_s_file",
-            "no chromium (Debian's `chromium` package; or set TESSERA_CHROMIUM)",
-        );
     };
     let dir = temp_dir("browser-held-port-taken");
-    let mut viewer = KillOnDrop(
-        tessera()
-            .args(["render", &cover(), "--width", "64", "--spp", "16"])
-            .args([
-                "--threads",
-                "1",
-                "-o",
-                "small.png",
-                "--preview",
-                "--preview-hold",
-            ])
-            .current_dir(&dir)
-            .stdout(Stdio::null())
-            .stderr(Stdio::piped())
-            .spawn()
-            .expect("start tessera"),
+    let (mut viewer, url, held) = watched_render(
+        &dir,
+        &[
+            "--width",
+            "64",
+            "--spp",
+            "16",
+            "--threads",
+            "1",
+            "-o",
+            "small.png",
+            "--preview-hold",
+        ],
     );
-    let mut err = BufReader::new(viewer.0.stderr.take().unwrap()).lines();
-    let url = loop {
-        let line = err.next().expect("tessera prints the address").unwrap();
-        if let Some(rest) = line.strip_prefix("tessera: preview at ") {
-            break rest.to_owned();
-        }
-    };
-    let (held_tx, held) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        for line in err.map_while(Result::ok) {
-            if line.contains("until Ctrl-C") {
-                let _ = held_tx.send(());
-            }
-        }
-    });
     let addr = url["http://".len()..].split('/').next().unwrap().to_owned();
     let mut browser = Browser::open(&binary, &url, dir.join("profile"));
     let link = "(() => { const a = document.getElementById('download'); \
@@ -761,6 +690,55 @@ fn a_held_page_s_download_is_never_another_program_s_file() {
     );
 }
 
+/// The browser to run the test `test` with: None (the test returns) where heavy tests are
+/// off, or where there is no Chromium, said as a skip.
+fn browser_for(test: &str) -> Option<PathBuf> {
+    if !heavy("a browser test") {
+        return None;
+    }
+    let binary = chromium();
+    if binary.is_none() {
+        skip(
+            test,
+            "no chromium (Debian's `chromium` package; or set TESSERA_CHROMIUM)",
+        );
+    }
+    binary
+}
+
+/// Starts `tessera render` of the cover in `dir` with `flags` and `--preview`, and gives it,
+/// the address it prints, and a channel told when it says it holds the final image (with
+/// `--preview-hold`; the rest of its messages are read and dropped).
+fn watched_render(dir: &Path, flags: &[&str]) -> (KillOnDrop, String, Receiver<()>) {
+    let mut viewer = KillOnDrop(
+        tessera()
+            .args(["render", &cover()])
+            .args(flags)
+            .arg("--preview")
+            .current_dir(dir)
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("start tessera"),
+    );
+    let mut err = BufReader::new(viewer.0.stderr.take().unwrap()).lines();
+    let url = loop {
+        let line = err.next().expect("tessera prints the address").unwrap();
+        if let Some(rest) = line.strip_prefix("tessera: preview at ") {
+            break rest.to_owned();
+        }
+    };
+    let (held_tx, held) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in err.map_while(Result::ok) {
+            if line.contains("until Ctrl-C") {
+                let _ = held_tx.send(());
+            }
+        }
+    });
+    (viewer, url, held)
+}
+
 fn http_status(host: &str, key: &str) -> Value {
     serde_json::from_slice(&http_get(host, &format!("/{key}/status"))).expect("status JSON")
 }
@@ -784,14 +762,8 @@ impl Drop for KillOnDrop {
 /// phone's width no sideways scrolling of the page.
 #[test]
 fn the_results_report_reads_in_a_browser_on_a_desktop_and_a_phone() {
-    if !heavy("a browser test") {
+    let Some(binary) = browser_for("the_results_report_reads_in_a_browser") else {
         return;
-    }
-    let Some(binary) = chromium() else {
-        return skip(
-            "the_results_report_reads_in_a_browser",
-            "no chromium (Debian's `chromium` package; or set TESSERA_CHROMIUM)",
-        );
     };
     let dir = temp_dir("browser-report");
     let db = dir.join("r.db");
