@@ -349,10 +349,8 @@ pub mod request {
     use std::sync::Arc;
     use std::sync::OnceLock;
     use std::time::{Duration, Instant};
-    use tessera::job::{Job, JobState, SampleRange};
-    use tessera::math::PixelRect;
     use tessera::preview::server::{Server, answer_in_memory};
-    use tessera::preview::{About, Hub, Previewer};
+    use tessera::preview::{Hub, Previewer};
 
     /// How long the server may be silent before an answer counts as complete, and the most
     /// one input may take in all. The server closes the connection once it has answered
@@ -369,30 +367,7 @@ pub mod request {
     fn hub() -> Arc<Hub> {
         static HUB: OnceLock<Arc<Hub>> = OnceLock::new();
         Arc::clone(HUB.get_or_init(|| {
-            let job = Job {
-                region: PixelRect::full(16, 9),
-                samples: SampleRange { start: 0, end: 4 },
-            };
-            let state = JobState::new(job, 4);
-            let about = About {
-                scene: "fuzz".into(),
-                scene_file: "fuzz.toml".into(),
-                width: 16,
-                height: 9,
-                spp: 4,
-                max_depth: 5,
-                seed: 0,
-                shading: "path".into(),
-                threads: 1,
-                tile: 4,
-                simd: "portable".into(),
-                region: [0, 0, 16, 9],
-                samples: [0, 4],
-                job: "whole image".into(),
-                output: "fuzz.png".into(),
-                held: false,
-            };
-            let previewer = Previewer::new(about, &state, 2.0);
+            let previewer = Previewer::blank("fuzz");
             let hub = previewer.hub();
             // It lives as long as the process.
             std::mem::forget(previewer);

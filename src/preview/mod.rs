@@ -162,6 +162,37 @@ pub struct Previewer {
 }
 
 impl Previewer {
+    /// A previewer of a small blank job (16x9, 4 samples a pixel, none done yet), its
+    /// scene, files and output named after `name`: a server to ask, for the tests and the
+    /// request fuzzer.
+    #[doc(hidden)]
+    pub fn blank(name: &str) -> Self {
+        use crate::job::{Job, SampleRange};
+        let job = Job {
+            region: crate::math::PixelRect::full(16, 9),
+            samples: SampleRange { start: 0, end: 4 },
+        };
+        let about = About {
+            scene: name.into(),
+            scene_file: format!("{name}.toml"),
+            width: 16,
+            height: 9,
+            spp: 4,
+            max_depth: 5,
+            seed: 0,
+            shading: "path".into(),
+            threads: 1,
+            tile: 4,
+            simd: "portable".into(),
+            region: [0, 0, 16, 9],
+            samples: [0, 4],
+            job: "whole image".into(),
+            output: format!("{name}.png"),
+            held: false,
+        };
+        Self::new(about, &JobState::new(job, 4), 2.0)
+    }
+
     /// A previewer of `state`'s job, its picture tone-mapped with `gamma`.
     pub fn new(about: About, state: &JobState, gamma: f32) -> Self {
         // The names are a stranger's text (a scene file handed over under its name): the

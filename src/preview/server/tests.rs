@@ -17,30 +17,7 @@ fn buckets_allow_a_burst_then_pace() {
 
 /// A viewer of a small blank job.
 fn blank_previewer() -> super::super::Previewer {
-    use crate::job::{Job, JobState, SampleRange};
-    let job = Job {
-        region: crate::math::PixelRect::full(16, 9),
-        samples: SampleRange { start: 0, end: 4 },
-    };
-    let about = super::super::About {
-        scene: "blank".into(),
-        scene_file: "blank.toml".into(),
-        width: 16,
-        height: 9,
-        spp: 4,
-        max_depth: 5,
-        seed: 0,
-        shading: "path".into(),
-        threads: 1,
-        tile: 4,
-        simd: "portable".into(),
-        region: [0, 0, 16, 9],
-        samples: [0, 4],
-        job: "whole image".into(),
-        output: "blank.png".into(),
-        held: false,
-    };
-    super::super::Previewer::new(about, &JobState::new(job, 4), 2.0)
+    super::super::Previewer::blank("blank")
 }
 
 /// The key of the paths served in memory here.

@@ -8,37 +8,12 @@ use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpStream};
 use std::sync::Arc;
 use std::time::Duration;
-use tessera::job::{Job, JobState, SampleRange};
-use tessera::math::PixelRect;
+use tessera::preview::Previewer;
 use tessera::preview::server::Server;
-use tessera::preview::{About, Previewer};
 
 /// A server for a small blank job, on a free loopback port.
 fn server() -> (Server, Previewer) {
-    let job = Job {
-        region: PixelRect::full(16, 9),
-        samples: SampleRange { start: 0, end: 4 },
-    };
-    let state = JobState::new(job, 4);
-    let about = About {
-        scene: "fuzz".into(),
-        scene_file: "fuzz.toml".into(),
-        width: 16,
-        height: 9,
-        spp: 4,
-        max_depth: 5,
-        seed: 0,
-        shading: "path".into(),
-        threads: 1,
-        tile: 4,
-        simd: "portable".into(),
-        region: [0, 0, 16, 9],
-        samples: [0, 4],
-        job: "whole image".into(),
-        output: "fuzz.png".into(),
-        held: false,
-    };
-    let previewer = Previewer::new(about, &state, 2.0);
+    let previewer = Previewer::blank("fuzz");
     let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
     (Server::start(listener, previewer.hub()).unwrap(), previewer)
 }
