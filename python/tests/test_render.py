@@ -276,6 +276,14 @@ def test_a_process_forked_by_on_pass_is_told_not_left_waiting():
     assert lines[1] == "parent True", out
 
 
+def as_at_a_terminal():
+    """Ctrl-C's default action in the child, as a shell with job control gives a program it
+    starts: Python then raises KeyboardInterrupt for it. A shell without job control (a
+    script's `cmd &`, CI run in the background) starts its children with Ctrl-C ignored,
+    and Python, and tessera with it, then leave it ignored."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 INTERRUPTED = textwrap.dedent(
     """
     import asyncio, signal, sys, time, tessera
@@ -316,6 +324,7 @@ def test_ctrl_c_stops_a_long_render_within_a_second(before, call):
         cwd=ROOT,
         stdout=subprocess.PIPE,
         text=True,
+        preexec_fn=as_at_a_terminal,
     )
     try:
         assert child.stdout.readline().strip() == "rendering"
