@@ -18,8 +18,11 @@ shift
 case $n in
 '' | *[!0-9]*) echo "submit.sh: N must be a positive number of tasks, got '$n'" >&2 && exit 2 ;;
 esac
-# Decimal, whatever zeros lead it: bash reads 010 as octal (8) and 08 as an error.
+# Decimal, whatever zeros lead it: bash reads 010 as octal (8) and 08 as an error; and of
+# at most nine digits, where bash's arithmetic would wrap 20 of them round.
 given=$n
+digits=$(printf '%s' "$n" | sed 's/^0*//')
+[ "${#digits}" -le 9 ] || { echo "submit.sh: N must be a positive number of tasks, at most 999999999, got '$given'" >&2 && exit 2; }
 n=$((10#$n))
 [ "$n" -gt 0 ] || { echo "submit.sh: N must be a positive number of tasks, got '$given'" >&2 && exit 2; }
 export SCENE=${SCENE:-scenes/cover.toml} OUTDIR=${OUTDIR:-parts} EXTRA=${EXTRA:-}
