@@ -134,15 +134,22 @@ pub fn same_file(a: &Path, b: &Path) -> bool {
 /// What of the results database at `db` the output `output` names, if any: the database
 /// itself, or the write-ahead log, shared memory or rollback journal beside it, whose loss
 /// takes the runs not yet in the database with it.
+///
+/// A database named through a link has its companion files beside the link's target, where
+/// SQLite puts them, and they are checked there too.
 pub fn names_database_file(output: &Path, db: &Path) -> Option<String> {
-    ["", "-wal", "-shm", "-journal"]
-        .into_iter()
-        .find_map(|suffix| {
-            let mut companion = db.as_os_str().to_owned();
-            companion.push(suffix);
-            same_file(output, Path::new(&companion)).then(|| match suffix {
-                "" => "the results database".to_owned(),
-                _ => format!("the results database's {} file", &suffix[1..]),
+    let real = db.canonicalize().ok();
+    let names = std::iter::once(db).chain(real.as_deref());
+    names.into_iter().find_map(|db| {
+        ["", "-wal", "-shm", "-journal"]
+            .into_iter()
+            .find_map(|suffix| {
+                let mut companion = db.as_os_str().to_owned();
+                companion.push(suffix);
+                same_file(output, Path::new(&companion)).then(|| match suffix {
+                    "" => "the results database".to_owned(),
+                    _ => format!("the results database's {} file", &suffix[1..]),
+                })
             })
-        })
+    })
 }

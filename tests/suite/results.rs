@@ -1871,6 +1871,16 @@ fn an_output_naming_the_database_is_refused() {
         assert_eq!(bytes(&db), before, "{name}");
         assert!(name.ends_with("db") || !dir.join(name).exists(), "{name}");
     }
+    // Named through a link, the database's -wal lies beside the link's target, where SQLite
+    // puts it: `-o r.db-wal` with TESSERA_DB=link.db was written.
+    let o = results(&dir, &dir.join("link.db"), &["report", "-o", "r.db-wal"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("the results database's wal file"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!dir.join("r.db-wal").exists());
     let o = results(&dir, &db, &["list"]);
     assert!(o.status.success(), "{}", stderr(&o));
 }

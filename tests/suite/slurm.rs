@@ -342,7 +342,14 @@ fn the_number_of_tasks_is_read_as_decimal() {
         let queued = std::fs::read_to_string(&log).unwrap();
         assert!(queued.contains(array), "{n}: {queued}");
     }
-    for n in ["0", "00", "x", "-1", "99999999999999999999", "18446744073709551617"] {
+    for n in [
+        "0",
+        "00",
+        "x",
+        "-1",
+        "99999999999999999999",
+        "18446744073709551617",
+    ] {
         let log = dir.join("refused.log");
         let o = submit(n, &log);
         assert_eq!(o.status.code(), Some(2), "{n}: {}", text(&o.stderr));
