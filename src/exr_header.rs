@@ -266,10 +266,7 @@ pub fn display_changes<R: Read + std::io::Seek>(mut r: R, len: u64) -> Result<Ve
         match (name, kind) {
             ("compression", "compression") => compression = value.first().copied(),
             ("dataWindow", "box2i") => data = box2i(&value, "dataWindow").ok(),
-            ("tiles", "tiledesc") if value.len() >= 8 => {
-                let size = |at: usize| u32::from_le_bytes([0, 1, 2, 3].map(|i| value[at + i]));
-                tiles = Some((size(0), size(4)));
-            }
+            ("tiles", "tiledesc") => tiles = tile_size(&value),
             _ => {}
         }
         changes.extend(display_change(name, kind, &value)?);
@@ -290,6 +287,12 @@ pub fn display_changes<R: Read + std::io::Seek>(mut r: R, len: u64) -> Result<Ve
         changes.extend(misplaced);
     }
     Ok(changes)
+}
+
+/// The width and height of a tile a `tiledesc` value gives, None where it is cut short.
+fn tile_size(value: &[u8]) -> Option<(u32, u32)> {
+    let size = |at: usize| Some(u32::from_le_bytes(value.get(at..at + 4)?.try_into().ok()?));
+    Some((size(0)?, size(4)?))
 }
 
 /// The pixels a data window spans from `min` to `max` along one axis, None for none.
@@ -426,8 +429,7 @@ pub fn read<R: Read>(r: R, len: u64) -> Result<ExrHeader, String> {
                         "holds mipmap or ripmap levels, which tessera does not write".to_owned(),
                     );
                 }
-                let size = |at: usize| u32::from_le_bytes([0, 1, 2, 3].map(|i| value[at + i]));
-                tiles = Some((size(0), size(4)));
+                tiles = tile_size(&value);
             }
             (key, "string") if key == recipe::KEY => {
                 recipe = Some(
