@@ -1245,6 +1245,35 @@ fn an_export_imports_into_another_database_as_it_is() {
     );
 }
 
+/// An export of a database without results is empty, and an import refused it ("not JSON:
+/// EOF"), and with it every other file of the same import: it imports as no results.
+#[test]
+fn an_empty_export_imports_as_no_results() {
+    let dir = temp_dir("results-export-empty");
+    std::fs::write(dir.join("blank.jsonl"), "\n \r\n").unwrap();
+    let empty = dir.join("empty.db");
+    let o = results(&dir, &empty, &["import", "blank.jsonl"]);
+    assert_eq!(
+        stdout(&o),
+        "imported 0 new results, 0 already present\n",
+        "{}",
+        stderr(&o)
+    );
+    let o = results(&dir, &empty, &["export", "--jsonl"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(o.stdout.is_empty());
+    std::fs::write(dir.join("export.jsonl"), &o.stdout).unwrap();
+    let (a, _) = two_results(&dir);
+    let to = dir.join("to.db");
+    let o = results(&dir, &to, &["import", "export.jsonl", a.to_str().unwrap()]);
+    assert_eq!(
+        stdout(&o),
+        "imported 1 new result, 0 already present\n",
+        "{}",
+        stderr(&o)
+    );
+}
+
 /// An import took a result of 1,030,063 bytes (1,000 image hashes of 256 emoji each), but its
 /// export, every character past ASCII a `\u` escape, was a line of 3,076,905 bytes that the
 /// next import refused ("larger than 1024 KiB"): what one import takes, its export gives
