@@ -266,7 +266,18 @@ pub fn display_changes<R: Read + std::io::Seek>(mut r: R, len: u64) -> Result<Ve
         match (name, kind) {
             ("compression", "compression") => compression = value.first().copied(),
             ("dataWindow", "box2i") => data = box2i(&value, "dataWindow").ok(),
-            ("tiles", "tiledesc") => tiles = tile_size(&value),
+            ("tiles", "tiledesc") => {
+                tiles = tile_size(&value);
+                // Levels past the first are the picture again at smaller sizes, which a
+                // viewer may show zoomed out (and the decoder here never reads).
+                if value.get(8).is_some_and(|mode| mode & 0xf != 0) {
+                    changes.push(
+                        "holds mipmap or ripmap levels (the picture again at smaller sizes, \
+                         which viewers show zoomed out), which tessera does not write"
+                            .to_owned(),
+                    );
+                }
+            }
             _ => {}
         }
         changes.extend(display_change(name, kind, &value)?);

@@ -401,6 +401,67 @@ fn an_exr_whose_offset_table_points_to_other_tiles_differs() {
     );
 }
 
+/// A tiled EXR of mipmap levels (the picture again at half, quarter ... size, which a viewer
+/// may show zoomed out, and a renderer samples as a texture), its first level the pixels of
+/// one tessera rendered: `compare` read the first level alone and called the two identical.
+#[test]
+fn an_exr_of_mipmap_levels_differs() {
+    use exr::math::RoundingMode;
+    use exr::prelude::*;
+    let dir = temp_dir("hostile-exr-mipmap");
+    let a = rendered(&dir, "a.exr");
+    let first = read_first_rgba_layer_from_file(
+        &a,
+        |size, _| (size.width(), vec![[0f32; 3]; size.area()]),
+        |(width, pixels): &mut (usize, Vec<[f32; 3]>),
+         p: Vec2<usize>,
+         (r, g, b, _): (f32, f32, f32, f32)| {
+            pixels[p.y() * *width + p.x()] = [r, g, b];
+        },
+    )
+    .unwrap();
+    let (_, pixels) = first.layer_data.channel_data.pixels;
+    let size = first.layer_data.size;
+    let levels: Vec<_> = exr::meta::mip_map_levels(RoundingMode::Down, size).collect();
+    let channel = |name: &str, c: usize| {
+        let level_data = (levels.iter())
+            .map(|(i, level)| match i {
+                0 => FlatSamples::F32(pixels.iter().map(|p| p[c]).collect()),
+                _ => FlatSamples::F32(vec![1.0; level.area()]),
+            })
+            .collect();
+        AnyChannel::new(
+            name,
+            Levels::Mip {
+                level_data,
+                rounding_mode: RoundingMode::Down,
+            },
+        )
+    };
+    let channels = AnyChannels::sort(SmallVec::from_iter([
+        channel("R", 0),
+        channel("G", 1),
+        channel("B", 2),
+    ]));
+    let encoding = Encoding {
+        compression: Compression::Uncompressed,
+        blocks: Blocks::Tiles(Vec2(16, 16)),
+        line_order: LineOrder::Increasing,
+    };
+    let layer = Layer::new(size, LayerAttributes::default(), encoding, channels);
+    Image::from_layer(layer)
+        .write()
+        .to_file(dir.join("mip.exr"))
+        .unwrap();
+    let o = run(&["compare", "a.exr", "mip.exr"], &dir);
+    let said = stdout(&o);
+    assert!(
+        said.contains("mipmap") && !said.contains("identical"),
+        "{said}{}",
+        stderr(&o)
+    );
+}
+
 // --- PNG ------------------------------------------------------------------------------------
 
 /// A PNG chunk's bytes.
