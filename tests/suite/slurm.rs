@@ -361,3 +361,71 @@ fn the_number_of_tasks_is_read_as_decimal() {
         assert!(!log.exists(), "{n}: queued");
     }
 }
+
+/// podman-tessera mounted each directory with `--volume DIR:DIR`, which Podman splits at `:`
+/// and `,`: a working directory named `a:b,c` broke every task; and it mounted only the
+/// directories of absolute paths, so `../scenes/a.toml` or `--checkpoint=/scratch/c.ckpt`
+/// named a file the container did not have. No Podman needed: a stand-in records its
+/// arguments.
+#[test]
+fn podman_tessera_mounts_the_directory_of_every_path_it_is_given() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = temp_dir("slurm-podman-mounts");
+    let bin = dir.join("bin");
+    let work = dir.join("run: a,\"b\"");
+    for d in [&bin, &work, &dir.join("scenes"), &dir.join("out dir")] {
+        std::fs::create_dir_all(d).unwrap();
+    }
+    let podman = bin.join("podman");
+    std::fs::write(&podman, "#!/bin/sh\nprintf '%s\\n' \"$@\"\n").unwrap();
+    std::fs::set_permissions(&podman, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let out_dir = dir.join("out dir");
+    let checkpoint = format!("--checkpoint={}/c.ckpt", out_dir.display());
+    let o = Command::new(root().join("deploy/slurm/podman-tessera"))
+        .args([
+            "render",
+            "../scenes/a.toml",
+            "--shard",
+            "0/4",
+            "-o",
+            "x/y.png",
+        ])
+        .arg(&checkpoint)
+        .env(
+            "PATH",
+            format!("{}:{}", bin.display(), std::env::var("PATH").unwrap()),
+        )
+        .env("CONTAINER", "tessera:test")
+        .current_dir(&work)
+        .output()
+        .expect("run podman-tessera");
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let said = text(&o.stdout);
+    let args: Vec<&str> = said.lines().collect();
+    let mounts: Vec<&str> = (args.windows(2))
+        .filter(|w| w[0] == "--mount")
+        .map(|w| w[1])
+        .collect();
+    // Each a CSV value whose fields are quoted, a quote doubled: one path, whatever it holds.
+    let mount = |path: &std::path::Path| {
+        let field = path.display().to_string().replace('"', "\"\"");
+        format!("type=bind,\"src={field}\",\"dst={field}\"")
+    };
+    let expected = [mount(&work), mount(&dir.join("scenes")), mount(&out_dir)];
+    assert_eq!(mounts, expected, "{said}");
+    assert!(!said.contains("--volume"), "{said}");
+    // The arguments reach tessera as they were given.
+    let image = args.iter().position(|a| *a == "tessera:test").unwrap();
+    assert_eq!(
+        args[image + 1..],
+        [
+            "render",
+            "../scenes/a.toml",
+            "--shard",
+            "0/4",
+            "-o",
+            "x/y.png",
+            &checkpoint
+        ]
+    );
+}
