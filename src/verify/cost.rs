@@ -154,7 +154,7 @@ impl Work {
                 _ => Err(Error::Setting {
                     field: BUDGET_VARIABLE.into(),
                     message: format!(
-                        "must be a number of seconds between 0 and 10⁹, got {}",
+                        "must be a number of seconds above 0, at most 10⁹, got {}",
                         terminal_safe(&given.to_string_lossy(), 40)
                     ),
                 }),

@@ -1166,13 +1166,19 @@ fn a_recipe_whose_paths_cost_more_than_it_claims_is_refused_once_they_are_traced
     let o = run_in_env(&["reproduce", "dot.png", "-q"], &half, &dir);
     refused(&o, "stopped after", "one pixel of many samples");
     assert!(started.elapsed().as_secs() < 30, "{:?}", started.elapsed());
-    let bad = [("TESSERA_REPRODUCE_SECONDS", "soon")];
-    let o = run_in_env(&["reproduce", "sixteen.png", "-q"], &bad, &dir);
-    refused(
-        &o,
-        "`TESSERA_REPRODUCE_SECONDS`: must be a number of seconds",
-        "bad budget",
-    );
+    // Zero is refused as no budget at all, and said so ("between 0 and 10⁹" once).
+    for bad in ["soon", "0", "-1", "nan", "1e10"] {
+        let o = run_in_env(
+            &["reproduce", "sixteen.png", "-q"],
+            &[("TESSERA_REPRODUCE_SECONDS", bad)],
+            &dir,
+        );
+        refused(
+            &o,
+            "`TESSERA_REPRODUCE_SECONDS`: must be a number of seconds above 0, at most 10⁹",
+            bad,
+        );
+    }
 }
 
 /// A scene's generators skip draws one at a time: a 2 KB scene (or recipe) of textures each
