@@ -23,7 +23,7 @@ pub struct SimdArg {
 impl SimdArg {
     /// The SIMD path `--simd` (or `TESSERA_SIMD`) names, if this CPU runs it.
     pub fn path(&self) -> Result<simd::Path> {
-        simd::Path::choose(&self.name).map_err(|e| anyhow::anyhow!("--simd: {e}"))
+        simd::Path::choose(&self.name).map_err(|e| anyhow::anyhow!("--simd (or TESSERA_SIMD): {e}"))
     }
 
     /// Whether a path was named rather than left to `auto`.

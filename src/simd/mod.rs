@@ -295,7 +295,10 @@ impl FromStr for Path {
             .into_iter()
             .find(|p| p.name() == s)
             .ok_or_else(|| {
-                format!("unknown SIMD path `{s}` (expected auto, portable, avx2 or avx512)")
+                format!(
+                    "unknown SIMD path `{}` (expected auto, portable, avx2 or avx512)",
+                    crate::text::terminal_safe(s, 32)
+                )
             })
     }
 }

@@ -101,6 +101,21 @@ fn a_path_the_cpu_lacks_is_refused_and_unknown_names_too() {
         "{}",
         stderr(&o)
     );
+    // Named in the environment, the name is said as far as a line holds it, and where it
+    // came from: 100,000 characters of it were printed whole, after "--simd".
+    let long = "x".repeat(100_000);
+    let o = run_in_env(
+        &["render", &cover(), "-o", "x.png"],
+        &[("TESSERA_SIMD", &long)],
+        &dir,
+    );
+    assert_eq!(o.status.code(), Some(2));
+    let said = stderr(&o);
+    assert!(
+        said.contains("--simd (or TESSERA_SIMD): unknown SIMD path `xxx") && said.len() < 300,
+        "{}",
+        &said[..said.len().min(300)]
+    );
     let o = run_in_env(
         &[
             "bench",
