@@ -13,16 +13,28 @@ use hyper::{Method, Request, Response, StatusCode};
 use hyper_util::rt::{TokioIo, TokioTimer};
 use std::convert::Infallible;
 use std::net::SocketAddr;
-use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicU8, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, Weak};
 use std::time::{Duration, Instant};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
-/// Connections served at once; a browser tab uses one to three. When all are taken, a new
-/// one takes the place of the oldest that has not asked for anything under the key (so
-/// that clients without it, another local user's, cannot keep the viewer from its owner);
-/// when every place has shown the key, it is answered 503 and closed.
+/// Connections that have shown the key, served at once; a browser tab uses one to three.
+/// A connection takes one of these places with its first request under the key; when all
+/// are taken, that request is answered 503 and the connection closed.
 pub const MAX_CLIENTS: usize = 8;
+/// Connections that have not shown the key (yet), held at once: every connection waits
+/// among these from when it is accepted until a request of its shows the key. When a
+/// newcomer finds them all taken, the oldest is closed. Accepting never pauses, so the
+/// kernel's queue does not fill, and a client without the key (another local user's) can
+/// close only connections that have not shown it, the newest last: a flood of them cannot
+/// keep the owner's page out; it delays it only by the share of the machine it takes.
+/// Well below the 1,024 file descriptors a process is given by default.
+pub const MAX_WAITING: usize = 256;
+/// Connections accepted in a row before the connections being served have a turn: a
+/// flood cannot keep a newcomer from reading its first request before it is the oldest.
+const ACCEPT_BATCH: usize = 16;
+/// The kernel's queue of connections not yet accepted.
+const BACKLOG: i32 = 4096;
 /// The most a request's line and headers may take; more is answered 431 (hyper's smallest
 /// read buffer).
 pub const MAX_HEADER_BYTES: usize = 8192;
@@ -44,11 +56,6 @@ const STREAM_LIFETIME: Duration = Duration::from_secs(45);
 /// delayed, so a flood costs the machine a bounded amount of work.
 const REQUESTS_PER_SEC: f64 = 20.0;
 const BURST: f64 = 40.0;
-/// Refusals (503s) in flight at once, and the pause after each: a flood of connections is
-/// answered at a bounded rate, the rest wait in the kernel's queue.
-const MAX_REFUSALS: usize = 16;
-const REFUSAL_PAUSE: Duration = Duration::from_millis(5);
-
 const INDEX_HTML: &str = include_str!("assets/index.html");
 /// Where the page holds its run's token (`Shared::run`), filled in when the server starts.
 const RUN_SLOT: &str = r#"<meta name="tessera-run" content="">"#;
@@ -65,16 +72,22 @@ pub fn is_public(addr: &SocketAddr) -> bool {
 /// What the server has done, for its owner and tests.
 #[derive(Default)]
 pub struct ServerStats {
-    /// Connections being served now.
+    /// Connections being served now, whether they have shown the key or not.
     pub clients: AtomicUsize,
+    /// Of those, the ones that have shown the key (at most `MAX_CLIENTS`).
+    pub keyed: AtomicUsize,
+    /// Of those, the ones that have not (at most `MAX_WAITING`).
+    pub waiting: AtomicUsize,
     /// The newest frame version sent to any client (0: none).
     pub frame_served: AtomicU64,
     /// How many times the finished image was asked for (its sending finishes, within a
     /// grace, before the server stops).
     pub downloads: AtomicU64,
-    /// Connections refused because too many were open.
+    /// Connections accepted.
+    pub accepted: AtomicU64,
+    /// Requests under the key refused (503) because `MAX_CLIENTS` connections had shown it.
     pub refused: AtomicU64,
-    /// Connections closed to make room, as none of their requests had the key.
+    /// Connections closed to make room for a newcomer, as none of their requests had the key.
     pub evicted: AtomicU64,
 }
 
@@ -95,6 +108,11 @@ impl Server {
         let key = new_key()?;
         let run = new_key()?;
         listener.set_nonblocking(true)?;
+        // Listened on again with a longer queue (the standard library's is 128; the kernel
+        // caps it at net.core.somaxconn): a burst of connections waits there rather than
+        // having the SYNs of those past it dropped, which their clients retry only after
+        // a second.
+        let _ = rustix::net::listen(&listener, BACKLOG);
         let runtime = tokio::runtime::Builder::new_current_thread()
             .enable_io()
             .enable_time()
@@ -204,10 +222,10 @@ struct Shared {
 
 async fn accept_loop(listener: tokio::net::TcpListener, shared: Arc<Shared>) {
     let mut stopping = shared.stopping.clone();
-    let refusals = Arc::new(AtomicUsize::new(0));
-    // Every connection's place, oldest first (those whose connection has ended are dropped
-    // when room is needed).
-    let mut places: Vec<Weak<Place>> = Vec::new();
+    // The places of connections that have not shown the key, oldest first; those that have
+    // shown it since, or ended, are skipped (and dropped from the front as they come).
+    let mut waiting: std::collections::VecDeque<Weak<Place>> = Default::default();
+    let mut in_a_row = 0;
     loop {
         let accepted = tokio::select! {
             accepted = listener.accept() => accepted,
@@ -219,101 +237,124 @@ async fn accept_loop(listener: tokio::net::TcpListener, shared: Arc<Shared>) {
             continue;
         };
         let _ = stream.set_nodelay(true);
-        if shared.stats.clients.load(Ordering::Relaxed) >= MAX_CLIENTS {
-            places.retain(|place| place.strong_count() > 0);
-            let keyless = (places.iter().filter_map(Weak::upgrade))
-                .find(|place| !place.keyed.load(Ordering::Relaxed) && !place.leaving());
-            if let Some(place) = keyless {
-                // Its connection ends at once; the pause lets it go, and lets the new one
-                // show its key before another newcomer could take its place in turn.
-                place.evict();
-                shared.stats.evicted.fetch_add(1, Ordering::Relaxed);
-                let place = Arc::new(Place::default());
-                places.push(Arc::downgrade(&place));
-                let client = Client::enter(&shared.stats);
-                tokio::spawn(serve(stream, Arc::clone(&shared), client, place));
-                tokio::time::sleep(REFUSAL_PAUSE).await;
-                continue;
+        let stats = &shared.stats;
+        stats.accepted.fetch_add(1, Ordering::Relaxed);
+        let place = Place::enter(stats);
+        waiting.push_back(Arc::downgrade(&place));
+        while stats.waiting.load(Ordering::Relaxed) > MAX_WAITING {
+            let Some(oldest) = waiting.pop_front() else {
+                break;
+            };
+            if oldest.upgrade().is_some_and(|p| p.evict()) {
+                stats.evicted.fetch_add(1, Ordering::Relaxed);
             }
-            shared.stats.refused.fetch_add(1, Ordering::Relaxed);
-            if refusals.load(Ordering::Relaxed) < MAX_REFUSALS {
-                refusals.fetch_add(1, Ordering::Relaxed);
-                let refusals = Arc::clone(&refusals);
-                tokio::spawn(async move {
-                    let _ = tokio::time::timeout(GRACE, refuse(stream)).await;
-                    refusals.fetch_sub(1, Ordering::Relaxed);
-                });
-            }
-            tokio::time::sleep(REFUSAL_PAUSE).await;
-            continue;
         }
-        let place = Arc::new(Place::default());
-        places.push(Arc::downgrade(&place));
-        let client = Client::enter(&shared.stats);
-        tokio::spawn(serve(stream, Arc::clone(&shared), client, place));
+        while waiting
+            .front()
+            .is_some_and(|p| !p.upgrade().is_some_and(|p| p.waits()))
+        {
+            waiting.pop_front();
+        }
+        if waiting.len() > 2 * MAX_WAITING {
+            waiting.retain(|p| p.upgrade().is_some_and(|p| p.waits()));
+        }
+        tokio::spawn(serve(stream, Arc::clone(&shared), place));
+        in_a_row += 1;
+        if in_a_row == ACCEPT_BATCH {
+            in_a_row = 0;
+            tokio::task::yield_now().await;
+        }
     }
 }
 
-/// A connection's place among the `MAX_CLIENTS`: whether it has asked for anything under
-/// the key, and the call to end it when it has not and its place is needed.
-#[derive(Default)]
+/// Where a connection stands: waiting to show the key, holding one of the `MAX_CLIENTS`
+/// places of those that have, or gone.
+const WAITING: u8 = 0;
+const KEYED: u8 = 1;
+const GONE: u8 = 2;
+
+/// A connection's place, counted in `ServerStats` while it is served: among those waiting to
+/// show the key, or among the `MAX_CLIENTS` that have shown it; and the call to end it when
+/// it is waiting and its place is needed.
 struct Place {
-    keyed: AtomicBool,
+    state: AtomicU8,
     leave: tokio::sync::Notify,
-    leaving: AtomicBool,
+    stats: Arc<ServerStats>,
 }
 
 impl Place {
-    fn evict(&self) {
-        self.leaving.store(true, Ordering::Relaxed);
-        self.leave.notify_one();
-    }
-
-    fn leaving(&self) -> bool {
-        self.leaving.load(Ordering::Relaxed)
-    }
-}
-
-/// A connection being served: counted while it lives.
-struct Client(Arc<ServerStats>);
-
-impl Client {
-    fn enter(stats: &Arc<ServerStats>) -> Self {
+    fn enter(stats: &Arc<ServerStats>) -> Arc<Self> {
         stats.clients.fetch_add(1, Ordering::Relaxed);
-        Self(Arc::clone(stats))
+        stats.waiting.fetch_add(1, Ordering::Relaxed);
+        Arc::new(Self {
+            state: WAITING.into(),
+            leave: tokio::sync::Notify::new(),
+            stats: Arc::clone(stats),
+        })
+    }
+
+    fn waits(&self) -> bool {
+        self.state.load(Ordering::Relaxed) == WAITING
+    }
+
+    /// Its connection has shown the key: whether it holds (or now takes) one of the
+    /// `MAX_CLIENTS` places of those that have.
+    fn show_key(&self) -> bool {
+        if self.state.load(Ordering::Relaxed) != WAITING {
+            return self.state.load(Ordering::Relaxed) == KEYED;
+        }
+        let keyed = &self.stats.keyed;
+        // The place is taken first, so that two connections at once cannot both have the last.
+        let taken = keyed.fetch_update(Ordering::Relaxed, Ordering::Relaxed, |n| {
+            (n < MAX_CLIENTS).then_some(n + 1)
+        });
+        if taken.is_err() {
+            return false;
+        }
+        if self.leave_state(WAITING, KEYED) {
+            true
+        } else {
+            keyed.fetch_sub(1, Ordering::Relaxed);
+            false
+        }
+    }
+
+    /// Ends its connection, if it is waiting: whether it was.
+    fn evict(&self) -> bool {
+        let evicted = self.leave_state(WAITING, GONE);
+        if evicted {
+            self.leave.notify_one();
+        }
+        evicted
+    }
+
+    /// Moves from `from` to `to`, if it is at `from`, no longer counted among `from`'s.
+    fn leave_state(&self, from: u8, to: u8) -> bool {
+        let left = (self.state)
+            .compare_exchange(from, to, Ordering::Relaxed, Ordering::Relaxed)
+            .is_ok();
+        if left {
+            let count = if from == WAITING {
+                &self.stats.waiting
+            } else {
+                &self.stats.keyed
+            };
+            count.fetch_sub(1, Ordering::Relaxed);
+        }
+        left
     }
 }
 
-impl Drop for Client {
+impl Drop for Place {
     fn drop(&mut self) {
-        self.0.clients.fetch_sub(1, Ordering::Relaxed);
-    }
-}
-
-/// Answers a connection over the limit with 503 and closes it, reading (and dropping) what
-/// the client sent first so that closing does not reset the connection under the answer.
-async fn refuse(mut stream: tokio::net::TcpStream) {
-    let body = "too many viewers are connected; try again shortly\n";
-    let answer = format!(
-        "HTTP/1.1 503 Service Unavailable\r\ncontent-type: text/plain; charset=utf-8\r\n\
-         content-length: {}\r\nretry-after: 2\r\nconnection: close\r\n\r\n{body}",
-        body.len()
-    );
-    if stream.write_all(answer.as_bytes()).await.is_err() {
-        return;
-    }
-    let _ = stream.shutdown().await;
-    let mut sink = [0u8; 4096];
-    let mut left = 64 * 1024;
-    while left > 0 {
-        match stream.read(&mut sink).await {
-            Ok(0) | Err(_) => break,
-            Ok(n) => left -= n.min(left),
+        self.stats.clients.fetch_sub(1, Ordering::Relaxed);
+        if !self.leave_state(WAITING, GONE) {
+            self.leave_state(KEYED, GONE);
         }
     }
 }
 
-async fn serve<S>(stream: S, shared: Arc<Shared>, client: Client, place: Arc<Place>)
+async fn serve<S>(stream: S, shared: Arc<Shared>, place: Arc<Place>)
 where
     S: tokio::io::AsyncRead + tokio::io::AsyncWrite + Unpin + Send + 'static,
 {
@@ -361,7 +402,6 @@ where
         // Its place is needed, and it never showed the key: nothing of the render is lost.
         _ = place.leave.notified() => {}
     }
-    drop(client);
 }
 
 /// What the server answers `request`, the bytes one client sends before it closes its side
@@ -397,9 +437,8 @@ pub fn answer_in_memory(
     runtime.block_on(async move {
         let until = tokio::time::Instant::now() + at_most;
         let (client_side, server_side) = tokio::io::duplex(64 << 10);
-        let client = Client::enter(&shared.stats);
-        let place = Arc::new(Place::default());
-        let served = tokio::spawn(serve(server_side, Arc::clone(&shared), client, place));
+        let place = Place::enter(&shared.stats);
+        let served = tokio::spawn(serve(server_side, Arc::clone(&shared), place));
         let (mut reader, mut writer) = tokio::io::split(client_side);
         let mut answer = Vec::new();
         {
@@ -510,7 +549,17 @@ fn respond(shared: &Arc<Shared>, place: &Place, request: &Request<Incoming>) -> 
             "not found: the viewer answers at the address tessera printed, key and all\n",
         );
     }
-    place.keyed.store(true, Ordering::Relaxed);
+    if !place.show_key() {
+        shared.stats.refused.fetch_add(1, Ordering::Relaxed);
+        let mut r = text(
+            StatusCode::SERVICE_UNAVAILABLE,
+            "too many viewers are connected; try again shortly\n",
+        );
+        let h = r.headers_mut();
+        h.insert(header::RETRY_AFTER, HeaderValue::from_static("2"));
+        h.insert(header::CONNECTION, HeaderValue::from_static("close"));
+        return r;
+    }
     if !uri.path().ends_with('/') && path.is_empty() {
         // The page's links are relative to the key's folder.
         let mut r = text(

@@ -142,9 +142,7 @@ mod viewer {
                     stats.frame_served.load(Ordering::Relaxed) < last
                         || (offered && stats.downloads.load(Ordering::Relaxed) == 0)
                 };
-                while stats.clients.load(Ordering::Relaxed) > 0
-                    && waiting()
-                    && Instant::now() < until
+                while stats.keyed.load(Ordering::Relaxed) > 0 && waiting() && Instant::now() < until
                 {
                     std::thread::sleep(Duration::from_millis(20));
                 }

@@ -67,8 +67,8 @@ fn read_answer(stream: &mut std::net::TcpStream) -> String {
 
 /// Another local user, without the key, opens connection after connection and keeps
 /// them (asking for keyless paths, or saying nothing): each takes the place of none that
-/// showed the key, so the owner's page is still served; only places that have shown it
-/// fill the server.
+/// showed the key, so the owner's page is still served; only connections that have shown
+/// it fill the server.
 #[test]
 fn clients_without_the_key_cannot_keep_the_owner_out() {
     use std::io::Write;
@@ -86,7 +86,7 @@ fn clients_without_the_key_cannot_keep_the_owner_out() {
         read_answer(s)
     };
     let mut strangers = Vec::new();
-    for i in 0..2 * MAX_CLIENTS {
+    for i in 0..MAX_WAITING + 2 * MAX_CLIENTS {
         let mut s = connect();
         if i % 2 == 0 {
             let answer = ask(&mut s, "/status");
@@ -107,6 +107,79 @@ fn clients_without_the_key_cannot_keep_the_owner_out() {
     assert!(answer.starts_with("HTTP/1.1 503"), "{answer}");
     assert!(server.stats().evicted.load(Ordering::Relaxed) >= MAX_CLIENTS as u64);
     drop((strangers, owners));
+    server.stop();
+}
+
+/// A browser opens a connection before it has a request for it (a preconnection), and
+/// another local user floods the port meanwhile, holding connections or closing them at
+/// once: the owner's connection is not closed to make room for the newer ones, and every
+/// request of the owner's, each on a connection of its own, is answered.
+#[test]
+fn a_flood_of_strangers_closes_no_connection_of_the_owner_s() {
+    use std::io::Write;
+    use std::sync::atomic::AtomicBool;
+    let previewer = blank_previewer();
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let server = Server::start(listener, previewer.hub()).unwrap();
+    let (addr, key) = (server.addr(), server.key().to_owned());
+    let connect = || {
+        let s = std::net::TcpStream::connect(addr).unwrap();
+        // Only a guard against hanging: every answer is expected, however slow.
+        s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
+        s
+    };
+    let ask = |s: &mut std::net::TcpStream, path: &str| {
+        write!(s, "GET {path} HTTP/1.1\r\nHost: {addr}\r\n\r\n").unwrap();
+        read_answer(s)
+    };
+    let mut early = connect();
+    // Each stranger's answer shows it was accepted after the owner's connection.
+    let mut strangers = Vec::new();
+    for _ in 0..2 * MAX_CLIENTS {
+        let mut s = connect();
+        let answer = ask(&mut s, "/status");
+        assert!(answer.starts_with("HTTP/1.1 404"), "{answer}");
+        strangers.push(s);
+    }
+    let answer = ask(&mut early, &format!("/{key}/status"));
+    assert!(answer.starts_with("HTTP/1.1 200"), "{answer}");
+    drop(early);
+    // Three strangers flood the port while the owner asks, 12 times, afresh.
+    let flooding = AtomicBool::new(true);
+    let made = AtomicU64::new(0);
+    std::thread::scope(|scope| {
+        for holds in [false, true, false] {
+            let (flooding, made) = (&flooding, &made);
+            scope.spawn(move || {
+                let mut held = std::collections::VecDeque::new();
+                while flooding.load(Ordering::Relaxed) {
+                    if let Ok(s) = std::net::TcpStream::connect(addr) {
+                        made.fetch_add(1, Ordering::Relaxed);
+                        if holds {
+                            held.push_back(s);
+                            if held.len() > MAX_WAITING + MAX_CLIENTS {
+                                held.pop_front();
+                            }
+                        }
+                    }
+                }
+            });
+        }
+        for _ in 0..12 {
+            let mut s = connect();
+            let answer = ask(&mut s, &format!("/{key}/status"));
+            assert!(answer.starts_with("HTTP/1.1 200"), "{answer}");
+            let stats = server.stats();
+            assert!(stats.keyed.load(Ordering::Relaxed) <= MAX_CLIENTS);
+            assert!(stats.waiting.load(Ordering::Relaxed) <= MAX_WAITING + 1);
+        }
+        flooding.store(false, Ordering::Relaxed);
+    });
+    let stats = server.stats();
+    let (made, evicted) = (made.into_inner(), stats.evicted.load(Ordering::Relaxed));
+    assert!(made > 2 * MAX_WAITING as u64, "{made} connections made");
+    assert!(evicted > 0, "{evicted} of {made} closed to make room");
+    drop(strangers);
     server.stop();
 }
 
