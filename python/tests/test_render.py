@@ -3,6 +3,7 @@ and every figure scene, whatever the threads or SIMD path; progressive passes; C
 what the renders return."""
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -381,6 +382,80 @@ def test_ctrl_c_stops_a_render_off_the_main_thread_after_python_s_handler_is_ins
     )
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "['finished'] ['interrupted'] True", done.stdout
+
+
+# A handler of Ctrl-C that calls the one it replaced, as a C library's may, installed after
+# a render on a thread (so in the place of tessera's): the next render on a thread put
+# tessera's in place again, which called that one, which called tessera's, and so on until
+# the stack overflowed: a segfault at the first Ctrl-C.
+CHAINS = r"""
+#include <signal.h>
+#include <string.h>
+static struct sigaction replaced;
+static volatile sig_atomic_t calls;
+static void chained(int signal, siginfo_t *info, void *context) {
+    calls++;
+    if (replaced.sa_flags & SA_SIGINFO)
+        replaced.sa_sigaction(signal, info, context);
+    else if (replaced.sa_handler != SIG_DFL && replaced.sa_handler != SIG_IGN)
+        replaced.sa_handler(signal);
+}
+int install(void) {
+    struct sigaction action;
+    memset(&action, 0, sizeof action);
+    action.sa_sigaction = chained;
+    action.sa_flags = SA_SIGINFO;
+    sigemptyset(&action.sa_mask);
+    return sigaction(SIGINT, &action, &replaced);
+}
+int calls_seen(void) { return calls; }
+"""
+
+CHAINED = textwrap.dedent(
+    """
+    import ctypes, os, signal, sys, threading, time, tessera
+    chains = ctypes.CDLL(sys.argv[1])
+    def render(spp, said):
+        try:
+            tessera.render("scenes/cover.toml", width=64, spp=spp)
+            said.append("finished")
+        except KeyboardInterrupt:
+            said.append("interrupted")
+    first = []
+    thread = threading.Thread(target=render, args=(1, first)); thread.start(); thread.join()
+    assert chains.install() == 0
+    said = []
+    thread = threading.Thread(target=render, args=(1_000_000, said), daemon=True)
+    thread.start()
+    time.sleep(1.0)
+    main = "went on"
+    try:
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(10)
+    except KeyboardInterrupt:
+        main = "interrupted"
+    thread.join(10)
+    print(first, said, main, chains.calls_seen(), flush=True)
+    """
+)
+
+
+@pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
+def test_ctrl_c_reaches_a_handler_that_calls_tessera_s_once(tmp_path):
+    (tmp_path / "chains.c").write_text(CHAINS)
+    library = tmp_path / "libchains.so"
+    subprocess.run(
+        ["cc", "-shared", "-fPIC", "-o", library, tmp_path / "chains.c"], check=True
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", CHAINED, library],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 0, (done.returncode, done.stderr)
+    assert done.stdout.strip() == "['finished'] ['interrupted'] interrupted 1", done.stdout
 
 
 # Ignored (SIG_IGN), Ctrl-C once stopped a render all the same and raised KeyboardInterrupt.
