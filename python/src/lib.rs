@@ -522,7 +522,8 @@ enum Event<T> {
 /// tessera's own handler, installed once and then replaced by such a handler, once left
 /// every later render deaf to Ctrl-C. Off the main thread, where Python runs no handler, a
 /// Ctrl-C that `sigint` counts sets the flag, unless Python's handler of it is not a
-/// function.
+/// function; `sigint`'s handler is put in place again at each look, where one installed
+/// during the render took its place.
 fn interruptible<T: Send + 'static>(
     py: Python<'_>,
     on_pass: Option<&Py<PyAny>>,
@@ -608,7 +609,12 @@ where
                     .err(),
                 None => None,
             },
-            Err(RecvTimeoutError::Timeout) => py.check_signals().err(),
+            Err(RecvTimeoutError::Timeout) => (py.check_signals())
+                .and_then(|()| match interrupts {
+                    Some(_) => watch_sigint_again(py),
+                    None => Ok(()),
+                })
+                .err(),
             // The thread sends `Done` whatever happens, as its last word.
             Err(RecvTimeoutError::Disconnected) => {
                 let unheard = "the render's thread ended unheard".into();
@@ -639,10 +645,27 @@ fn watches_sigint(py: Python<'_>) -> PyResult<bool> {
     if current.is(&threading.call_method0("main_thread")?) {
         return Ok(false);
     }
+    python_handles_sigint(py)
+}
+
+/// Whether Python's handler of Ctrl-C is a function.
+fn python_handles_sigint(py: Python<'_>) -> PyResult<bool> {
     let handler = py
         .import("signal")?
         .call_method1("getsignal", (libc::SIGINT,))?;
     Ok(handler.is_callable())
+}
+
+/// Puts `sigint`'s handler in place again, as the render began, where Python's handler of
+/// Ctrl-C is a function: `signal.signal` on the main thread (which `asyncio.run` calls) puts
+/// Python's own in its place, and a render on a thread then went on to its end after
+/// Ctrl-C (still running 60 s later).
+fn watch_sigint_again(py: Python<'_>) -> PyResult<()> {
+    if python_handles_sigint(py)? {
+        sigint::watch()
+            .map_err(|e| PyRuntimeError::new_err(format!("could not watch for Ctrl-C: {e}")))?;
+    }
+    Ok(())
 }
 
 /// What a caught panic said.

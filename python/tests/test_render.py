@@ -384,6 +384,48 @@ def test_ctrl_c_stops_a_render_off_the_main_thread_after_python_s_handler_is_ins
     assert done.stdout.strip() == "['finished'] ['interrupted'] True", done.stdout
 
 
+# Python's handler of Ctrl-C installed again on the main thread during a render on a thread
+# (as `asyncio.run` installs one as it begins) took the place of tessera's: the thread's render
+# went on to its end after Ctrl-C (still running 60 s later).
+REPLACED_DURING = textwrap.dedent(
+    """
+    import os, signal, threading, time, tessera
+    said = []
+    def render():
+        try:
+            tessera.render("scenes/cover.toml", width=64, spp=1_000_000)
+            said.append("finished")
+        except KeyboardInterrupt:
+            said.append("interrupted")
+    thread = threading.Thread(target=render, daemon=True)
+    thread.start()
+    time.sleep(0.5)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    time.sleep(0.5)
+    sent = time.monotonic()
+    try:
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(10)
+    except KeyboardInterrupt:
+        pass
+    thread.join(10)
+    print(said, time.monotonic() - sent < 1.5, flush=True)
+    """
+)
+
+
+def test_ctrl_c_stops_a_render_on_a_thread_when_python_s_handler_is_installed_during_it():
+    done = subprocess.run(
+        [sys.executable, "-c", REPLACED_DURING],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "['interrupted'] True", done.stdout
+
+
 # A handler of Ctrl-C that calls the one it replaced, as a C library's may, installed after
 # a render on a thread (so in the place of tessera's): the next render on a thread put
 # tessera's in place again, which called that one, which called tessera's, and so on until
