@@ -237,10 +237,12 @@ const MAX_JPEG_SEGMENTS: usize = 1 << 16;
 /// decoder: more than one EXIF segment (APP1), of which browsers (Firefox, Chrome) read the
 /// first and the decoder the last, so that a first one saying "turned" and a last one
 /// saying "upright" show a picture turned, whose values are measured upright; and, in a
-/// file of three components, a JFIF segment (APP0) with an Adobe one (APP14) saying its
-/// colours are not YCbCr (transform 0), where libjpeg takes JFIF's word (YCbCr) and the
-/// decoder Adobe's, measuring colours no viewer built on libjpeg shows. A file that is not
-/// a JPEG as far as its pixels is its decoder's to refuse.
+/// file of three components, colours the decoder takes as RGB where libjpeg takes them as
+/// YCbCr, measuring colours no viewer built on libjpeg shows. libjpeg takes a JFIF segment
+/// (APP0)'s word (YCbCr) first, then an Adobe segment (APP14)'s transform (0: RGB), and
+/// only without either the components' names ('R', 'G', 'B': RGB); the decoder takes those
+/// names first, then Adobe's word, and never JFIF's. A file that is not a JPEG as far as
+/// its pixels is its decoder's to refuse.
 fn jpeg_display_changes<R: std::io::Read + Seek>(r: &mut std::io::BufReader<R>) -> Vec<String> {
     let segments = jpeg_segments(r).unwrap_or_default();
     let mut changes = Vec::new();
@@ -251,13 +253,25 @@ fn jpeg_display_changes<R: std::io::Read + Seek>(r: &mut std::io::BufReader<R>) 
             segments.exif
         ));
     }
-    if segments.jfif && segments.adobe_transform == Some(0) && segments.components == Some(3) {
-        changes.push(
-            "a JFIF segment (APP0), which says its colours are YCbCr, and an Adobe segment \
-             (APP14) that says they are not: libjpeg, and the viewers built on it, show them \
-             as YCbCr, the decoder measured them as RGB"
-                .to_owned(),
-        );
+    let named_rgb = segments.names == Some(*b"RGB");
+    let adobe_rgb = segments.adobe_transform == Some(0);
+    let libjpeg_rgb =
+        !segments.jfif && (adobe_rgb || segments.adobe_transform.is_none() && named_rgb);
+    if segments.components == Some(3) && (named_rgb || adobe_rgb) && !libjpeg_rgb {
+        let said = if segments.jfif {
+            "a JFIF segment (APP0), which says its colours are YCbCr"
+        } else {
+            "an Adobe segment (APP14), which says its colours are YCbCr"
+        };
+        let not = if adobe_rgb {
+            "an Adobe segment (APP14) that says they are not"
+        } else {
+            "components named 'R', 'G' and 'B'"
+        };
+        changes.push(format!(
+            "{said}, and {not}: libjpeg, and the viewers built on it, show them as YCbCr, \
+             the decoder measured them as RGB"
+        ));
     }
     changes
 }
@@ -267,16 +281,18 @@ fn jpeg_display_changes<R: std::io::Read + Seek>(r: &mut std::io::BufReader<R>) 
 struct JpegSegments {
     /// Its EXIF segments (APP1).
     exif: usize,
-    /// Whether it has a JFIF segment (APP0).
+    /// Whether it has a JFIF segment (APP0) libjpeg reads as one (14 bytes or more).
     jfif: bool,
     /// The colour transform of its last Adobe segment (APP14), if it has one.
     adobe_transform: Option<u8>,
     /// The components of its frame, if its frame comes before the first scan.
     components: Option<u8>,
+    /// The names (one byte each) of its frame's first three components.
+    names: Option<[u8; 3]>,
 }
 
 /// The segments of the JPEG `r` is at the start of, up to its first scan (or its first
-/// `MAX_JPEG_SEGMENTS` segments), each skipped past its first twelve bytes.
+/// `MAX_JPEG_SEGMENTS` segments), each skipped past its first sixteen bytes.
 fn jpeg_segments<R: std::io::Read + Seek>(
     r: &mut std::io::BufReader<R>,
 ) -> std::io::Result<JpegSegments> {
@@ -306,17 +322,19 @@ fn jpeg_segments<R: std::io::Read + Seek>(
         }
         r.read_exact(&mut two)?;
         let rest = i64::from(u16::from_be_bytes(two)) - 2;
-        let mut head = [0u8; 12];
+        let mut head = [0u8; 16];
         let n = usize::try_from(rest).unwrap_or(0).min(head.len());
         r.read_exact(&mut head[..n])?;
         let head = &head[..n];
         match byte[0] {
             0xe1 if head.starts_with(b"Exif\0\0") => seen.exif += 1,
-            0xe0 if head.starts_with(b"JFIF\0") => seen.jfif = true,
-            0xee if head.starts_with(b"Adobe") && n == 12 => seen.adobe_transform = Some(head[11]),
-            // A frame's header: precision, height, width, then its components.
+            0xe0 if head.starts_with(b"JFIF\0") && n >= 14 => seen.jfif = true,
+            0xee if head.starts_with(b"Adobe") && n >= 12 => seen.adobe_transform = Some(head[11]),
+            // A frame's header: precision, height, width, then its components, three bytes
+            // each, the first its name.
             0xc0..=0xc3 | 0xc5..=0xc7 | 0xc9..=0xcb | 0xcd..=0xcf if n >= 6 => {
                 seen.components = Some(head[5]);
+                seen.names = (n >= 13).then(|| [head[6], head[9], head[12]]);
             }
             _ => {}
         }
@@ -657,6 +675,75 @@ mod tests {
         let app0 = 4 + usize::from(u16::from_be_bytes([jpeg[4], jpeg[5]]));
         let without_jfif = [&jpeg[..2], &adobe(0), &jpeg[app0..]].concat();
         assert_eq!(changes("jpeg-adobe", &without_jfif), Vec::<String>::new());
+    }
+
+    /// The decoder takes a JPEG whose components are named 'R', 'G' and 'B' as RGB, where
+    /// libjpeg takes a JFIF segment's or an Adobe segment's word (YCbCr) first: the earth
+    /// map so renamed is shown as it was, but was measured at 9.26 dB from it, and at
+    /// 73 dB (near identical, nothing listed) from its YCbCr values taken as RGB. It is
+    /// listed; without either segment, both take the names' word (RGB).
+    #[test]
+    fn a_jpeg_of_components_named_rgb_that_libjpeg_shows_as_ycbcr_is_listed() {
+        let jpeg = include_bytes!("../scenes/earthmap.jpg");
+        // The earth map with its components (1, 2, 3) named 'R', 'G', 'B' in its frame and
+        // its scan.
+        let mut named = jpeg.to_vec();
+        let mut at = 2;
+        while named[at + 1] != 0xda {
+            let length = usize::from(u16::from_be_bytes([named[at + 2], named[at + 3]]));
+            if named[at + 1] == 0xc0 {
+                for k in 0..3 {
+                    named[at + 10 + 3 * k] = b"RGB"[k];
+                }
+            }
+            at += 2 + length;
+        }
+        for k in 0..3 {
+            assert_eq!(named[at + 5 + 2 * k], 1 + k as u8);
+            named[at + 5 + 2 * k] = b"RGB"[k];
+        }
+        let segment = |marker: u8, bytes: &[u8]| {
+            let length = u16::try_from(bytes.len() + 2).unwrap().to_be_bytes();
+            [&[0xff, marker][..], &length, bytes].concat()
+        };
+        let adobe =
+            |transform: u8| segment(0xee, &[&b"Adobe\0\x64\0\0\0\0"[..], &[transform]].concat());
+        let app0 = 4 + usize::from(u16::from_be_bytes([jpeg[4], jpeg[5]]));
+        let without_jfif = [&named[..2], &named[app0..]].concat();
+        let cases: [(&str, Vec<u8>, &str); 5] = [
+            ("jfif", named.clone(), "a JFIF segment (APP0)"),
+            (
+                "adobe-1",
+                [&named[..2], &adobe(1), &named[app0..]].concat(),
+                "an Adobe segment (APP14), which says",
+            ),
+            ("names", without_jfif.clone(), ""),
+            (
+                "adobe-0",
+                [&named[..2], &adobe(0), &named[app0..]].concat(),
+                "",
+            ),
+            // A JFIF segment shorter than libjpeg reads as one says nothing to it.
+            (
+                "short-jfif",
+                [&named[..2], &segment(0xe0, b"JFIF\0"), &named[app0..]].concat(),
+                "",
+            ),
+        ];
+        for (name, b, said) in cases {
+            let a = ("a.jpg", &without_jfif[..]);
+            let changes = listed(&format!("jpeg-named-{name}"), a, ("b.jpg", &b));
+            if said.is_empty() {
+                assert!(changes.is_empty(), "{name}: {changes:?}");
+            } else {
+                assert!(
+                    changes.len() == 1
+                        && changes[0].starts_with(said)
+                        && changes[0].contains("components named 'R', 'G' and 'B'"),
+                    "{name}: {changes:?}"
+                );
+            }
+        }
     }
 
     /// Browsers read a JPEG's first EXIF segment, its decoder the last: a first one saying
