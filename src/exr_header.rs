@@ -405,7 +405,14 @@ fn walk<R: Read>(r: R, len: u64, visit: &mut Visit<'_>) -> Result<u64, String> {
         // `tiledimage` type for tiles whatever the flags say): it must agree with them.
         if name == "type" {
             let expected = if tiled { "tiledimage" } else { "scanlineimage" };
-            if kind != "string" || value != expected.as_bytes() {
+            if kind != "string" {
+                return Err(format!(
+                    "has the attribute `type` of type `{}`, not the type OpenEXR gives it \
+                     (string)",
+                    kind.escape_debug()
+                ));
+            }
+            if value != expected.as_bytes() {
                 return Err(format!(
                     "has the part type `{}` where its version flags say `{expected}`: readers \
                      would decode it differently",
@@ -622,6 +629,38 @@ pub fn misplaced_chunk<R: Read + std::io::Seek>(
 mod tests {
     use super::*;
     use std::io::{Cursor, Seek, SeekFrom};
+
+    /// A part type given as another type than text said the type's text agreed with the
+    /// flags and disagreed with them in one breath ("the part type `tiledimage` where its
+    /// version flags say `tiledimage`"); it names the attribute's type.
+    #[test]
+    fn a_part_type_of_another_type_than_string_is_named_so() {
+        let header = |kind: &[u8]| {
+            let mut file = vec![0x76, 0x2f, 0x31, 0x01, 2, 2, 0, 0];
+            file.extend(
+                [
+                    &b"type\0"[..],
+                    kind,
+                    b"\0",
+                    &10u32.to_le_bytes(),
+                    b"tiledimage",
+                ]
+                .concat(),
+            );
+            file.push(0);
+            file
+        };
+        let file = header(b"text");
+        let said = read(&file[..], file.len() as u64).err();
+        assert_eq!(
+            said.as_deref(),
+            Some("has the attribute `type` of type `text`, not the type OpenEXR gives it (string)")
+        );
+        // Of the right type and value, the walk goes on past it.
+        let file = header(b"string");
+        let said = read(&file[..], file.len() as u64).err().unwrap_or_default();
+        assert!(!said.contains("`type`"), "{said}");
+    }
 
     /// A file that counts the reads and seeks that reach it.
     struct Counted {
