@@ -258,6 +258,18 @@ impl BenchResult {
         report
             .check()
             .map_err(|why| anyhow::anyhow!("{what}: not a sound result: {why}"))?;
+        // The database keeps the result written again, compact, and an export checks what it
+        // kept as a file: it is held to a file's bound too. Its numbers may take more bytes
+        // than the file's (`1e11` is kept as `100000000000.0`), and a line of JSON lines, up
+        // to three times a file, may hold a result of more bytes than a file.
+        let kept = serde_json::to_vec(&report).map_or(u64::MAX, |json| json.len() as u64);
+        if kept > MAX_FILE {
+            bail!(
+                "{what}: {kept} bytes as the results database keeps it, larger than {} KiB: \
+                 not a tessera bench result",
+                MAX_FILE >> 10
+            );
+        }
         Ok(report)
     }
 
@@ -321,11 +333,16 @@ impl BenchResult {
         if let Some(busy) = &self.busy {
             check_busy(busy)?;
         }
+        let runs: usize = (self.scaling.iter().chain([&self.result]))
+            .map(|row| row.runs.len())
+            .sum();
+        if runs > MAX_RUNS {
+            return Err(format!(
+                "{runs} runs, more than the {MAX_RUNS} a bench keeps in a result"
+            ));
+        }
         for row in self.scaling.iter().chain([&self.result]) {
             count("a row's threads", row.threads, MAX_THREADS)?;
-            if row.runs.len() > 1_000_000 {
-                return Err("a row has more runs than any bench makes".into());
-            }
             let at_least = |name: &str, x: f64, least: f64, most: f64| {
                 if !(x.is_finite() && x > 0.0) {
                     Err(format!(

@@ -1300,6 +1300,53 @@ fn an_export_of_a_result_of_any_text_an_import_took_imports_again() {
     assert_eq!(stdout(&o), "imported 1 new result, 0 already present\n");
 }
 
+/// The database keeps a result written again, compact, and `results export` checks what it
+/// kept as an import checks a file. A result file of 1,001,976 bytes whose 200,000 runs were
+/// each `1e11` was kept as 3,001,976 bytes (each run `100000000000.0`), and a line of JSON
+/// lines of 1,053,620 bytes (1,024 image hashes of 256 emoji) as itself: both imported, and
+/// then `results export` refused the whole database ("larger than 1024 KiB ... nothing
+/// exported"). More runs than a bench keeps, and a result kept over 1 MiB, are refused.
+#[test]
+fn a_result_the_database_would_keep_larger_than_an_export_takes_is_refused() {
+    let dir = temp_dir("results-kept-larger");
+    let base = json(&root().join("fuzz/corpus/result/quick-one-thread.json"));
+    let mut runs = base.clone();
+    runs["result"]["runs"] = vec![1e11; 100_000].into();
+    runs["scaling"][0] = runs["result"].clone();
+    let text = serde_json::to_string(&runs)
+        .unwrap()
+        .replace("100000000000.0", "1e11");
+    assert!(text.len() < 1 << 20);
+    std::fs::write(dir.join("runs.json"), text).unwrap();
+    let mut wide = base.clone();
+    wide["validation"]["status"] = "invalid".into();
+    wide["validation"]["images"] = (0..1024u32)
+        .map(|i| char::from_u32(0x1F000 + i).unwrap().to_string() + &"\u{1F600}".repeat(255))
+        .collect();
+    let line = serde_json::to_string(&wide).unwrap() + "\n";
+    assert!(line.len() > 1 << 20 && line.len() < 3 << 20);
+    std::fs::write(dir.join("wide.jsonl"), line).unwrap();
+    for (file, reason) in [
+        (
+            "runs.json",
+            "200000 runs, more than the 16384 a bench keeps",
+        ),
+        ("wide.jsonl", "wide.jsonl:1: 1053"),
+    ] {
+        let db = dir.join("r.db");
+        let o = results(&dir, &db, &["import", file]);
+        assert_eq!(o.status.code(), Some(2), "{file}: {}", stderr(&o));
+        assert!(stderr(&o).contains(reason), "{file}: {}", stderr(&o));
+        assert!(!db.exists() || listed(&dir, &db, &[]).is_empty());
+    }
+    let o = results(&dir, &dir.join("r.db"), &["import", "wide.jsonl"]);
+    assert!(
+        stderr(&o).contains("as the results database keeps it, larger than 1024 KiB"),
+        "{}",
+        stderr(&o)
+    );
+}
+
 /// `compare m-3f2a …` pooled the runs of every machine whose id begins so, and `commit:aaaa`
 /// those of every such commit, under the newest one's name: a result imported from a
 /// machine `m-3f2a9…` at 100 times the speed made the user's own machine "1.980 within the
