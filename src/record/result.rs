@@ -182,8 +182,19 @@ impl BenchResult {
         };
         // Blank lines are skipped before the first as after it: a file of JSON lines that
         // begins with one is still JSON lines.
+        // They are held to a line's bound as those after the first are.
+        let too_long = |line: &[u8], n: usize| {
+            if line.len() as u64 > MAX_LINE {
+                bail!(
+                    "{what}:{n}: a line longer than {} KiB: not a tessera bench result",
+                    MAX_LINE >> 10
+                );
+            }
+            Ok(())
+        };
         let mut first = 1;
         while read_line(&mut reader, &mut line)? > 0 && line.iter().all(u8::is_ascii_whitespace) {
+            too_long(&line, first)?;
             first += 1;
         }
         // An export of a database without results is empty: it imports as no results, so
@@ -208,13 +219,8 @@ impl BenchResult {
             if n > first && read_line(&mut reader, &mut line)? == 0 {
                 break;
             }
+            too_long(&line, n)?;
             let at = format!("{what}:{n}");
-            if line.len() as u64 > MAX_LINE {
-                bail!(
-                    "{at}: a line longer than {} KiB: not a tessera bench result",
-                    MAX_LINE >> 10
-                );
-            }
             if line.iter().all(u8::is_ascii_whitespace) {
                 continue;
             }

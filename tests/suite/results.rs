@@ -1243,6 +1243,17 @@ fn an_export_imports_into_another_database_as_it_is() {
         "{}",
         stderr(&o)
     );
+    // So is one before the first result: 5 MiB of spaces, then a result on the same line
+    // (or the next), was skipped as blank and imported, a file five times the bound.
+    for (file, sep) in [("lead.json", ""), ("lead.jsonl", "\n")] {
+        let lead = format!("{}{sep}{}\n", " ".repeat(5 << 20), lines[0]);
+        std::fs::write(dir.join(file), lead).unwrap();
+        let o = results(&dir, &fresh, &["import", file]);
+        assert_eq!(o.status.code(), Some(2), "{file}: {}", stderr(&o));
+        let reason = format!("{file}:1: a line longer than 3072 KiB");
+        assert!(stderr(&o).contains(&reason), "{}", stderr(&o));
+        assert!(!fresh.exists() || listed(&dir, &fresh, &[]).is_empty());
+    }
 }
 
 /// An export of a database without results is empty, and an import refused it ("not JSON:
