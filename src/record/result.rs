@@ -180,9 +180,8 @@ impl BenchResult {
                 .read_until(b'\n', line)
                 .with_context(|| format!("could not read {what}"))
         };
-        // Blank lines are skipped before the first as after it: a file of JSON lines that
-        // begins with one is still JSON lines.
-        // They are held to a line's bound as those after the first are.
+        // Blank lines are skipped before the first as after it (a file of JSON lines that
+        // begins with one is still JSON lines), and held to a line's bound as those are.
         let too_long = |line: &[u8], n: usize| {
             if line.len() as u64 > MAX_LINE {
                 bail!(
