@@ -210,21 +210,45 @@ fn straight_render(dir: &Path, scene: &str) -> Vec<u8> {
     bytes(dir, "straight.png")
 }
 
+/// When a render is killed: a while after it starts, or as soon as it has saved a
+/// checkpoint newer than the one it resumed from.
+#[derive(Clone, Copy, Debug)]
+enum Kill {
+    After(u64),
+    AtCheckpoint,
+}
+
 #[test]
 fn killed_renders_resume_to_the_same_bytes() {
     let dir = temp_dir("sigkill");
     let scene = cover();
     let straight = straight_render(&dir, &scene);
     let mut caught_mid_render = 0;
-    // Kill at several moments, and kill the resumed render again, then finish.
-    for (n, delays) in [[20u64, 0, 0], [90, 0, 0], [200, 0, 0], [60, 80, 100]]
-        .iter()
-        .enumerate()
-    {
+    // Kill at several moments, and kill the resumed render again, then finish. The kills
+    // at a checkpoint hit a render in progress however slow the machine is: kills at fixed
+    // moments alone once all fell before the first checkpoint on a loaded machine.
+    use Kill::*;
+    let series = [
+        &[After(20)][..],
+        &[After(90)],
+        &[After(200)],
+        &[AtCheckpoint, AtCheckpoint, After(100)],
+    ];
+    for (n, kills) in series.iter().enumerate() {
         let (out, ck) = (format!("killed{n}.png"), format!("killed{n}.ckpt"));
-        for &ms in delays.iter().filter(|&&ms| ms > 0) {
+        for &kill in kills.iter() {
+            let before = std::fs::read(dir.join(&ck)).ok();
             let mut child = spawn(&long_render(&scene, &out, &ck), &dir);
-            std::thread::sleep(Duration::from_millis(ms));
+            match kill {
+                After(ms) => std::thread::sleep(Duration::from_millis(ms)),
+                AtCheckpoint => {
+                    while child.try_wait().unwrap().is_none()
+                        && std::fs::read(dir.join(&ck)).ok() == before
+                    {
+                        std::thread::sleep(Duration::from_millis(1));
+                    }
+                }
+            }
             child.kill().unwrap(); // SIGKILL
             child.wait().unwrap();
             // Killed before its first checkpoint, or between two: either way it resumes.
@@ -235,7 +259,7 @@ fn killed_renders_resume_to_the_same_bytes() {
             }
         }
         ok(&long_render(&scene, &out, &ck), &dir);
-        assert_eq!(bytes(&dir, &out), straight, "killed after {delays:?} ms");
+        assert_eq!(bytes(&dir, &out), straight, "killed {kills:?}");
     }
     assert!(
         caught_mid_render >= 2,
