@@ -100,8 +100,12 @@ impl RgbImage {
                     "an EXIF orientation ({orientation:?}), which turns or flips the picture"
                 ));
             }
-            if decoder.icc_profile().map_err(fail)?.is_some() {
-                display_changes.push("an ICC colour profile (an APP2 segment)".to_owned());
+            // Its segments were walked for a profile as libjpeg reads one; the decoder's
+            // is one it finds past that walk.
+            if !display_changes.iter().any(|c| c == JPEG_ICC_PROFILE)
+                && decoder.icc_profile().map_err(fail)?.is_some()
+            {
+                display_changes.push(JPEG_ICC_PROFILE.to_owned());
             }
         }
         Ok((decoder, display_changes))
@@ -247,6 +251,9 @@ impl RgbImage {
 /// The most segments of a JPEG walked for its EXIF ones: the book's earth map has a dozen.
 const MAX_JPEG_SEGMENTS: usize = 1 << 16;
 
+/// What compare lists of a JPEG with a colour profile.
+const JPEG_ICC_PROFILE: &str = "an ICC colour profile (an APP2 segment)";
+
 /// What a JPEG's segments before its pixels hold that viewers read otherwise than its
 /// decoder: more than one EXIF segment (APP1), of which browsers (Firefox, Chrome) read the
 /// first and the decoder the last, so that a first one saying "turned" and a last one
@@ -258,7 +265,9 @@ const MAX_JPEG_SEGMENTS: usize = 1 << 16;
 /// names first, then Adobe's word, and never JFIF's. In a file of four components, an
 /// Adobe transform of 1 (YCbCr, which four components cannot be) is YCCK to libjpeg and
 /// CMYK to the decoder. A file that is not a JPEG as far as its pixels is its decoder's to
-/// refuse.
+/// refuse. A colour profile is listed wherever libjpeg finds one (an APP2 segment of 14
+/// bytes or more, named ICC_PROFILE): the decoder takes none split over 255 segments, or
+/// with a segment of no bytes of the profile, where libjpeg takes it whole.
 fn jpeg_display_changes<R: std::io::Read + Seek>(r: &mut std::io::BufReader<R>) -> Vec<String> {
     let segments = jpeg_segments(r).unwrap_or_default();
     let mut changes = Vec::new();
@@ -296,6 +305,9 @@ fn jpeg_display_changes<R: std::io::Read + Seek>(r: &mut std::io::BufReader<R>) 
                 .to_owned(),
         );
     }
+    if segments.icc > 0 {
+        changes.push(JPEG_ICC_PROFILE.to_owned());
+    }
     changes
 }
 
@@ -327,6 +339,8 @@ fn jpeg_ends<R: std::io::Read>(r: &mut std::io::BufReader<R>) -> std::io::Result
 struct JpegSegments {
     /// Its EXIF segments (APP1).
     exif: usize,
+    /// Its segments (APP2) of a colour profile, as libjpeg takes one (14 bytes or more).
+    icc: usize,
     /// Whether it has a JFIF segment (APP0) libjpeg reads as one (14 bytes or more).
     jfif: bool,
     /// The colour transform of its last Adobe segment (APP14), if it has one.
@@ -374,6 +388,7 @@ fn jpeg_segments<R: std::io::Read + Seek>(
         let head = &head[..n];
         match byte[0] {
             0xe1 if head.starts_with(b"Exif\0\0") => seen.exif += 1,
+            0xe2 if head.starts_with(b"ICC_PROFILE\0") && n >= 14 => seen.icc += 1,
             0xe0 if head.starts_with(b"JFIF\0") && n >= 14 => seen.jfif = true,
             0xee if head.starts_with(b"Adobe") && n >= 12 => seen.adobe_transform = Some(head[11]),
             // A frame's header: precision, height, width, then its components, three bytes
@@ -681,6 +696,27 @@ mod tests {
             "{changes:?}"
         );
         assert!(listed("jpeg", ("a.jpg", jpeg), ("b.jpg", jpeg)).is_empty());
+    }
+
+    /// libjpeg takes a colour profile split over 255 APP2 segments, or over two of which
+    /// one holds none of its bytes; the decoder takes neither, and compare called both
+    /// identical to the same picture without one (djpeg -icc extracts the whole profile).
+    /// Both are listed.
+    #[test]
+    fn a_jpeg_s_colour_profile_libjpeg_takes_and_the_decoder_does_not_is_listed() {
+        let jpeg = include_bytes!("../scenes/earthmap.jpg");
+        let icc = |seq: u8, count: u8, bytes: &[u8]| {
+            let segment = [&b"ICC_PROFILE\0"[..], &[seq, count], bytes].concat();
+            let length = u16::try_from(segment.len() + 2).unwrap().to_be_bytes();
+            [&[0xff, 0xe2][..], &length, &segment].concat()
+        };
+        let with = |segments: Vec<Vec<u8>>| [&jpeg[..2], &segments.concat(), &jpeg[2..]].concat();
+        let empty_second = with(vec![icc(1, 2, &[0; 128]), icc(2, 2, &[])]);
+        let in_255 = with((1..=255).map(|seq| icc(seq, 255, &[0; 4])).collect());
+        for (name, b) in [("jpeg-icc-empty", &empty_second), ("jpeg-icc-255", &in_255)] {
+            let changes = listed(name, ("a.jpg", jpeg), ("b.jpg", b));
+            assert_eq!(changes, [JPEG_ICC_PROFILE], "{name}");
+        }
     }
 
     /// libjpeg takes a JFIF segment's word that a three-component JPEG is YCbCr over an
