@@ -352,7 +352,8 @@ struct JpegSegments {
 }
 
 /// The segments of the JPEG `r` is at the start of, up to its first scan (or its first
-/// `MAX_JPEG_SEGMENTS` segments), each skipped past its first sixteen bytes.
+/// `MAX_JPEG_SEGMENTS` segments), each skipped past its first sixteen bytes, and what lies
+/// between segments skipped as libjpeg skips it.
 fn jpeg_segments<R: std::io::Read + Seek>(
     r: &mut std::io::BufReader<R>,
 ) -> std::io::Result<JpegSegments> {
@@ -364,20 +365,27 @@ fn jpeg_segments<R: std::io::Read + Seek>(
         return Ok(seen);
     }
     for _ in 0..MAX_JPEG_SEGMENTS {
+        // The next marker, as libjpeg finds it: bytes other than 0xFF before it, and FF 00,
+        // are skipped (libjpeg warns of them and reads on, as the decoder does), then fill
+        // bytes.
         let mut byte = [0u8; 1];
-        r.read_exact(&mut byte)?;
-        if byte[0] != 0xff {
-            break;
-        }
-        // Fill bytes, then the marker.
-        while byte[0] == 0xff {
+        loop {
             r.read_exact(&mut byte)?;
+            while byte[0] != 0xff {
+                r.read_exact(&mut byte)?;
+            }
+            while byte[0] == 0xff {
+                r.read_exact(&mut byte)?;
+            }
+            if byte[0] != 0 {
+                break;
+            }
         }
         match byte[0] {
             // Markers without a length: restarts and TEM.
             0xd0..=0xd7 | 0x01 => continue,
             // The first scan (the pixels), or what no segment begins with.
-            0xda | 0xd8 | 0xd9 | 0x00 => break,
+            0xd8..=0xda => break,
             _ => {}
         }
         r.read_exact(&mut two)?;
@@ -696,6 +704,37 @@ mod tests {
             "{changes:?}"
         );
         assert!(listed("jpeg", ("a.jpg", jpeg), ("b.jpg", jpeg)).is_empty());
+    }
+
+    /// libjpeg skips bytes between two segments that are not a marker (warning "Corrupt
+    /// JPEG data: 1 extraneous bytes before marker"), and so does the decoder; the walk of
+    /// the segments stopped at them. A JFIF segment, one such byte, then an RGB JPEG's
+    /// Adobe segment (transform 0): libjpeg shows YCbCr, the decoder measured RGB, and
+    /// compare called it identical to the RGB JPEG. It is listed.
+    #[test]
+    fn a_jpeg_s_segments_past_bytes_libjpeg_skips_are_listed() {
+        let jpeg = include_bytes!("../scenes/earthmap.jpg");
+        let adobe = [&[0xff, 0xee, 0, 14][..], b"Adobe\0\x64\0\0\0\0\0"].concat();
+        // The earth map is JFIF: its own APP0 first, then the stray bytes and Adobe's.
+        assert_eq!(&jpeg[6..11], b"JFIF\0");
+        let app0 = 4 + usize::from(u16::from_be_bytes([jpeg[4], jpeg[5]]));
+        for (name, stray) in [
+            ("jpeg-stray", &[0u8][..]),
+            ("jpeg-stray-ff00", &[0xff, 0, 7]),
+        ] {
+            let dir = std::env::temp_dir().join(format!("tessera-{name}-{}", std::process::id()));
+            std::fs::create_dir_all(&dir).unwrap();
+            std::fs::write(dir.join("a.jpg"), jpeg).unwrap();
+            let b = [&jpeg[..app0], stray, &adobe, &jpeg[app0..]].concat();
+            std::fs::write(dir.join("b.jpg"), b).unwrap();
+            let d = difference_of_files(&dir.join("a.jpg"), &dir.join("b.jpg")).unwrap();
+            std::fs::remove_dir_all(&dir).unwrap();
+            assert!(
+                d.display_changes.len() == 1 && d.display_changes[0].1.contains("JFIF segment"),
+                "{name}: {:?}",
+                d.display_changes
+            );
+        }
     }
 
     /// libjpeg takes a colour profile split over 255 APP2 segments, or over two of which
