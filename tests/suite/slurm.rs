@@ -429,3 +429,49 @@ fn podman_tessera_mounts_the_directory_of_every_path_it_is_given() {
         ]
     );
 }
+
+/// A link in the working directory to a directory outside it (`out -> /scratch/out`, as a
+/// cluster's home links to its scratch space) named a file the container did not have:
+/// `-o out/a.png` failed with "the directory out does not exist in this podman container"
+/// and a linked scene with "no such scene file". The directory a path's links lead to is
+/// mounted too.
+#[test]
+fn podman_tessera_mounts_the_directory_a_path_s_links_lead_to() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = temp_dir("slurm-podman-links");
+    let bin = dir.join("bin");
+    let work = dir.join("work");
+    let scratch = dir.join("scratch");
+    let shared = dir.join("shared");
+    for d in [&bin, &work, &scratch, &shared] {
+        std::fs::create_dir_all(d).unwrap();
+    }
+    std::os::unix::fs::symlink(&scratch, work.join("out")).unwrap();
+    std::os::unix::fs::symlink(shared.join("a.toml"), work.join("a.toml")).unwrap();
+    let podman = bin.join("podman");
+    std::fs::write(&podman, "#!/bin/sh\nprintf '%s\\n' \"$@\"\n").unwrap();
+    std::fs::set_permissions(&podman, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let o = Command::new(root().join("deploy/slurm/podman-tessera"))
+        .args(["render", "./a.toml", "-o", "out/a.png"])
+        .env(
+            "PATH",
+            format!("{}:{}", bin.display(), std::env::var("PATH").unwrap()),
+        )
+        .env("CONTAINER", "tessera:test")
+        .current_dir(&work)
+        .output()
+        .expect("run podman-tessera");
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let said = text(&o.stdout);
+    let args: Vec<&str> = said.lines().collect();
+    let mounts: Vec<&str> = (args.windows(2))
+        .filter(|w| w[0] == "--mount")
+        .map(|w| w[1])
+        .collect();
+    let mount = |path: &std::path::Path| {
+        let field = path.display().to_string().replace('"', "\"\"");
+        format!("type=bind,\"src={field}\",\"dst={field}\"")
+    };
+    let expected = [mount(&work), mount(&shared), mount(&scratch)];
+    assert_eq!(mounts, expected, "{said}");
+}
