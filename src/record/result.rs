@@ -191,10 +191,11 @@ impl BenchResult {
             }
             Ok(())
         };
-        let mut first = 1;
+        let (mut first, mut blank) = (1, 0u64);
         while read_line(&mut reader, &mut line)? > 0 && line.iter().all(u8::is_ascii_whitespace) {
             too_long(&line, first)?;
             first += 1;
+            blank += line.len() as u64;
         }
         // An export of a database without results is empty: it imports as no results, so
         // an import of it beside others is not refused whole.
@@ -206,11 +207,19 @@ impl BenchResult {
                 && serde_json::from_slice::<serde::de::IgnoredAny>(line).is_ok()
         };
         if !one_value(&line) {
-            // One result, as `bench --out` writes it, over many lines.
+            // One result, as `bench --out` writes it, over many lines: a file of at most
+            // `MAX_FILE` bytes, the blank lines before it counted, as those after it are
+            // (and as `read` counts them).
             let mut bytes = std::mem::take(&mut line);
-            let left = (MAX_FILE + 1).saturating_sub(bytes.len() as u64);
+            let left = (MAX_FILE + 1).saturating_sub(blank + bytes.len() as u64);
             (reader.take(left).read_to_end(&mut bytes))
                 .with_context(|| format!("could not read {what}"))?;
+            if blank + bytes.len() as u64 > MAX_FILE {
+                bail!(
+                    "{what}: larger than {} KiB: not a tessera bench result",
+                    MAX_FILE >> 10
+                );
+            }
             return Ok(vec![Self::parse(&bytes, &what)?]);
         }
         let mut results = Vec::new();

@@ -1256,6 +1256,39 @@ fn an_export_imports_into_another_database_as_it_is() {
     }
 }
 
+/// A result file, as `bench --out` writes it over many lines, is held to 1 MiB with the
+/// blank lines before it counted, as those after it are: 5,000,000 line ends and then the
+/// result (5,002,716 bytes) imported (exit 0), where the same line ends after it, and
+/// `bench --compare` of the same file, were refused as larger than 1024 KiB.
+#[test]
+fn blank_lines_before_a_result_of_many_lines_count_toward_its_file_s_bound() {
+    let dir = temp_dir("results-lead-lines");
+    bench(&dir, None, "r.json");
+    let result = std::fs::read_to_string(dir.join("r.json")).unwrap();
+    assert!(result.lines().count() > 1, "{result}");
+    let db = dir.join("r.db");
+    for (file, text) in [
+        ("before.json", format!("{}{result}", "\n".repeat(5_000_000))),
+        ("after.json", format!("{result}{}", "\n".repeat(5_000_000))),
+    ] {
+        std::fs::write(dir.join(file), text).unwrap();
+        let o = results(&dir, &db, &["import", file]);
+        assert_eq!(o.status.code(), Some(2), "{file}: {}", stderr(&o));
+        let reason = format!("{file}: larger than 1024 KiB: not a tessera bench result");
+        assert!(stderr(&o).contains(&reason), "{}", stderr(&o));
+        assert!(!db.exists() || listed(&dir, &db, &[]).is_empty());
+    }
+    // A few blank lines before it are no reason to refuse it.
+    std::fs::write(dir.join("few.json"), format!("\n \r\n{result}")).unwrap();
+    let o = results(&dir, &db, &["import", "few.json"]);
+    assert_eq!(
+        stdout(&o),
+        "imported 1 new result, 0 already present\n",
+        "{}",
+        stderr(&o)
+    );
+}
+
 /// An export of a database without results is empty, and an import refused it ("not JSON:
 /// EOF"), and with it every other file of the same import: it imports as no results.
 #[test]
