@@ -522,18 +522,16 @@ enum Event<T> {
 /// tessera's own handler, installed once and then replaced by such a handler, once left
 /// every later render deaf to Ctrl-C. Off the main thread, where Python runs no handler, a
 /// Ctrl-C that `sigint` counts sets the flag, unless Python's handler of it is not a
-/// function; `sigint`'s handler is put in place again at each look, where one installed
-/// during the render took its place.
+/// function; `sigint`'s handler is put in place at each look where it is, in the place of
+/// one installed during the render (or of `SIG_IGN`, the render begun while it was Python's).
 fn interruptible<T: Send + 'static>(
     py: Python<'_>,
     on_pass: Option<&Py<PyAny>>,
     work: impl FnOnce(&AtomicBool, &dyn Fn(NativeImage)) -> Result<T, Failed> + Send + 'static,
 ) -> PyResult<T> {
     let stop = Arc::new(AtomicBool::new(false));
-    let interrupts = if watches_sigint(py)? {
-        let seen = sigint::watch()
-            .map_err(|e| PyRuntimeError::new_err(format!("could not watch for Ctrl-C: {e}")))?;
-        Some(seen)
+    let interrupts = if off_the_main_thread(py)? {
+        Some(watch_sigint(py)?)
     } else {
         None
     };
@@ -611,7 +609,7 @@ where
             },
             Err(RecvTimeoutError::Timeout) => (py.check_signals())
                 .and_then(|()| match interrupts {
-                    Some(_) => watch_sigint_again(py),
+                    Some(_) => watch_sigint(py).map(drop),
                     None => Ok(()),
                 })
                 .err(),
@@ -637,15 +635,13 @@ where
     }
 }
 
-/// Whether Ctrl-C sets a render's flag itself: off the main thread, where Python runs no
-/// signal handler, when Python's handler of it is a function (not `SIG_IGN` or `SIG_DFL`).
-fn watches_sigint(py: Python<'_>) -> PyResult<bool> {
+/// Whether the caller is off the main thread, where Python runs no signal handler: there a
+/// Ctrl-C that `sigint` counts sets a render's flag itself, while Python's handler of it is
+/// a function (not `SIG_IGN` or `SIG_DFL`).
+fn off_the_main_thread(py: Python<'_>) -> PyResult<bool> {
     let threading = py.import("threading")?;
     let current = threading.call_method0("current_thread")?;
-    if current.is(&threading.call_method0("main_thread")?) {
-        return Ok(false);
-    }
-    python_handles_sigint(py)
+    Ok(!current.is(&threading.call_method0("main_thread")?))
 }
 
 /// Whether Python's handler of Ctrl-C is a function.
@@ -656,16 +652,17 @@ fn python_handles_sigint(py: Python<'_>) -> PyResult<bool> {
     Ok(handler.is_callable())
 }
 
-/// Puts `sigint`'s handler in place again, as the render began, where Python's handler of
-/// Ctrl-C is a function: `signal.signal` on the main thread (which `asyncio.run` calls) puts
-/// Python's own in its place, and a render on a thread then went on to its end after
-/// Ctrl-C (still running 60 s later).
-fn watch_sigint_again(py: Python<'_>) -> PyResult<()> {
-    if python_handles_sigint(py)? {
-        sigint::watch()
-            .map_err(|e| PyRuntimeError::new_err(format!("could not watch for Ctrl-C: {e}")))?;
+/// Puts `sigint`'s handler in place, where Python's handler of Ctrl-C is a function, and
+/// says how many Ctrl-Cs it has seen. Called as a render off the main thread begins and at
+/// each look: `signal.signal` on the main thread (which `asyncio.run` calls) puts Python's
+/// own in its place, and a render on a thread then went on to its end after Ctrl-C (still
+/// running 60 s later); so did one begun while Python ignored Ctrl-C, once a handler was
+/// installed during it.
+fn watch_sigint(py: Python<'_>) -> PyResult<u64> {
+    if !python_handles_sigint(py)? {
+        return Ok(sigint::seen());
     }
-    Ok(())
+    sigint::watch().map_err(|e| PyRuntimeError::new_err(format!("could not watch for Ctrl-C: {e}")))
 }
 
 /// What a caught panic said.

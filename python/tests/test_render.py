@@ -390,6 +390,7 @@ def test_ctrl_c_stops_a_render_off_the_main_thread_after_python_s_handler_is_ins
 REPLACED_DURING = textwrap.dedent(
     """
     import os, signal, threading, time, tessera
+    BEFORE
     said = []
     def render():
         try:
@@ -414,9 +415,17 @@ REPLACED_DURING = textwrap.dedent(
 )
 
 
-def test_ctrl_c_stops_a_render_on_a_thread_when_python_s_handler_is_installed_during_it():
+# Begun while Python ignored Ctrl-C, a render on a thread went on to its end after Ctrl-C
+# once a handler was installed during it (still running 5 s later), as the main thread took
+# its KeyboardInterrupt.
+@pytest.mark.parametrize(
+    "before",
+    ["", "signal.signal(signal.SIGINT, signal.SIG_IGN)"],
+    ids=["replaced", "ignored-before"],
+)
+def test_ctrl_c_stops_a_render_on_a_thread_when_python_s_handler_is_installed_during_it(before):
     done = subprocess.run(
-        [sys.executable, "-c", REPLACED_DURING],
+        [sys.executable, "-c", REPLACED_DURING.replace("BEFORE", before)],
         cwd=ROOT,
         capture_output=True,
         text=True,
