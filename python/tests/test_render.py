@@ -209,6 +209,35 @@ def test_other_threads_run_while_an_image_s_arrays_are_made():
             assert ticked >= 3, (name, seconds, ticked)
 
 
+# The recipe of a scene given as 60 MB of text (a long comment) holds that text: its JSON was
+# once written with the interpreter's lock held, every other thread held up 0.5 s.
+def test_other_threads_run_while_an_image_s_recipe_is_written():
+    with open(ROOT / "scenes" / "cover.toml") as f:
+        text = "# " + "x" * (60 << 20) + "\n" + f.read()
+    image = tessera.render(text, width=8, spp=1)
+    ticks = [0]
+    done = threading.Event()
+
+    def tick():
+        while not done.is_set():
+            time.sleep(0.005)
+            ticks[0] += 1
+
+    thread = threading.Thread(target=tick)
+    thread.start()
+    try:
+        time.sleep(0.05)
+        before, started = ticks[0], time.monotonic()
+        recipe = image._native.recipe
+        seconds, ticked = time.monotonic() - started, ticks[0] - before
+    finally:
+        done.set()
+        thread.join()
+    assert len(recipe) > 60 << 20
+    if seconds >= 0.1:
+        assert ticked >= 3, (seconds, ticked)
+
+
 # Forked after a render, as `multiprocessing` does on Linux, a process once inherited rayon's
 # global pool without its threads, and its first render waited for them forever.
 FORKED = textwrap.dedent(
