@@ -140,10 +140,11 @@ impl Server {
                 let stats = Arc::clone(&shared.stats);
                 runtime.block_on(async move {
                     accept_loop(listener, shared).await;
-                    // Connections finish what they are sending, within STOP_GRACE; dropping
-                    // the runtime then closes whatever is still open.
+                    // Connections that have shown the key finish what they are sending, within
+                    // STOP_GRACE; dropping the runtime then closes whatever is still open. One
+                    // that has not (another user's, its request half sent) is not waited for.
                     let until = tokio::time::Instant::now() + STOP_GRACE;
-                    while stats.clients.load(Ordering::Relaxed) > 0
+                    while stats.keyed.load(Ordering::Relaxed) > 0
                         && tokio::time::Instant::now() < until
                     {
                         tokio::time::sleep(Duration::from_millis(10)).await;
@@ -388,16 +389,24 @@ where
     tokio::pin!(connection);
     let mut stopping = shared.stopping.clone();
     tokio::select! {
-        _ = connection.as_mut() => {}
-        _ = tokio::time::sleep(CONNECTION_LIFETIME) => {
-            connection.as_mut().graceful_shutdown();
-            let _ = tokio::time::timeout(GRACE, connection.as_mut()).await;
-        }
-        _ = stopping.changed() => {
+        // The server's stop is seen before anything more the connection sends, and also
+        // when it came before this task first ran.
+        biased;
+        _ = async { drop(stopping.wait_for(|stop| *stop).await) } => {
+            // A connection that never showed the key is closed at once: nothing of the
+            // render is sent on it.
+            if place.waits() {
+                return;
+            }
             // A response being sent finishes (the event stream ends by itself); an idle
             // keep-alive connection closes at once.
             connection.as_mut().graceful_shutdown();
             let _ = tokio::time::timeout(STOP_GRACE, connection.as_mut()).await;
+        }
+        _ = connection.as_mut() => {}
+        _ = tokio::time::sleep(CONNECTION_LIFETIME) => {
+            connection.as_mut().graceful_shutdown();
+            let _ = tokio::time::timeout(GRACE, connection.as_mut()).await;
         }
         // Its place is needed, and it never showed the key: nothing of the render is lost.
         _ = place.leave.notified() => {}
