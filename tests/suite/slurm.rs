@@ -362,72 +362,81 @@ fn the_number_of_tasks_is_read_as_decimal() {
     }
 }
 
-/// podman-tessera mounted each directory with `--volume DIR:DIR`, which Podman splits at `:`
-/// and `,`: a working directory named `a:b,c` broke every task; and it mounted only the
-/// directories of absolute paths, so `../scenes/a.toml` or `--checkpoint=/scratch/c.ckpt`
-/// named a file the container did not have. No Podman needed: a stand-in records its
-/// arguments.
-#[test]
-fn podman_tessera_mounts_the_directory_of_every_path_it_is_given() {
+/// What `deploy/slurm/podman-tessera ARGS`, run in `work`, hands Podman: a stand-in `podman`
+/// (in `dir/bin`) prints its arguments, one a line. No Podman needed.
+fn podman_tessera_hands_podman(
+    dir: &std::path::Path,
+    work: &std::path::Path,
+    args: &[&str],
+) -> Vec<String> {
     use std::os::unix::fs::PermissionsExt;
-    let dir = temp_dir("slurm-podman-mounts");
     let bin = dir.join("bin");
-    let work = dir.join("run: a,\"b\"");
-    for d in [&bin, &work, &dir.join("scenes"), &dir.join("out dir")] {
-        std::fs::create_dir_all(d).unwrap();
-    }
+    std::fs::create_dir_all(&bin).unwrap();
     let podman = bin.join("podman");
     std::fs::write(&podman, "#!/bin/sh\nprintf '%s\\n' \"$@\"\n").unwrap();
     std::fs::set_permissions(&podman, std::fs::Permissions::from_mode(0o755)).unwrap();
-    let out_dir = dir.join("out dir");
-    let checkpoint = format!("--checkpoint={}/c.ckpt", out_dir.display());
     let o = Command::new(root().join("deploy/slurm/podman-tessera"))
-        .args([
-            "render",
-            "../scenes/a.toml",
-            "--shard",
-            "0/4",
-            "-o",
-            "x/y.png",
-        ])
-        .arg(&checkpoint)
+        .args(args)
         .env(
             "PATH",
             format!("{}:{}", bin.display(), std::env::var("PATH").unwrap()),
         )
         .env("CONTAINER", "tessera:test")
-        .current_dir(&work)
+        .current_dir(work)
         .output()
         .expect("run podman-tessera");
     assert!(o.status.success(), "{}", text(&o.stderr));
-    let said = text(&o.stdout);
-    let args: Vec<&str> = said.lines().collect();
-    let mounts: Vec<&str> = (args.windows(2))
+    text(&o.stdout).lines().map(str::to_owned).collect()
+}
+
+/// The `--mount` values among Podman's arguments.
+fn mounts(args: &[String]) -> Vec<&str> {
+    (args.windows(2))
         .filter(|w| w[0] == "--mount")
-        .map(|w| w[1])
-        .collect();
-    // Each a CSV value whose fields are quoted, a quote doubled: one path, whatever it holds.
-    let mount = |path: &std::path::Path| {
-        let field = path.display().to_string().replace('"', "\"\"");
-        format!("type=bind,\"src={field}\",\"dst={field}\"")
-    };
-    let expected = [mount(&work), mount(&dir.join("scenes")), mount(&out_dir)];
-    assert_eq!(mounts, expected, "{said}");
-    assert!(!said.contains("--volume"), "{said}");
+        .map(|w| w[1].as_str())
+        .collect()
+}
+
+/// The mount of `path` at its own path: a CSV value whose fields are quoted, a quote
+/// doubled, so that it is one path whatever it holds.
+fn bind_mount(path: &std::path::Path) -> String {
+    let field = path.display().to_string().replace('"', "\"\"");
+    format!("type=bind,\"src={field}\",\"dst={field}\"")
+}
+
+/// podman-tessera mounted each directory with `--volume DIR:DIR`, which Podman splits at `:`
+/// and `,`: a working directory named `a:b,c` broke every task; and it mounted only the
+/// directories of absolute paths, so `../scenes/a.toml` or `--checkpoint=/scratch/c.ckpt`
+/// named a file the container did not have.
+#[test]
+fn podman_tessera_mounts_the_directory_of_every_path_it_is_given() {
+    let dir = temp_dir("slurm-podman-mounts");
+    let work = dir.join("run: a,\"b\"");
+    let out_dir = dir.join("out dir");
+    for d in [&work, &dir.join("scenes"), &out_dir] {
+        std::fs::create_dir_all(d).unwrap();
+    }
+    let checkpoint = format!("--checkpoint={}/c.ckpt", out_dir.display());
+    let given = [
+        "render",
+        "../scenes/a.toml",
+        "--shard",
+        "0/4",
+        "-o",
+        "x/y.png",
+        &checkpoint,
+    ];
+    let args = podman_tessera_hands_podman(&dir, &work, &given);
+    let expected = [
+        bind_mount(&work),
+        bind_mount(&dir.join("scenes")),
+        bind_mount(&out_dir),
+    ];
+    assert_eq!(mounts(&args), expected, "{args:?}");
+    assert!(!args.iter().any(|a| a == "--volume"), "{args:?}");
     // The arguments reach tessera as they were given.
     let image = args.iter().position(|a| *a == "tessera:test").unwrap();
-    assert_eq!(
-        args[image + 1..],
-        [
-            "render",
-            "../scenes/a.toml",
-            "--shard",
-            "0/4",
-            "-o",
-            "x/y.png",
-            &checkpoint
-        ]
-    );
+    assert_eq!(args[image + 1..], given);
 }
 
 /// A link in the working directory to a directory outside it (`out -> /scratch/out`, as a
@@ -437,41 +446,16 @@ fn podman_tessera_mounts_the_directory_of_every_path_it_is_given() {
 /// mounted too.
 #[test]
 fn podman_tessera_mounts_the_directory_a_path_s_links_lead_to() {
-    use std::os::unix::fs::PermissionsExt;
     let dir = temp_dir("slurm-podman-links");
-    let bin = dir.join("bin");
     let work = dir.join("work");
     let scratch = dir.join("scratch");
     let shared = dir.join("shared");
-    for d in [&bin, &work, &scratch, &shared] {
+    for d in [&work, &scratch, &shared] {
         std::fs::create_dir_all(d).unwrap();
     }
     std::os::unix::fs::symlink(&scratch, work.join("out")).unwrap();
     std::os::unix::fs::symlink(shared.join("a.toml"), work.join("a.toml")).unwrap();
-    let podman = bin.join("podman");
-    std::fs::write(&podman, "#!/bin/sh\nprintf '%s\\n' \"$@\"\n").unwrap();
-    std::fs::set_permissions(&podman, std::fs::Permissions::from_mode(0o755)).unwrap();
-    let o = Command::new(root().join("deploy/slurm/podman-tessera"))
-        .args(["render", "./a.toml", "-o", "out/a.png"])
-        .env(
-            "PATH",
-            format!("{}:{}", bin.display(), std::env::var("PATH").unwrap()),
-        )
-        .env("CONTAINER", "tessera:test")
-        .current_dir(&work)
-        .output()
-        .expect("run podman-tessera");
-    assert!(o.status.success(), "{}", text(&o.stderr));
-    let said = text(&o.stdout);
-    let args: Vec<&str> = said.lines().collect();
-    let mounts: Vec<&str> = (args.windows(2))
-        .filter(|w| w[0] == "--mount")
-        .map(|w| w[1])
-        .collect();
-    let mount = |path: &std::path::Path| {
-        let field = path.display().to_string().replace('"', "\"\"");
-        format!("type=bind,\"src={field}\",\"dst={field}\"")
-    };
-    let expected = [mount(&work), mount(&shared), mount(&scratch)];
-    assert_eq!(mounts, expected, "{said}");
+    let args = podman_tessera_hands_podman(&dir, &work, &["render", "./a.toml", "-o", "out/a.png"]);
+    let expected = [bind_mount(&work), bind_mount(&shared), bind_mount(&scratch)];
+    assert_eq!(mounts(&args), expected, "{args:?}");
 }
