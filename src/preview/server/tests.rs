@@ -65,26 +65,32 @@ fn read_answer(stream: &mut std::net::TcpStream) -> String {
     String::from_utf8_lossy(&got).into_owned()
 }
 
+/// A connection to the server at `addr`; the read timeout is only a guard against hanging.
+fn connect(addr: SocketAddr) -> std::net::TcpStream {
+    let s = std::net::TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
+    s
+}
+
+/// The answer to a GET of `path` on `s`, a connection to the server at `addr`.
+fn ask(s: &mut std::net::TcpStream, addr: SocketAddr, path: &str) -> String {
+    use std::io::Write;
+    write!(s, "GET {path} HTTP/1.1\r\nHost: {addr}\r\n\r\n").unwrap();
+    read_answer(s)
+}
+
 /// Another local user, without the key, opens connection after connection and keeps
 /// them (asking for keyless paths, or saying nothing): each takes the place of none that
 /// showed the key, so the owner's page is still served; only connections that have shown
 /// it fill the server.
 #[test]
 fn clients_without_the_key_cannot_keep_the_owner_out() {
-    use std::io::Write;
     let previewer = blank_previewer();
     let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
     let server = Server::start(listener, previewer.hub()).unwrap();
     let (addr, key) = (server.addr(), server.key().to_owned());
-    let connect = || {
-        let s = std::net::TcpStream::connect(addr).unwrap();
-        s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
-        s
-    };
-    let ask = |s: &mut std::net::TcpStream, path: &str| {
-        write!(s, "GET {path} HTTP/1.1\r\nHost: {addr}\r\n\r\n").unwrap();
-        read_answer(s)
-    };
+    let connect = || connect(addr);
+    let ask = |s: &mut std::net::TcpStream, path: &str| ask(s, addr, path);
     let mut strangers = Vec::new();
     for i in 0..MAX_WAITING + 2 * MAX_CLIENTS {
         let mut s = connect();
@@ -116,22 +122,14 @@ fn clients_without_the_key_cannot_keep_the_owner_out() {
 /// request of the owner's, each on a connection of its own, is answered.
 #[test]
 fn a_flood_of_strangers_closes_no_connection_of_the_owner_s() {
-    use std::io::Write;
     use std::sync::atomic::AtomicBool;
     let previewer = blank_previewer();
     let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
     let server = Server::start(listener, previewer.hub()).unwrap();
     let (addr, key) = (server.addr(), server.key().to_owned());
-    let connect = || {
-        let s = std::net::TcpStream::connect(addr).unwrap();
-        // Only a guard against hanging: every answer is expected, however slow.
-        s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
-        s
-    };
-    let ask = |s: &mut std::net::TcpStream, path: &str| {
-        write!(s, "GET {path} HTTP/1.1\r\nHost: {addr}\r\n\r\n").unwrap();
-        read_answer(s)
-    };
+    // Every answer is expected, however slow.
+    let connect = || connect(addr);
+    let ask = |s: &mut std::net::TcpStream, path: &str| ask(s, addr, path);
     let mut early = connect();
     // Each stranger's answer shows it was accepted after the owner's connection.
     let mut strangers = Vec::new();
