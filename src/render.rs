@@ -196,14 +196,21 @@ pub fn render_job(
     mut control: Control,
 ) -> Result<RenderStats, rayon::ThreadPoolBuildError> {
     let start = Instant::now();
+    let tiles = state.job.region.tiles(state.tile);
+    // A pool holds no more threads than there are tiles to give them: the threads past that
+    // would only look for work, and thousands of them looking (`--threads 4096` for a small
+    // image) cost seconds. Which thread renders a tile changes no byte.
     let pool = match options.threads {
-        Some(n) => Some(rayon::ThreadPoolBuilder::new().num_threads(n).build()?),
+        Some(n) => Some(
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(n.min(tiles.len()).max(1))
+                .build()?,
+        ),
         None => None,
     };
     let threads = pool
         .as_ref()
         .map_or_else(rayon::current_num_threads, |p| p.current_num_threads());
-    let tiles = state.job.region.tiles(state.tile);
     let ends = if control.progressive {
         passes(state.job.samples.len())
     } else {
@@ -687,6 +694,27 @@ mod tests {
             assert_eq!(whole.sums, vec![[u64::MAX; 3]], "{what}");
             assert_eq!(whole.sums, parts, "{what}");
         }
+    }
+
+    /// A pool asked for more threads than the image has tiles holds one a tile (4,096 threads
+    /// for a 4x3 image of 16-pixel tiles took 11 s of looking for work; its 12 tiles take
+    /// 0.05 s), and renders the same sums.
+    #[test]
+    fn a_pool_holds_no_more_threads_than_tiles() {
+        let text = "[image]\nwidth = 64\nheight = 48\nsamples_per_pixel = 1\nmax_depth = 2\n";
+        let scene = Scene::parse(text, Path::new("s.toml"), &Overrides::default()).unwrap();
+        let run = |threads| {
+            let options = RenderOptions {
+                threads: Some(threads),
+                ..RenderOptions::default()
+            };
+            render(&scene, &options, &|_| {}).unwrap()
+        };
+        let (one, stats) = run(1);
+        assert_eq!(stats.threads, 1);
+        let (many, stats) = run(4096);
+        assert_eq!(stats.threads, 12);
+        assert_eq!(one, many);
     }
 
     #[test]
