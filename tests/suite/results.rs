@@ -1500,6 +1500,31 @@ fn history_of_a_machine_spelt_out_whole_is_that_machine_s() {
     assert!(stderr(&o).contains(says), "{}", stderr(&o));
 }
 
+/// An empty selector (`--machine ""`, as a script's unset variable gives) is refused, not
+/// taken as a prefix of every machine, commit or workload.
+#[test]
+fn an_empty_selector_is_refused() {
+    let dir = temp_dir("results-empty-selector");
+    let (db, _) = database_of_one_run(&dir);
+    for args in [
+        &["history", "--machine", ""][..],
+        &["list", "--machine", ""],
+        &["list", "--commit", ""],
+        &["list", "--workload", ""],
+        &["rank", "--workload", ""],
+        &["history", "--workload", ""],
+    ] {
+        let o = results(&dir, &db, args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stdout(&o));
+        let flag = args[1];
+        assert!(
+            stderr(&o).contains(&format!("a value is required for '{flag}")),
+            "{args:?}: {}",
+            stderr(&o)
+        );
+    }
+}
+
 /// The README's steps as a new user takes them: `bench` records the quick workload, and then
 /// `results rank`, `history` and `report` with no flags show that run; two runs on
 /// different SIMD paths compare by their numbers (or `latest~1 latest`).

@@ -12,6 +12,7 @@ use super::output::{count, note, out};
 use super::writable::{check_output, names_database_file};
 use anyhow::{Result, bail};
 use clap::Subcommand;
+use clap::builder::NonEmptyStringValueParser;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -36,13 +37,13 @@ enum ResultsCommand {
     /// their spread, validation (and `busy` where the machine was).
     List {
         /// Only this workload (`quick`, `cover`, `custom`).
-        #[arg(long)]
+        #[arg(long, value_parser = NonEmptyStringValueParser::new())]
         workload: Option<String>,
         /// Only this machine: a machine id's start, or part of a CPU model.
-        #[arg(long)]
+        #[arg(long, value_parser = NonEmptyStringValueParser::new())]
         machine: Option<String>,
         /// Only builds of this commit (its start).
-        #[arg(long)]
+        #[arg(long, value_parser = NonEmptyStringValueParser::new())]
         commit: Option<String>,
         /// At most this many runs.
         #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = super::flags::positive_u32)]
@@ -60,7 +61,7 @@ enum ResultsCommand {
     /// Only `valid` runs unless --all.
     Rank {
         /// Only this workload [default: every workload with runs].
-        #[arg(long)]
+        #[arg(long, value_parser = NonEmptyStringValueParser::new())]
         workload: Option<String>,
         /// Count unvalidated and invalid runs too.
         #[arg(long)]
@@ -75,26 +76,26 @@ enum ResultsCommand {
         a: String,
         b: String,
         /// The workload (default: that of A's newest run).
-        #[arg(long)]
+        #[arg(long, value_parser = NonEmptyStringValueParser::new())]
         workload: Option<String>,
         /// The SIMD path of a machine's or commit's runs (default: that of A's newest run).
-        #[arg(long)]
+        #[arg(long, value_parser = NonEmptyStringValueParser::new())]
         simd: Option<String>,
     },
     /// One machine's speed over commits, flagging a drop beyond the runs' own spread.
     History {
         /// The machine: a machine id's start, or part of a CPU model [default: this machine,
         /// else the newest run's].
-        #[arg(long)]
+        #[arg(long, value_parser = NonEmptyStringValueParser::new())]
         machine: Option<String>,
         /// The workload [default: that of the machine's newest run].
-        #[arg(long)]
+        #[arg(long, value_parser = NonEmptyStringValueParser::new())]
         workload: Option<String>,
         /// The thread count (default: that of the machine's newest run).
         #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = super::flags::recorded_threads)]
         threads: Option<usize>,
         /// The SIMD path (default: that of the machine's newest run).
-        #[arg(long)]
+        #[arg(long, value_parser = NonEmptyStringValueParser::new())]
         simd: Option<String>,
     },
     /// A self-contained HTML report (no script, nothing fetched): for each workload, the
@@ -105,7 +106,7 @@ enum ResultsCommand {
         #[arg(short, long, required = true)]
         output: PathBuf,
         /// Only this workload [default: every workload with runs].
-        #[arg(long)]
+        #[arg(long, value_parser = NonEmptyStringValueParser::new())]
         workload: Option<String>,
         /// Count unvalidated and invalid runs too.
         #[arg(long)]
