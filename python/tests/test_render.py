@@ -2,6 +2,7 @@
 and every figure scene, whatever the threads or SIMD path; progressive passes; Ctrl-C; and
 what the renders return."""
 
+import contextlib
 import os
 import shutil
 import signal
@@ -175,10 +176,10 @@ def test_other_threads_run_while_it_renders():
     assert len(during) >= took / 0.01 / 3, (len(during), took)
 
 
-# Of a 6000x4000 image, `linear`, `srgb8` and `sums` once held the interpreter's lock for
-# 0.76, 0.56 and 0.23 s, every other thread held up as long.
-def test_other_threads_run_while_an_image_s_arrays_are_made():
-    image = tessera.render("scenes/cover.toml", width=6000, spp=1, depth=1)
+@contextlib.contextmanager
+def ticking():
+    """A thread that counts a tick every 5 ms while the interpreter's lock lets it: yields
+    the count (its one item), and stops the thread at the end."""
     ticks = [0]
     done = threading.Event()
 
@@ -189,16 +190,24 @@ def test_other_threads_run_while_an_image_s_arrays_are_made():
 
     thread = threading.Thread(target=tick)
     thread.start()
-    took = {}
     try:
+        yield ticks
+    finally:
+        done.set()
+        thread.join()
+
+
+# Of a 6000x4000 image, `linear`, `srgb8` and `sums` once held the interpreter's lock for
+# 0.76, 0.56 and 0.23 s, every other thread held up as long.
+def test_other_threads_run_while_an_image_s_arrays_are_made():
+    image = tessera.render("scenes/cover.toml", width=6000, spp=1, depth=1)
+    took = {}
+    with ticking() as ticks:
         for name in ("linear", "srgb8", "sums"):
             time.sleep(0.05)
             before, started = ticks[0], time.monotonic()
             getattr(image, name)
             took[name] = (time.monotonic() - started, ticks[0] - before)
-    finally:
-        done.set()
-        thread.join()
     # A call that holds the interpreter's lock throughout lets the other thread tick at most
     # once (it wakes, then waits for the lock until the call returns); one that releases it
     # lets it tick along. Counted, not timed: a loaded machine slows both alike. The linear
@@ -215,24 +224,11 @@ def test_other_threads_run_while_an_image_s_recipe_is_written():
     with open(ROOT / "scenes" / "cover.toml") as f:
         text = "# " + "x" * (60 << 20) + "\n" + f.read()
     image = tessera.render(text, width=8, spp=1)
-    ticks = [0]
-    done = threading.Event()
-
-    def tick():
-        while not done.is_set():
-            time.sleep(0.005)
-            ticks[0] += 1
-
-    thread = threading.Thread(target=tick)
-    thread.start()
-    try:
+    with ticking() as ticks:
         time.sleep(0.05)
         before, started = ticks[0], time.monotonic()
         recipe = image._native.recipe
         seconds, ticked = time.monotonic() - started, ticks[0] - before
-    finally:
-        done.set()
-        thread.join()
     assert len(recipe) > 60 << 20
     if seconds >= 0.1:
         assert ticked >= 3, (seconds, ticked)
