@@ -7,6 +7,7 @@
 use pyo3::exceptions::{PyException, PyFileNotFoundError, PyKeyboardInterrupt, PyOSError};
 use pyo3::exceptions::{PyMemoryError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
+use pyo3::sync::PyOnceLock;
 use pyo3::types::{PyBytes, PyDict};
 use std::panic::AssertUnwindSafe;
 use std::path::{Path, PathBuf};
@@ -646,11 +647,13 @@ fn off_the_main_thread(py: Python<'_>) -> PyResult<bool> {
     Ok(!current.is(&threading.call_method0("main_thread")?))
 }
 
-/// Whether Python's handler of Ctrl-C is a function.
+/// Whether Python's handler of Ctrl-C is a function. Asked at every look of a render off
+/// the main thread: `signal.getsignal` is kept from the first, so a look imports nothing.
 fn python_handles_sigint(py: Python<'_>) -> PyResult<bool> {
-    let handler = py
-        .import("signal")?
-        .call_method1("getsignal", (libc::SIGINT,))?;
+    static GETSIGNAL: PyOnceLock<Py<PyAny>> = PyOnceLock::new();
+    let handler = GETSIGNAL
+        .import(py, "signal", "getsignal")?
+        .call1((libc::SIGINT,))?;
     Ok(handler.is_callable())
 }
 
