@@ -27,6 +27,7 @@ fn temporary_beside(path: &Path) -> std::io::Result<tempfile::NamedTempFile> {
             "the output path has no file name",
         )
     })?;
+    refuse_unnameable(path, name)?;
     // A name near the file system's limit (255 bytes) leaves no room for what the temporary
     // name adds (a dot before, a dot, six characters and `.tmp` after): its start stands for
     // it, so that every name a file may have can be written.
@@ -41,6 +42,32 @@ fn temporary_beside(path: &Path) -> std::io::Result<tempfile::NamedTempFile> {
         .suffix(".tmp")
         .permissions(std::fs::Permissions::from_mode(0o666))
         .tempfile_in(directory_of(path))
+}
+
+/// Refuses a path no file can be renamed to, before anything is written: one that ends in
+/// `/` or `/.` (a directory's form: `Path::file_name` reads `x.png/` as `x.png`, and the
+/// rename at the end failed, "Not a directory"), or whose name is longer than a file
+/// system's 255 bytes ("File name too long"). Both once failed only once the file was
+/// written, after the render, a hidden temporary file of it left behind at each try.
+fn refuse_unnameable(path: &Path, name: &std::ffi::OsStr) -> std::io::Result<()> {
+    use std::os::unix::ffi::OsStrExt;
+    let bytes = path.as_os_str().as_bytes();
+    if bytes.ends_with(b"/") || bytes.ends_with(b"/.") {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::NotADirectory,
+            "ends in `/`, as a directory's name does, not a file's",
+        ));
+    }
+    if name.as_bytes().len() > 255 {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidFilename,
+            format!(
+                "its name is {} bytes long, more than the 255 a file system takes",
+                name.as_bytes().len()
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// True when `path` exists and is neither a file nor a directory: a device such as
@@ -286,6 +313,24 @@ mod tests {
         write_atomically(&p, b"whole").unwrap();
         assert_eq!(std::fs::read(&p).unwrap(), b"whole");
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_name_no_file_can_take_is_refused_before_anything_is_written() {
+        let dir = std::env::temp_dir().join(format!("tessera-unnameable-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let slash = PathBuf::from(format!("{}/out.png/", dir.display()));
+        let dot = PathBuf::from(format!("{}/out.png/.", dir.display()));
+        let long = dir.join(format!("{}.png", "a".repeat(252)));
+        for p in [&slash, &dot, &long] {
+            assert!(check_writable(p).is_err(), "{}", p.display());
+            let written = write_result_atomically_with(p, &mut |out| out.write_all(b"finished"));
+            let e = written.unwrap_err().to_string();
+            assert!(!e.contains("is kept as"), "{e}");
+        }
+        // Nothing was made: no file, no temporary one kept.
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

@@ -387,3 +387,13 @@ def test_a_crash_would_show_here():
                           text=True, timeout=120)
     assert done.returncode == 0, (done.returncode, done.stderr[-2000:])
     assert done.stdout.strip() == "survived"
+
+
+# A name no file can take (`x.png/`, 256 bytes) once failed only at the rename, a hidden
+# temporary file of the image left in the directory at each try.
+@pytest.mark.parametrize("name", ["out.png/", "out.png/.", "a" * 252 + ".png"])
+def test_a_save_to_a_name_no_file_can_take_leaves_nothing(name, tmp_path):
+    image = tessera.render("scenes/cover.toml", width=8, spp=1)
+    with pytest.raises(OSError):
+        image.save(f"{tmp_path}/{name}")
+    assert os.listdir(tmp_path) == []
