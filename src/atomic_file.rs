@@ -102,16 +102,25 @@ fn open_in_place(path: &Path) -> std::io::Result<std::fs::File> {
     options.open(path)
 }
 
-/// Refuses a pipe (FIFO) at `path` that another user owns (neither this user nor root). In
-/// a directory others may write to (`/tmp`), another user can make one under the name an
-/// output will have: writing it in place sent the image to whoever reads it, with no file
-/// made and exit 0, or, with nobody reading, waited forever. The kernel's
-/// `fs.protected_fifos` guards only opens that may create the file, which this is not.
-fn refuse_foreign_pipe(path: &Path) -> std::io::Result<()> {
+/// Refuses to write in place what is at `path` (`is_special`) where that cannot end in a
+/// file written: a pipe (FIFO) that another user owns (neither this user nor root), or a
+/// socket. In a directory others may write to (`/tmp`), another user can make one under the
+/// name an output will have: writing their pipe in place sent the image to whoever reads it,
+/// with no file made and exit 0, or, with nobody reading, waited forever; a socket cannot be
+/// opened at all ("No such device or address"). The kernel's `fs.protected_fifos` guards only
+/// opens that may create the file, which this is not.
+fn refuse_in_place(path: &Path) -> std::io::Result<()> {
     use std::os::unix::fs::{FileTypeExt, MetadataExt};
     let Ok(meta) = std::fs::metadata(path) else {
         return Ok(());
     };
+    if meta.file_type().is_socket() {
+        return Err(std::io::Error::other(format!(
+            "is a socket (uid {}): no file can be written there; remove it or choose another \
+             name",
+            meta.uid()
+        )));
+    }
     if meta.file_type().is_fifo() && owner::is_another_users(meta.uid(), &[]) {
         return Err(std::io::Error::other(format!(
             "is a pipe (FIFO) of another user's (uid {}; this is uid {}): what is written \
@@ -153,7 +162,7 @@ fn refuse_unreplaceable(path: &Path) -> std::io::Result<()> {
 
 /// Checks, before any work is spent on it, that `write_atomically` can write `path`: its
 /// directory exists and takes a new file, and `path` is not a directory (nor another user's
-/// pipe, nor a file this user may not replace).
+/// pipe, nor a socket, nor a file this user may not replace).
 pub fn check_writable(path: &Path) -> Result<()> {
     let io = |cause| Error::Io {
         path: path.to_owned(),
@@ -167,7 +176,7 @@ pub fn check_writable(path: &Path) -> Result<()> {
     }
     if is_special(path) {
         // Written in place; opening a pipe now would wait for its reader.
-        return refuse_foreign_pipe(path).map_err(io);
+        return refuse_in_place(path).map_err(io);
     }
     refuse_unreplaceable(path).map_err(io)?;
     // Created and removed again: the directory takes a new file.
@@ -199,7 +208,8 @@ pub fn write_atomically_with(
 /// where the finished file cannot be renamed into place, it is kept under its temporary
 /// name, which the error gives, rather than removed. In a sticky directory (`/tmp`) another
 /// user can leave a file under the output's name while the render runs, after the check
-/// before it (`check_writable`); the rename then failed and the render's work was lost.
+/// before it (`check_writable`); the rename then failed and the render's work was lost. So
+/// too where a pipe of another user's, or a socket, took the name: nothing is written in it.
 pub fn write_result_atomically_with(
     path: &Path,
     write: &mut dyn FnMut(&mut dyn Write) -> std::io::Result<()>,
@@ -218,11 +228,19 @@ fn write_whole(
         path: path.to_owned(),
         cause,
     };
+    // Where a pipe or socket that cannot be written in place took the output's name since
+    // `check_writable` (another user's, in `/tmp`), a result is still written, to be kept.
+    let mut refused = None;
     if is_special(path) {
-        refuse_foreign_pipe(path).map_err(io)?;
-        let file = open_in_place(path).map_err(io)?;
-        let mut out = std::io::BufWriter::with_capacity(1 << 16, file);
-        return write(&mut out).and_then(|()| out.flush()).map_err(io);
+        match refuse_in_place(path) {
+            Ok(()) => {
+                let file = open_in_place(path).map_err(io)?;
+                let mut out = std::io::BufWriter::with_capacity(1 << 16, file);
+                return write(&mut out).and_then(|()| out.flush()).map_err(io);
+            }
+            Err(why) if keep => refused = Some(why),
+            Err(why) => return Err(io(why)),
+        }
     }
     let tmp = temporary_beside(path).map_err(io)?;
     let mut out = std::io::BufWriter::with_capacity(1 << 16, tmp);
@@ -232,15 +250,21 @@ fn write_whole(
         .into_inner()
         .map_err(|e| io(std::io::IntoInnerError::into_error(e)))?;
     tmp.as_file().sync_all().map_err(io)?;
-    let Err(failed) = tmp.persist(path) else {
-        return Ok(());
+    let (why, tmp) = match refused {
+        Some(why) => (why, tmp),
+        None => match tmp.persist(path) {
+            Ok(_) => return Ok(()),
+            // Why: a file another user holds says so, rather than "Operation not permitted".
+            Err(failed) => (
+                refuse_unreplaceable(path).err().unwrap_or(failed.error),
+                failed.file,
+            ),
+        },
     };
-    // Why: a file another user holds says so, rather than "Operation not permitted".
-    let why = refuse_unreplaceable(path).err().unwrap_or(failed.error);
     if !keep {
         return Err(io(why));
     }
-    let Ok((_, kept)) = failed.file.keep() else {
+    let Ok((_, kept)) = tmp.keep() else {
         return Err(io(why));
     };
     Err(io(std::io::Error::new(
@@ -301,6 +325,37 @@ mod tests {
         let lost = write_atomically(&p, b"a preview");
         assert!(lost.is_err_and(|e| !e.to_string().contains("is kept as")));
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 2);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_socket_or_another_user_s_pipe_at_the_output_is_refused_and_a_result_kept() {
+        let dir = std::env::temp_dir().join(format!("tessera-socket-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("out.png");
+        // A socket (in `/tmp`, another user's) where the output goes: no file can be opened
+        // there, so the check before the work says so.
+        let socket = std::os::unix::net::UnixListener::bind(&p).unwrap();
+        let refused = check_writable(&p).unwrap_err().to_string();
+        assert!(refused.contains("is a socket"), "{refused}");
+        // One made after the check, while the result was made: the result is kept.
+        let kept_of = |failed: String| {
+            let (_, kept) = failed.rsplit_once("the finished file is kept as ").unwrap();
+            assert_eq!(std::fs::read(kept).unwrap(), b"finished", "{failed}");
+            std::fs::remove_file(kept).unwrap();
+        };
+        let failed = write_result_atomically_with(&p, &mut |out| out.write_all(b"finished"));
+        kept_of(failed.unwrap_err().to_string());
+        drop(socket);
+        std::fs::remove_file(&p).unwrap();
+        // Another user's pipe, made during the work (root can give it away).
+        rustix::fs::mkfifoat(rustix::fs::CWD, &p, rustix::fs::Mode::from(0o644)).unwrap();
+        if std::os::unix::fs::chown(&p, Some(65534), Some(65534)).is_ok() {
+            let failed = write_result_atomically_with(&p, &mut |out| out.write_all(b"finished"));
+            let failed = failed.unwrap_err().to_string();
+            assert!(failed.contains("pipe (FIFO) of another user's"), "{failed}");
+            kept_of(failed);
+        }
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
