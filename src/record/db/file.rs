@@ -109,14 +109,18 @@ pub(super) fn whose(
 /// drops every POSIX lock the process holds on it, SQLite's too.
 pub(super) fn recognise(path: &Path) -> Result<()> {
     let shown = path.display();
-    let meta = std::fs::metadata(path)
-        .with_context(|| format!("{shown}: could not open the results database"))?;
-    if !meta.is_file() {
-        bail!("{shown}: not a file: the results database must be one");
-    }
+    // Opened without blocking and checked by its handle: a pipe swapped in for the file
+    // after a look at its name (by another user, in `/tmp`) would wait for a writer forever.
+    let file = match crate::input_file::open_regular(path) {
+        Ok(file) => file,
+        Err(e) if e.kind() == std::io::ErrorKind::InvalidInput => {
+            bail!("{shown}: not a file: the results database must be one ({e})")
+        }
+        Err(e) => return Err(e).context(format!("{shown}: could not open the results database")),
+    };
     let mut head = Vec::with_capacity(HEADER_LEN);
-    std::fs::File::open(path)
-        .and_then(|f| f.take(HEADER_LEN as u64).read_to_end(&mut head))
+    file.take(HEADER_LEN as u64)
+        .read_to_end(&mut head)
         .with_context(|| format!("{shown}: could not read the results database"))?;
     let (application_id, user_version) = match Header::parse(&head) {
         Header::Empty => bail!(
@@ -419,6 +423,62 @@ pub(super) fn links_refused(e: &std::io::Error) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_pipe_swapped_in_for_a_database_is_not_waited_on() {
+        use std::sync::Arc;
+        use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+        let dir = std::env::temp_dir().join(format!("tessera-db-swap-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let (file, pipe, db) = (dir.join("file"), dir.join("pipe"), dir.join("r.db"));
+        std::fs::write(&file, header(100, APPLICATION_ID, SCHEMA_VERSION as u32)).unwrap();
+        rustix::fs::mkfifoat(rustix::fs::CWD, &pipe, rustix::fs::Mode::from(0o644)).unwrap();
+        // Another user, in `/tmp`, puts a file and a pipe in the database's place by turns.
+        let stop = Arc::new(AtomicBool::new(false));
+        let swapper = {
+            let (stop, dir, db) = (Arc::clone(&stop), dir.clone(), db.clone());
+            let (file, pipe) = (file.clone(), pipe.clone());
+            std::thread::spawn(move || {
+                let next = dir.join("next");
+                while !stop.load(Ordering::Relaxed) {
+                    for what in [&file, &pipe] {
+                        let _ = std::fs::remove_file(&next);
+                        std::fs::hard_link(what, &next).unwrap();
+                        std::fs::rename(&next, &db).unwrap();
+                    }
+                }
+            })
+        };
+        const LOOKS: u64 = 20_000;
+        let looked = Arc::new(AtomicU64::new(0));
+        let checker = {
+            let (looked, db) = (Arc::clone(&looked), db.clone());
+            std::thread::spawn(move || {
+                while looked.load(Ordering::Relaxed) < LOOKS {
+                    let _ = recognise(&db);
+                    looked.fetch_add(1, Ordering::Relaxed);
+                }
+            })
+        };
+        // Each look takes microseconds; one that makes no progress for 30 s waits on the pipe.
+        let (mut last, mut since) = (0, Instant::now());
+        while !checker.is_finished() {
+            let now = looked.load(Ordering::Relaxed);
+            if now != last {
+                (last, since) = (now, Instant::now());
+            } else if since.elapsed() > std::time::Duration::from_secs(30) {
+                stop.store(true, Ordering::Relaxed);
+                // Let the waiting open go, so that the test ends.
+                let _ = std::fs::OpenOptions::new().write(true).open(&pipe);
+                panic!("recognise waited on a pipe after {now} looks");
+            }
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        }
+        stop.store(true, Ordering::Relaxed);
+        swapper.join().unwrap();
+        checker.join().unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     /// A header of `len` bytes with `application_id` and `user_version` in it.
     fn header(len: usize, application_id: u32, user_version: u32) -> Vec<u8> {
