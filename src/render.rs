@@ -217,8 +217,8 @@ pub fn render_job(
         vec![state.job.samples.len()]
     };
     let todo = match &pool {
-        Some(p) => p.install(|| plan(scene, state, &ends, options.simd)),
-        None => plan(scene, state, &ends, options.simd),
+        Some(p) => p.install(|| plan(scene, state, &ends, options.simd, control.stop)),
+        None => plan(scene, state, &ends, options.simd, control.stop),
     };
     let work_total: u64 = todo.iter().flatten().map(|t| t.worth).sum();
     let mut left_in_pass: Vec<usize> = todo.iter().map(Vec::len).collect();
@@ -359,8 +359,16 @@ const PROBE_FROM_SPP: u32 = 8;
 /// ETA drawn from it) follows the work rather than the sample count: a tile of sky costs a
 /// fraction of a tile of ground. Tiles keep their raster order: costliest first measured 0.7%
 /// slower on one thread (neighbouring tiles share caches and branch history), and rayon's
-/// stealing already ends a render evenly.
-fn plan(scene: &Scene, state: &JobState, ends: &[u32], simd: simd::Path) -> Vec<Vec<Task>> {
+/// stealing already ends a render evenly. The probes look at `stop` as a render does: once it
+/// is set, the tiles left unprobed cost a sample each (a probe of a costly scene's tiles
+/// once ran on for minutes past a stop, at no look at all).
+fn plan(
+    scene: &Scene,
+    state: &JobState,
+    ends: &[u32],
+    simd: simd::Path,
+    stop: &AtomicBool,
+) -> Vec<Vec<Task>> {
     let samples = |tile: &PixelRect, range: &SampleRange| tile.area() * u64::from(range.len());
     let unfinished = state.unfinished_tiles();
     let probe = unfinished
@@ -371,7 +379,7 @@ fn plan(scene: &Scene, state: &JobState, ends: &[u32], simd: simd::Path) -> Vec<
         .par_iter()
         .map(|(_, tile, _)| {
             if probe {
-                probe_cost(scene, tile, simd)
+                probe_cost(scene, tile, simd, stop).unwrap_or(1.0)
             } else {
                 1.0
             }
@@ -433,8 +441,8 @@ fn plan(scene: &Scene, state: &JobState, ends: &[u32], simd: simd::Path) -> Vec<
 /// The estimated cost of one of `tile`'s samples, in units of a bounce ray: renders a few
 /// samples of up to four pixels at its centre and counts their rays; a sample costs about
 /// half a bounce ray besides (its camera ray, mostly against a short candidate list, and its
-/// set-up). What the probe renders is thrown away.
-fn probe_cost(scene: &Scene, tile: &PixelRect, simd: simd::Path) -> f64 {
+/// set-up). What the probe renders is thrown away. None once `stop` is set.
+fn probe_cost(scene: &Scene, tile: &PixelRect, simd: simd::Path, stop: &AtomicBool) -> Option<f64> {
     let (w, h) = (tile.width.min(2), tile.height.min(2));
     let probe = PixelRect {
         x0: tile.x0 + (tile.width - w) / 2,
@@ -446,9 +454,12 @@ fn probe_cost(scene: &Scene, tile: &PixelRect, simd: simd::Path) -> f64 {
         start: 0,
         end: PROBE_SAMPLES,
     };
-    let rays = render_tile(scene, &probe, range, simd).rays;
+    if stop.load(Ordering::Relaxed) {
+        return None;
+    }
+    let rays = render_tile_unless(scene, &probe, range, simd, Some(stop))?.rays;
     let samples = (probe.area() * u64::from(PROBE_SAMPLES)).max(1);
-    0.5 + (rays as f64 / samples as f64 - 1.0).max(0.0)
+    Some(0.5 + (rays as f64 / samples as f64 - 1.0).max(0.0))
 }
 
 /// Finished tiles on their way from a worker to the thread folding them into the job's
@@ -715,6 +726,33 @@ mod tests {
         let (many, stats) = run(4096);
         assert_eq!(stats.threads, 12);
         assert_eq!(one, many);
+    }
+
+    /// The plan probes each tile unless the render is already stopped: a stop set before
+    /// (or while) it probes leaves every tile left at a sample's cost, its worth its samples.
+    /// The probes once ignored the stop: a scene of tiles whose paths take minutes each (a
+    /// fog of 65,536 bounces among 30,000 coincident spheres) probed on for minutes past a
+    /// Ctrl-C or a reproduce's time budget.
+    #[test]
+    fn a_plan_probes_no_tile_once_the_render_is_stopped() {
+        // 32x16 pixels of two tiles: the left one sees a wall, whose paths bounce, the right
+        // one the sky.
+        let text = "[image]\nwidth = 32\nheight = 16\nsamples_per_pixel = 16\nmax_depth = 50\n\
+                    [camera]\nlookfrom = [0.0, 0.0, 0.0]\nlookat = [0.0, 0.0, -1.0]\n\
+                    vfov_deg = 40.0\n\
+                    [materials.w]\ntype = \"lambertian\"\nalbedo = [0.9, 0.9, 0.9]\n\
+                    [[quads]]\ncorner = [-100.0, -100.0, -1.0]\nu = [100.0, 0.0, 0.0]\n\
+                    v = [0.0, 200.0, 0.0]\nmaterial = \"w\"\n";
+        let scene = Scene::parse(text, Path::new("wall.toml"), &Overrides::default()).unwrap();
+        let state = JobState::new(Job::whole(&scene), 16);
+        let worths = |stop: bool| -> Vec<u64> {
+            let stop = AtomicBool::new(stop);
+            let tasks = plan(&scene, &state, &[16], simd::Path::best(), &stop);
+            tasks.iter().flatten().map(|t| t.worth).collect()
+        };
+        let probed = worths(false);
+        assert!(probed[0] > probed[1], "{probed:?}");
+        assert_eq!(worths(true), vec![16 * 16 * 16; 2]);
     }
 
     #[test]
