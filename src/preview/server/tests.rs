@@ -252,3 +252,118 @@ fn download_names_are_plain() {
     assert_eq!(safe_name(".hidden"), "hidden.png");
     assert_eq!(safe_name("é"), "render.png");
 }
+
+/// A connection over an in-memory pipe that counts the bytes the server has read from it.
+struct Counted {
+    pipe: tokio::io::DuplexStream,
+    read: Arc<AtomicUsize>,
+}
+
+impl tokio::io::AsyncRead for Counted {
+    fn poll_read(
+        mut self: std::pin::Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+        buf: &mut tokio::io::ReadBuf<'_>,
+    ) -> std::task::Poll<std::io::Result<()>> {
+        let before = buf.filled().len();
+        let polled = std::pin::Pin::new(&mut self.pipe).poll_read(cx, buf);
+        let n = buf.filled().len() - before;
+        self.read.fetch_add(n, Ordering::Relaxed);
+        polled
+    }
+}
+
+impl tokio::io::AsyncWrite for Counted {
+    fn poll_write(
+        mut self: std::pin::Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+        buf: &[u8],
+    ) -> std::task::Poll<std::io::Result<usize>> {
+        std::pin::Pin::new(&mut self.pipe).poll_write(cx, buf)
+    }
+
+    fn poll_flush(
+        mut self: std::pin::Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+    ) -> std::task::Poll<std::io::Result<()>> {
+        std::pin::Pin::new(&mut self.pipe).poll_flush(cx)
+    }
+
+    fn poll_shutdown(
+        mut self: std::pin::Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+    ) -> std::task::Poll<std::io::Result<()>> {
+        std::pin::Pin::new(&mut self.pipe).poll_shutdown(cx)
+    }
+}
+
+/// Another local user's request, its line sent before the server stops and the rest after:
+/// at the stop the connection is closed, unanswered, whether the server had read the line
+/// (hyper then counts the request as begun and would finish it) or its task had not run
+/// since it was accepted. Each step is taken on one thread, in order, over in-memory pipes:
+/// on sockets, which the server reads first, the line or the stop, is the scheduler's to say.
+#[test]
+fn a_stranger_s_request_finished_after_the_stop_is_not_answered() {
+    const LINE: &[u8] = b"GET /x HTTP/1.1\r\n";
+    const REST: &[u8] = b"Host: 127.0.0.1:8000\r\n\r\n";
+    let previewer = blank_previewer();
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_time()
+        .build()
+        .unwrap();
+    let (stop, stopping) = tokio::sync::watch::channel(false);
+    let shared = Arc::new(Shared {
+        hub: previewer.hub(),
+        addr: SocketAddr::from(([127, 0, 0, 1], 8000)),
+        key: KEY.to_owned(),
+        page: page_of(RUN_IN_MEMORY),
+        run: RUN_IN_MEMORY.to_owned(),
+        stats: Arc::new(ServerStats::default()),
+        png: Mutex::new(None),
+        patch: Mutex::new(None),
+        stopping,
+    });
+    // The stranger's connection, served as the accept loop serves one.
+    let connect = || {
+        let (client, pipe) = tokio::io::duplex(64 << 10);
+        let read = Arc::new(AtomicUsize::new(0));
+        let server_side = Counted {
+            pipe,
+            read: Arc::clone(&read),
+        };
+        let place = Place::enter(&shared.stats);
+        (client, server_side, read, place)
+    };
+    let answer_to_rest = |mut client: tokio::io::DuplexStream| async move {
+        let _ = client.write_all(REST).await;
+        let mut answer = Vec::new();
+        let _ = client.read_to_end(&mut answer).await;
+        String::from_utf8_lossy(&answer).into_owned()
+    };
+    runtime.block_on(async {
+        // Its line read before the stop, the rest sent after, before its task runs again.
+        let (mut client, server_side, read, place) = connect();
+        let served = tokio::spawn(serve(server_side, Arc::clone(&shared), place));
+        client.write_all(LINE).await.unwrap();
+        for _ in 0..1000 {
+            if read.load(Ordering::Relaxed) == LINE.len() {
+                break;
+            }
+            tokio::task::yield_now().await;
+        }
+        assert_eq!(read.load(Ordering::Relaxed), LINE.len());
+        stop.send(true).unwrap();
+        let answer = answer_to_rest(client).await;
+        assert!(answer.is_empty(), "{answer}");
+        served.await.unwrap();
+
+        // Accepted just before the stop, its task first run after it.
+        let (mut client, server_side, _, place) = connect();
+        client.write_all(LINE).await.unwrap();
+        let served = tokio::spawn(serve(server_side, Arc::clone(&shared), place));
+        let answer = answer_to_rest(client).await;
+        assert!(answer.is_empty(), "{answer}");
+        served.await.unwrap();
+    });
+    assert_eq!(shared.stats.clients.load(Ordering::Relaxed), 0);
+}
