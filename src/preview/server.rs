@@ -221,6 +221,29 @@ struct Shared {
     stopping: tokio::sync::watch::Receiver<bool>,
 }
 
+impl Shared {
+    /// What an in-memory connection's tasks share (`answer_in_memory`, the tests): the run's
+    /// token is `RUN_IN_MEMORY`.
+    fn in_memory(
+        hub: Arc<Hub>,
+        addr: SocketAddr,
+        key: &str,
+        stopping: tokio::sync::watch::Receiver<bool>,
+    ) -> Arc<Self> {
+        Arc::new(Self {
+            hub,
+            addr,
+            key: key.to_owned(),
+            page: page_of(RUN_IN_MEMORY),
+            run: RUN_IN_MEMORY.to_owned(),
+            stats: Arc::new(ServerStats::default()),
+            png: Mutex::new(None),
+            patch: Mutex::new(None),
+            stopping,
+        })
+    }
+}
+
 async fn accept_loop(listener: tokio::net::TcpListener, shared: Arc<Shared>) {
     let mut stopping = shared.stopping.clone();
     // The places of connections that have not shown the key, oldest first; those that have
@@ -432,17 +455,7 @@ pub fn answer_in_memory(
         .enable_time()
         .build()?;
     let (_shutdown, stopping) = tokio::sync::watch::channel(false);
-    let shared = Arc::new(Shared {
-        hub,
-        addr,
-        key: key.to_owned(),
-        page: page_of(RUN_IN_MEMORY),
-        run: RUN_IN_MEMORY.to_owned(),
-        stats: Arc::new(ServerStats::default()),
-        png: Mutex::new(None),
-        patch: Mutex::new(None),
-        stopping,
-    });
+    let shared = Shared::in_memory(hub, addr, key, stopping);
     runtime.block_on(async move {
         let until = tokio::time::Instant::now() + at_most;
         let (client_side, server_side) = tokio::io::duplex(64 << 10);

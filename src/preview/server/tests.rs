@@ -312,17 +312,8 @@ fn a_stranger_s_request_finished_after_the_stop_is_not_answered() {
         .build()
         .unwrap();
     let (stop, stopping) = tokio::sync::watch::channel(false);
-    let shared = Arc::new(Shared {
-        hub: previewer.hub(),
-        addr: SocketAddr::from(([127, 0, 0, 1], 8000)),
-        key: KEY.to_owned(),
-        page: page_of(RUN_IN_MEMORY),
-        run: RUN_IN_MEMORY.to_owned(),
-        stats: Arc::new(ServerStats::default()),
-        png: Mutex::new(None),
-        patch: Mutex::new(None),
-        stopping,
-    });
+    let addr = SocketAddr::from(([127, 0, 0, 1], 8000));
+    let shared = Shared::in_memory(previewer.hub(), addr, KEY, stopping);
     // The stranger's connection, served as the accept loop serves one.
     let connect = || {
         let (client, pipe) = tokio::io::duplex(64 << 10);
