@@ -576,6 +576,63 @@ fn a_checkpoint_on_a_full_disk_warns_once_and_the_image_is_still_written() {
     assert_eq!(bytes(&dir, "full.png"), straight);
 }
 
+/// A render with a checkpoint whose output is the user's own pipe (FIFO) with no reader
+/// waits for one in `open`, where a Ctrl-C only sets the stop flag: it waited through every
+/// SIGINT and SIGTERM, ended only by SIGKILL. A second Ctrl-C ends it (exit 130), the pipe
+/// left a pipe.
+#[test]
+fn a_second_ctrl_c_ends_a_render_waiting_on_its_output() {
+    let dir = temp_dir("second-ctrl-c");
+    let made = Command::new("mkfifo").arg(dir.join("out.ppm")).status();
+    assert!(made.is_ok_and(|s| s.success()), "mkfifo");
+    let cover = cover();
+    let args = [
+        "render",
+        &cover,
+        "-q",
+        "--width",
+        "16",
+        "--spp",
+        "1",
+        "--checkpoint",
+        "c.ckpt",
+        "-o",
+        "out.ppm",
+    ];
+    let mut child = spawn(&args, &dir);
+    let pid = child.id().to_string();
+    let start = std::time::Instant::now();
+    // The finished checkpoint is saved just before the output is opened: from then on the
+    // render is over, and a Ctrl-C has nothing to stop.
+    while !dir.join("c.ckpt").exists() {
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "it ended before its output"
+        );
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "no checkpoint saved"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // Ctrl-C every 100 ms until it ends: signals sent close together may arrive as one, so
+    // the count sent says nothing; that it ends does.
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        if start.elapsed() > Duration::from_secs(120) {
+            let _ = child.kill();
+            panic!("the render did not end on Ctrl-C");
+        }
+        let _ = Command::new("kill").args(["-INT", &pid]).status();
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    assert_eq!(status.code(), Some(130), "{status}");
+    let fifo = std::fs::symlink_metadata(dir.join("out.ppm")).unwrap();
+    assert!(std::os::unix::fs::FileTypeExt::is_fifo(&fifo.file_type()));
+}
+
 /// *The Next Week*'s final scene (every new kind of primitive, texture, motion blur and
 /// media at once) obeys the same contract: sample shards, row shards and a render killed and
 /// resumed all give the single render's bytes.

@@ -216,8 +216,14 @@ pub fn run(args: Args) -> Result<ExitCode> {
     };
     let stop = Arc::new(AtomicBool::new(false));
     if checkpoint.is_some() {
+        // The first Ctrl-C or SIGTERM stops the render, which saves its checkpoint; a second
+        // ends the process at once (exit 130), where the first finds it waiting on what no
+        // signal interrupts (an output that is this user's pipe with no reader: once deaf to
+        // every signal but SIGKILL). Registered first, the exit looks at the flag before the
+        // first signal sets it.
         for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-            signal_hook::flag::register(signal, Arc::clone(&stop))
+            signal_hook::flag::register_conditional_shutdown(signal, 130, Arc::clone(&stop))
+                .and_then(|_| signal_hook::flag::register(signal, Arc::clone(&stop)))
                 .context("could not install the signal handler")?;
         }
     }
