@@ -199,8 +199,7 @@ impl RgbImage {
                 }
                 // The decoder fills what a file cut short lacks with grey rather than
                 // failing: a JPEG must end (as a texture must).
-                image::ImageFormat::Jpeg => {
-                    let changes = jpeg_display_changes(&mut file);
+                image::ImageFormat::Jpeg => jpeg_display_changes(&mut file).and_then(|changes| {
                     file.seek(std::io::SeekFrom::Start(0))
                         .and_then(|_| jpeg_ends(&mut file))
                         .map_err(|e| format!("could not be read: {e}"))
@@ -211,7 +210,7 @@ impl RgbImage {
                                     .to_owned()
                             })
                         })
-                }
+                }),
                 _ => crate::exr_header::display_changes(&mut file, len),
             };
             display_changes = walked.map_err(fail)?;
@@ -267,10 +266,24 @@ const JPEG_ICC_PROFILE: &str = "an ICC colour profile (an APP2 segment)";
 /// CMYK to the decoder. A file that is not a JPEG as far as its pixels is its decoder's to
 /// refuse. A colour profile is listed wherever libjpeg finds one (an APP2 segment of 14
 /// bytes or more, named ICC_PROFILE): the decoder takes none split over 255 segments, or
-/// with a segment of no bytes of the profile, where libjpeg takes it whole.
-fn jpeg_display_changes<R: std::io::Read + Seek>(r: &mut std::io::BufReader<R>) -> Vec<String> {
+/// with a segment of no bytes of the profile, where libjpeg takes it whole. An EXIF
+/// orientation the decoder does not read (one of type LONG, or of more than one value, or
+/// in IFD1, the thumbnail's, or a second one in IFD0), which libexif reads, is listed
+/// unless it says upright; an EXIF segment whose IFDs or values lie past its end is refused.
+fn jpeg_display_changes<R: std::io::Read + Seek>(
+    r: &mut std::io::BufReader<R>,
+) -> std::result::Result<Vec<String>, String> {
     let segments = jpeg_segments(r).unwrap_or_default();
     let mut changes = Vec::new();
+    if let Some(fault) = segments.exif_fault {
+        return Err(fault);
+    }
+    if let Some(odd) = segments.odd_orientation {
+        changes.push(format!(
+            "an EXIF orientation {odd}, which libexif, and the viewers built on it, read \
+             otherwise than the decoder: it turns or flips the picture"
+        ));
+    }
     if segments.exif >= 2 {
         changes.push(format!(
             "{} EXIF segments (APP1), each of which can turn or flip the picture: viewers \
@@ -308,7 +321,7 @@ fn jpeg_display_changes<R: std::io::Read + Seek>(r: &mut std::io::BufReader<R>) 
     if segments.icc > 0 {
         changes.push(JPEG_ICC_PROFILE.to_owned());
     }
-    changes
+    Ok(changes)
 }
 
 /// Whether the JPEG `r` is at the start of has an end-of-image marker (FF D9) after its
@@ -339,6 +352,12 @@ fn jpeg_ends<R: std::io::Read>(r: &mut std::io::BufReader<R>) -> std::io::Result
 struct JpegSegments {
     /// Its EXIF segments (APP1).
     exif: usize,
+    /// What its first EXIF segment that does not read says of it: an IFD or a value past
+    /// its end, or no TIFF header.
+    exif_fault: Option<String>,
+    /// An orientation of its EXIF segments that libexif reads otherwise than the decoder and
+    /// that does not say upright, described.
+    odd_orientation: Option<String>,
     /// Its segments (APP2) of a colour profile, as libjpeg takes one (14 bytes or more).
     icc: usize,
     /// Whether it has a JFIF segment (APP0) libjpeg reads as one (14 bytes or more).
@@ -395,7 +414,28 @@ fn jpeg_segments<R: std::io::Read + Seek>(
         r.read_exact(&mut head[..n])?;
         let head = &head[..n];
         match byte[0] {
-            0xe1 if head.starts_with(b"Exif\0\0") => seen.exif += 1,
+            0xe1 if head.starts_with(b"Exif\0\0") => {
+                seen.exif += 1;
+                // A segment's length is two bytes: at most 64 KiB is read.
+                let mut tiff = head[6..].to_vec();
+                let more = u64::try_from(rest).unwrap_or(0) - n as u64;
+                r.by_ref().take(more).read_to_end(&mut tiff)?;
+                if tiff.len() as u64 != more + n as u64 - 6 {
+                    return Err(std::io::ErrorKind::UnexpectedEof.into());
+                }
+                match exif_orientations(&tiff) {
+                    Err(why) if seen.exif_fault.is_none() => {
+                        seen.exif_fault = Some(format!(
+                            "has an EXIF segment (APP1) that does not read: {why}"
+                        ));
+                    }
+                    Ok(found) if seen.odd_orientation.is_none() => {
+                        seen.odd_orientation = odd_orientation(&found);
+                    }
+                    _ => {}
+                }
+                continue;
+            }
             0xe2 if head.starts_with(b"ICC_PROFILE\0") && n >= 14 => seen.icc += 1,
             0xe0 if head.starts_with(b"JFIF\0") && n >= 14 => seen.jfif = true,
             0xee if head.starts_with(b"Adobe") && n >= 12 => seen.adobe_transform = Some(head[11]),
@@ -410,6 +450,135 @@ fn jpeg_segments<R: std::io::Read + Seek>(
         r.seek_relative(rest.max(0) - n as i64)?;
     }
     Ok(seen)
+}
+
+/// An EXIF orientation entry (tag 0x0112): the IFD it is in (0 or 1), its type, its count
+/// and its first value as libexif reads it (`None` for a type libexif does not read as a
+/// number), in the order of the entries.
+struct ExifOrientation {
+    ifd: u8,
+    kind: u16,
+    count: u32,
+    value: Option<u16>,
+}
+
+/// The orientation entries of the TIFF structure `tiff` (an EXIF segment past its
+/// "Exif\0\0"), in its IFD0 and IFD1 (the one IFD0 says is next, as libexif reads; no
+/// further), or why it does not read: no TIFF header, an IFD, its entries or an
+/// orientation's value past its end. No count it claims is allocated for.
+fn exif_orientations(tiff: &[u8]) -> std::result::Result<Vec<ExifOrientation>, String> {
+    let big = match tiff.get(..4) {
+        Some(b"II*\0") => false,
+        Some(b"MM\0*") => true,
+        _ => return Err("no TIFF header ('II*' or 'MM*') after its \"Exif\"".to_owned()),
+    };
+    let u16_at = |at: usize| {
+        let b = tiff.get(at..at.checked_add(2)?)?;
+        Some(if big {
+            u16::from_be_bytes([b[0], b[1]])
+        } else {
+            u16::from_le_bytes([b[0], b[1]])
+        })
+    };
+    let u32_at = |at: usize| {
+        let b: [u8; 4] = tiff.get(at..at.checked_add(4)?)?.try_into().ok()?;
+        Some(if big {
+            u32::from_be_bytes(b)
+        } else {
+            u32::from_le_bytes(b)
+        })
+    };
+    let past = |what: String| format!("it ends ({} bytes) before {what}", tiff.len());
+    let mut found = Vec::new();
+    let mut at = u32_at(4).unwrap_or(0) as usize;
+    for ifd in 0..2u8 {
+        let entries = u16_at(at).ok_or_else(|| past(format!("its IFD{ifd} (at byte {at})")))?;
+        let table = at + 2;
+        if tiff.len() < table + 12 * usize::from(entries) {
+            return Err(past(format!(
+                "the {entries} entries of its IFD{ifd} (from byte {table})"
+            )));
+        }
+        for entry in (0..usize::from(entries)).map(|i| table + 12 * i) {
+            if u16_at(entry) != Some(0x0112) {
+                continue;
+            }
+            let (kind, count) = (
+                u16_at(entry + 2).unwrap_or(0),
+                u32_at(entry + 4).unwrap_or(0),
+            );
+            let size = match kind {
+                1 | 6 => 1,
+                3 | 8 => 2,
+                4 | 9 => 4,
+                _ => 0,
+            };
+            let bytes = u64::from(count) * size;
+            let value = if bytes == 0 {
+                None
+            } else {
+                let from = if bytes <= 4 {
+                    entry + 8
+                } else {
+                    u32_at(entry + 8).unwrap_or(0) as usize
+                };
+                let value = match size {
+                    1 => tiff.get(from).map(|&b| u16::from(b)),
+                    2 => u16_at(from),
+                    _ => u32_at(from).map(|v| v as u16),
+                };
+                if value.is_none() || (from as u64).saturating_add(bytes) > tiff.len() as u64 {
+                    return Err(past(format!(
+                        "the {count} values of its IFD{ifd}'s orientation (at byte {from})"
+                    )));
+                }
+                value
+            };
+            found.push(ExifOrientation {
+                ifd,
+                kind,
+                count,
+                value,
+            });
+        }
+        match u32_at(table + 12 * usize::from(entries)) {
+            Some(0) | None => break,
+            Some(next) => at = next as usize,
+        }
+    }
+    Ok(found)
+}
+
+/// What is said of the orientation entries `found`, if libexif reads one the decoder does
+/// not (the decoder reads the first in IFD0 of type SHORT and one value) and it does not
+/// say upright (1).
+fn odd_orientation(found: &[ExifOrientation]) -> Option<String> {
+    let plain = |o: &ExifOrientation| o.ifd == 0 && o.kind == 3 && o.count == 1;
+    if let [only] = found
+        && plain(only)
+    {
+        return None;
+    }
+    let odd = found.iter().find(|o| o.value != Some(1))?;
+    let value = odd.value.map_or("no number".to_owned(), |v| v.to_string());
+    let also = if found.len() > 1 {
+        format!(", one of {} orientation entries", found.len())
+    } else {
+        String::new()
+    };
+    let kind = match odd.kind {
+        1 => "BYTE".to_owned(),
+        3 => "SHORT".to_owned(),
+        4 => "LONG".to_owned(),
+        6 => "SBYTE".to_owned(),
+        8 => "SSHORT".to_owned(),
+        9 => "SLONG".to_owned(),
+        kind => format!("type {kind}"),
+    };
+    Some(format!(
+        "({value}) in IFD{}, a {kind} of {} value(s){also}",
+        odd.ifd, odd.count
+    ))
 }
 
 /// What a decoder's failure says of the file: a file that ends within its pixels says so
@@ -908,6 +1077,100 @@ mod tests {
         let cut = cut.map(|e| e.to_string()).unwrap_or_default();
         assert!(cut.contains("ends before its image does"), "{cut}");
         assert_eq!(after.unwrap().rmse, 0.0);
+    }
+
+    /// libexif (and eog, and the viewers built on it) reads an orientation of type LONG,
+    /// of two values, the first of two in IFD0, or one in IFD1 (the thumbnail's) and turns
+    /// the picture by it; the decoder reads only the first SHORT of one value in IFD0: such
+    /// pictures were once called identical. They are listed; an EXIF segment whose IFDs lie
+    /// past its end is refused, and one whose IFD1 is its IFD0 again is walked once more.
+    #[test]
+    fn a_jpeg_orientation_libexif_reads_is_listed() {
+        let jpeg = include_bytes!("../scenes/earthmap.jpg");
+        // A TIFF header (`big` or little-endian), IFD0 at byte 8 of `ifd0` entries (tag,
+        // type, count, value) and then IFD1 of `ifd1` entries, if any.
+        let exif = |big: bool, ifd0: &[(u16, u16, u32, u32)], ifd1: &[(u16, u16, u32, u32)]| {
+            let (u16b, u32b) = if big {
+                (
+                    u16::to_be_bytes as fn(u16) -> [u8; 2],
+                    u32::to_be_bytes as fn(u32) -> [u8; 4],
+                )
+            } else {
+                (
+                    u16::to_le_bytes as fn(u16) -> [u8; 2],
+                    u32::to_le_bytes as fn(u32) -> [u8; 4],
+                )
+            };
+            let ifd = |entries: &[(u16, u16, u32, u32)], next: u32| {
+                let mut out = u16b(entries.len() as u16).to_vec();
+                for &(tag, kind, count, value) in entries {
+                    out.extend([u16b(tag), u16b(kind)].concat());
+                    out.extend(u32b(count));
+                    out.extend(if kind == 3 {
+                        [u16b(value as u16), [0, 0]].concat()
+                    } else {
+                        u32b(value).to_vec()
+                    });
+                }
+                out.extend(u32b(next));
+                out
+            };
+            let next = if ifd1.is_empty() {
+                0
+            } else {
+                8 + 6 + 12 * ifd0.len() as u32
+            };
+            let mut segment = [&b"Exif\0\0"[..], if big { b"MM\0*" } else { b"II*\0" }].concat();
+            segment.extend(u32b(8));
+            segment.extend(ifd(ifd0, next));
+            if !ifd1.is_empty() {
+                segment.extend(ifd(ifd1, 0));
+            }
+            let length = u16::try_from(segment.len() + 2).unwrap().to_be_bytes();
+            [&jpeg[..2], &[0xff, 0xe1], &length, &segment, &jpeg[2..]].concat()
+        };
+        let turned = |name: &str, file: &[u8]| {
+            let changes = listed(name, ("a.jpg", jpeg), ("b.jpg", file));
+            assert!(
+                changes.len() == 1 && changes[0].contains("libexif"),
+                "{name}: {changes:?}"
+            );
+        };
+        for big in [false, true] {
+            turned("jpeg-exif-long", &exif(big, &[(0x112, 4, 1, 6)], &[]));
+            turned("jpeg-exif-count", &exif(big, &[(0x112, 3, 2, 6)], &[]));
+            let first_long = [(0x112, 4, 1, 6), (0x112, 3, 1, 1)];
+            turned("jpeg-exif-twice", &exif(big, &first_long, &[]));
+            turned(
+                "jpeg-exif-ifd1",
+                &exif(big, &[(0x10f, 3, 1, 0)], &[(0x112, 3, 1, 8)]),
+            );
+            let upright = exif(big, &[(0x112, 4, 1, 1)], &[(0x112, 3, 1, 1)]);
+            assert!(listed("jpeg-exif-upright", ("a.jpg", jpeg), ("b.jpg", &upright)).is_empty());
+        }
+        // IFD1 is IFD0 again (a loop): walked twice, its orientation says upright.
+        let mut looped = exif(false, &[(0x112, 3, 1, 1)], &[]);
+        let at = 2 + 4 + 6 + 8 + 2 + 12;
+        looped[at..at + 4].copy_from_slice(&8u32.to_le_bytes());
+        assert!(listed("jpeg-exif-loop", ("a.jpg", jpeg), ("b.jpg", &looped)).is_empty());
+        // IFD0 past the segment's end; 65535 entries in a segment of one.
+        let dir = std::env::temp_dir().join(format!("tessera-exif-past-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut far = exif(false, &[(0x112, 3, 1, 6)], &[]);
+        far[2 + 4 + 6 + 4..][..4].copy_from_slice(&60000u32.to_le_bytes());
+        let mut many = exif(false, &[(0x112, 3, 1, 6)], &[]);
+        many[2 + 4 + 6 + 8..][..2].copy_from_slice(&u16::MAX.to_le_bytes());
+        for (name, file, says) in [
+            ("far.jpg", far, "its IFD0 (at byte 60000)"),
+            ("many.jpg", many, "65535 entries"),
+        ] {
+            std::fs::write(dir.join(name), file).unwrap();
+            let err = difference_of_files(&dir.join(name), &dir.join(name))
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains("EXIF segment") && err.contains(says), "{err}");
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     /// Browsers read a JPEG's first EXIF segment, its decoder the last: a first one saying
