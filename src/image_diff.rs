@@ -199,18 +199,26 @@ impl RgbImage {
                 }
                 // The decoder fills what a file cut short lacks with grey rather than
                 // failing: a JPEG must end (as a texture must).
-                image::ImageFormat::Jpeg => jpeg_display_changes(&mut file).and_then(|changes| {
-                    file.seek(std::io::SeekFrom::Start(0))
-                        .and_then(|_| jpeg_ends(&mut file))
-                        .map_err(|e| format!("could not be read: {e}"))
-                        .and_then(|ends| {
-                            ends.then_some(changes).ok_or_else(|| {
-                                "ends before its image does (a truncated file?): no end \
+                // The end is looked for from the first scan, where the walk stopped, or from
+                // the start where it stopped elsewhere.
+                image::ImageFormat::Jpeg => {
+                    jpeg_display_changes(&mut file).and_then(|(changes, at_scan)| {
+                        let from = if at_scan {
+                            Ok(())
+                        } else {
+                            file.seek(std::io::SeekFrom::Start(0)).map(drop)
+                        };
+                        from.and_then(|()| jpeg_ends(&mut file, at_scan))
+                            .map_err(|e| format!("could not be read: {e}"))
+                            .and_then(|ends| {
+                                ends.then_some(changes).ok_or_else(|| {
+                                    "ends before its image does (a truncated file?): no end \
                                  marker after its last scan"
-                                    .to_owned()
+                                        .to_owned()
+                                })
                             })
-                        })
-                }),
+                    })
+                }
                 _ => crate::exr_header::display_changes(&mut file, len),
             };
             display_changes = walked.map_err(fail)?;
@@ -266,13 +274,14 @@ const JPEG_ICC_PROFILE: &str = "an ICC colour profile (an APP2 segment)";
 /// CMYK to the decoder. A file that is not a JPEG as far as its pixels is its decoder's to
 /// refuse. A colour profile is listed wherever libjpeg finds one (an APP2 segment of 14
 /// bytes or more, named ICC_PROFILE): the decoder takes none split over 255 segments, or
-/// with a segment of no bytes of the profile, where libjpeg takes it whole. An EXIF
+/// with a segment of no bytes of the profile, where libjpeg takes it whole. Also whether
+/// `r` is left just past the first scan's marker (FF DA). An EXIF
 /// orientation the decoder does not read (one of type LONG, or of more than one value, or
 /// in IFD1, the thumbnail's, or a second one in IFD0), which libexif reads, is listed
 /// unless it says upright; an EXIF segment whose IFDs or values lie past its end is refused.
 fn jpeg_display_changes<R: std::io::Read + Seek>(
     r: &mut std::io::BufReader<R>,
-) -> std::result::Result<Vec<String>, String> {
+) -> std::result::Result<(Vec<String>, bool), String> {
     let segments = jpeg_segments(r).unwrap_or_default();
     let mut changes = Vec::new();
     if let Some(fault) = segments.exif_fault {
@@ -321,14 +330,18 @@ fn jpeg_display_changes<R: std::io::Read + Seek>(
     if segments.icc > 0 {
         changes.push(JPEG_ICC_PROFILE.to_owned());
     }
-    Ok(changes)
+    Ok((changes, segments.at_scan))
 }
 
-/// Whether the JPEG `r` is at the start of has an end-of-image marker (FF D9) after its
-/// last start of scan (FF DA), read through once: as `scene::textures` asks of a texture.
-fn jpeg_ends<R: std::io::Read>(r: &mut std::io::BufReader<R>) -> std::io::Result<bool> {
+/// Whether the JPEG `r` is at the start of (or, `scanned`, just past its first start of
+/// scan) has an end-of-image marker (FF D9) after its last start of scan (FF DA), read
+/// through once: as `scene::textures` asks of a texture.
+fn jpeg_ends<R: std::io::Read>(
+    r: &mut std::io::BufReader<R>,
+    scanned: bool,
+) -> std::io::Result<bool> {
     use std::io::BufRead;
-    let (mut scanned, mut ended, mut after_ff) = (false, false, false);
+    let (mut scanned, mut ended, mut after_ff) = (scanned, false, false);
     loop {
         let buf = r.fill_buf()?;
         if buf.is_empty() {
@@ -358,6 +371,8 @@ struct JpegSegments {
     /// An orientation of its EXIF segments that libexif reads otherwise than the decoder and
     /// that does not say upright, described.
     odd_orientation: Option<String>,
+    /// Whether the walk stopped just past the first scan's marker.
+    at_scan: bool,
     /// Its segments (APP2) of a colour profile, as libjpeg takes one (14 bytes or more).
     icc: usize,
     /// Whether it has a JFIF segment (APP0) libjpeg reads as one (14 bytes or more).
@@ -404,7 +419,10 @@ fn jpeg_segments<R: std::io::Read + Seek>(
             // Markers without a length: restarts and TEM.
             0xd0..=0xd7 | 0x01 => continue,
             // The first scan (the pixels), or what no segment begins with.
-            0xd8..=0xda => break,
+            0xd8..=0xda => {
+                seen.at_scan = byte[0] == 0xda;
+                break;
+            }
             _ => {}
         }
         r.read_exact(&mut two)?;
