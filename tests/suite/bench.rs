@@ -466,3 +466,56 @@ fn a_repeat_whose_runs_no_result_holds_is_refused_before_rendering() {
     // neither the result nor the database it would be recorded in was made.
     assert!(!dir.join("r.json").exists() && !db.exists());
 }
+
+/// In a shared directory (`/tmp`), another user can put a file, a pipe or a directory under
+/// `--out`'s name while the bench runs, after the check before it: the rename at the end
+/// failed, and the measurement (6.6 s for the default workload, minutes for `cover`) was
+/// lost whole: not shown, not recorded, no file, exit 2. Here a directory takes the name
+/// once the bench has opened its database (after the check): the result is shown,
+/// recorded and kept under the name the error gives, and the exit is still 2.
+#[test]
+fn a_result_whose_out_file_is_taken_while_it_runs_is_shown_recorded_and_kept() {
+    let dir = temp_dir("bench-out-taken");
+    let (db, res) = (dir.join("r.db"), dir.join("res.json"));
+    // More samples at each try, until the directory is made before the bench ends.
+    let output = [4, 32, 256, 2048].into_iter().find_map(|spp| {
+        let _ = std::fs::remove_file(&db);
+        let _ = std::fs::remove_file(&res);
+        let spp = spp.to_string();
+        let bench = tessera()
+            .args(["bench", &cover(), "--width", "64", "--spp", &spp])
+            .args("--repeat 1 --warmup 0 --no-scaling --threads 1 --out res.json".split(' '))
+            .env("TESSERA_DB", &db)
+            .current_dir(&dir)
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
+        while !db.exists() && std::time::Instant::now() < deadline {
+            std::thread::sleep(std::time::Duration::from_millis(1));
+        }
+        let taken = std::fs::create_dir(&res).is_ok();
+        let o = bench.wait_with_output().unwrap();
+        taken.then_some(o)
+    });
+    let o = output.expect("every bench ended before its --out name could be taken");
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        String::from_utf8_lossy(&o.stdout).contains("samples/s"),
+        "the result is not shown: {err}"
+    );
+    assert!(err.contains("recorded in"), "{err}");
+    let (_, kept) = err
+        .trim_end()
+        .rsplit_once("the finished file is kept as ")
+        .unwrap_or_else(|| panic!("no file kept: {err}"));
+    assert_eq!(json(&dir.join(kept))["workload"]["name"], "custom", "{err}");
+    let list = run_in_env(
+        &["results", "list"],
+        &[("TESSERA_DB", db.to_str().unwrap())],
+        &dir,
+    );
+    assert_eq!(String::from_utf8_lossy(&list.stdout).lines().count(), 2);
+}

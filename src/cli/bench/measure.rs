@@ -7,7 +7,7 @@ use crate::cli::output::{self, count, note, out};
 use anyhow::{Context, Result};
 use std::path::PathBuf;
 use std::process::ExitCode;
-use tessera::atomic_file::write_atomically;
+use tessera::atomic_file::write_result_atomically_with;
 #[cfg(feature = "results")]
 use tessera::record::db::{self, ResultsDb};
 use tessera::record::host::{Host, short_commit};
@@ -60,9 +60,14 @@ pub fn run(m: Measure) -> Result<ExitCode> {
     let mut db = open_results_db(m.save.as_ref())?;
     let report = measure::measure(&m.plan).context("could not start the thread pool")?;
     let json = tessera::text::ascii_json(&serde_json::to_string_pretty(&report)?) + "\n";
-    if let Some(out) = &m.out {
-        write_atomically(out, json.as_bytes())?;
-    }
+    // The measurement took minutes: where --out cannot take its file (another user's file
+    // or pipe put in its place while it ran, in `/tmp`; a full disk), the result is still
+    // shown and recorded, its file kept under the temporary name the error gives, and the
+    // error said last.
+    let written = match &m.out {
+        Some(out) => write_result_atomically_with(out, &mut |w| w.write_all(json.as_bytes())),
+        None => Ok(()),
+    };
     out(&if m.json { json } else { text(&report) })?;
     if let Some(busy) = report.busy.as_ref().filter(|b| b.busy) {
         note(format_args!(
@@ -76,6 +81,7 @@ pub fn run(m: Measure) -> Result<ExitCode> {
         db.add_all(std::slice::from_ref(&report), "bench")?;
         note(format_args!("tessera: recorded in {}", path.display()));
     }
+    written?;
     #[cfg(not(feature = "results"))]
     if m.out.is_none() && !m.json {
         note(format_args!(

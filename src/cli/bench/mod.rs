@@ -16,7 +16,7 @@ use measure::Measure;
 use std::collections::BTreeSet;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use tessera::atomic_file::write_atomically;
+use tessera::atomic_file::{write_atomically, write_result_atomically_with};
 use tessera::record::result::{BenchResult, MAX_RUNS};
 use tessera::record::stats::{self, Scaling};
 use tessera::record::workload::{self, Workload, hash_text};
@@ -175,7 +175,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 }
                 Ok(hash)
             })?;
-            write_atomically(&path, text.as_bytes())?;
+            // Each workload's render took minutes: a file that cannot be put in place (another
+            // user's, made in `/tmp` while they ran) is kept under the name the error gives.
+            write_result_atomically_with(&path, &mut |w| w.write_all(text.as_bytes()))?;
             Ok(ExitCode::SUCCESS)
         }
     }
