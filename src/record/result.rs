@@ -27,7 +27,7 @@ pub const MAX_LINES: usize = 1 << 20;
 /// many stays within `MAX_FILE`, and its import (and an export of it) reads it.
 pub const MAX_RUNS: usize = 1 << 14;
 /// The longest text field accepted (a CPU model, a commit, a scene name).
-const MAX_TEXT: usize = 256;
+pub const MAX_TEXT: usize = 256;
 /// The most threads a result may claim; more is no machine's.
 pub const MAX_THREADS: usize = 1 << 16;
 /// The fastest rate a result may claim, in samples (or million rays) a second: a thousand

@@ -2029,3 +2029,34 @@ fn an_output_naming_the_database_is_refused() {
     let o = results(&dir, &db, &["list"]);
     assert!(o.status.success(), "{}", stderr(&o));
 }
+
+/// A database made elsewhere may hold text longer than any import takes (256 characters):
+/// a machine id of 50,001 made `history` fail with SQLite's "could not read it: LIKE or
+/// GLOB pattern too complex", and a CPU model of 100 MB was carried into every table. Each
+/// reader refuses such a run, naming it and the column (exit 2).
+#[test]
+fn a_database_whose_text_no_import_takes_is_refused_naming_the_run_and_column() {
+    let dir = temp_dir("results-long-text");
+    let v = json(&root().join("fuzz/corpus/result/quick-scaling.json"));
+    write_json(&dir.join("q.json"), &v);
+    for column in ["machine_id", "cpu_model", "commit_id"] {
+        let db = dir.join(format!("{column}.db"));
+        let o = results(&dir, &db, &["import", "q.json"]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let conn = rusqlite::Connection::open(&db).unwrap();
+        let sql = format!("UPDATE runs SET {column} = 'm-' || hex(zeroblob(25000)) || 'a'");
+        conn.execute(&sql, []).unwrap();
+        drop(conn);
+        for args in [&["history"][..], &["list"], &["rank"]] {
+            let o = results_within_a_minute(&dir, &db, args);
+            let err = stderr(&o);
+            assert_eq!(o.status.code(), Some(2), "{column} {args:?}: {err}");
+            assert!(
+                err.contains(&format!(
+                    "{column}.db: run 1: {column} is longer than 256 characters"
+                )),
+                "{column} {args:?}: {err}"
+            );
+        }
+    }
+}

@@ -12,7 +12,7 @@
 
 mod file;
 
-use super::result::{BenchResult, MAX_SAMPLES_PER_SEC, MAX_THREADS, MIN_SAMPLES_PER_SEC};
+use super::result::{BenchResult, MAX_SAMPLES_PER_SEC, MAX_TEXT, MAX_THREADS, MIN_SAMPLES_PER_SEC};
 use anyhow::{Context, Result, anyhow, bail};
 use file::{
     cannot_open_wal_files, create, immutable_there, open_immutable, recognise,
@@ -412,6 +412,27 @@ impl ResultsDb {
                         run.logical_cpus
                     )
                 ));
+            }
+            // Each text an import takes is at most `MAX_TEXT` characters; one of 50,001
+            // (a machine id) failed `history` with SQLite's "LIKE or GLOB pattern too
+            // complex", as if the database could not be read.
+            let texts = [
+                ("machine_id", Some(&run.machine_id)),
+                ("cpu_model", run.cpu_model.as_ref()),
+                ("version", Some(&run.version)),
+                ("commit_id", Some(&run.commit)),
+                ("simd", Some(&run.simd)),
+                ("workload", Some(&run.workload)),
+                ("workload_id", Some(&run.workload_id)),
+                ("validation", Some(&run.validation)),
+            ];
+            for (name, text) in texts {
+                if text.is_some_and(|t| t.chars().count() > MAX_TEXT) {
+                    bail!(self.unsound(
+                        run.id,
+                        format!("{name} is longer than {MAX_TEXT} characters")
+                    ));
+                }
             }
         }
         Ok(runs)
