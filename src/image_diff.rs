@@ -278,7 +278,8 @@ const JPEG_ICC_PROFILE: &str = "an ICC colour profile (an APP2 segment)";
 /// `r` is left just past the first scan's marker (FF DA). An EXIF
 /// orientation the decoder does not read (one of type LONG, or of more than one value, or
 /// in IFD1, the thumbnail's, or a second one in IFD0), which libexif reads, is listed
-/// unless it says upright; an EXIF segment whose IFDs or values lie past its end is refused.
+/// unless it says upright; an EXIF segment whose IFD0 or its values lie past its end is
+/// refused.
 fn jpeg_display_changes<R: std::io::Read + Seek>(
     r: &mut std::io::BufReader<R>,
 ) -> std::result::Result<(Vec<String>, bool), String> {
@@ -482,8 +483,9 @@ struct ExifOrientation {
 
 /// The orientation entries of the TIFF structure `tiff` (an EXIF segment past its
 /// "Exif\0\0"), in its IFD0 and IFD1 (the one IFD0 says is next, as libexif reads; no
-/// further), or why it does not read: no TIFF header, an IFD, its entries or an
-/// orientation's value past its end. No count it claims is allocated for.
+/// further), or why it does not read: no TIFF header, IFD0, its entries or an orientation's
+/// value in it past its end. Of an IFD1 past its end, nothing is read; of one running past
+/// it, the entries within it, as libexif reads. No count it claims is allocated for.
 fn exif_orientations(tiff: &[u8]) -> std::result::Result<Vec<ExifOrientation>, String> {
     let big = match tiff.get(..4) {
         Some(b"II*\0") => false,
@@ -510,14 +512,25 @@ fn exif_orientations(tiff: &[u8]) -> std::result::Result<Vec<ExifOrientation>, S
     let mut found = Vec::new();
     let mut at = u32_at(4).unwrap_or(0) as usize;
     for ifd in 0..2u8 {
-        let entries = u16_at(at).ok_or_else(|| past(format!("its IFD{ifd} (at byte {at})")))?;
+        // Cameras' files have an IFD1 that lies past the segment, or runs past it: libexif
+        // skips the one ("Bogus offset of IFD1"), reads those entries of the other that fit
+        // and skips an orientation whose values lie past the end, and so does this walk.
+        // IFD0 must read whole.
+        let Some(entries) = u16_at(at) else {
+            if ifd == 1 {
+                break;
+            }
+            return Err(past(format!("its IFD{ifd} (at byte {at})")));
+        };
         let table = at + 2;
-        if tiff.len() < table + 12 * usize::from(entries) {
+        let fit = tiff.len().saturating_sub(table) / 12;
+        if ifd == 0 && fit < usize::from(entries) {
             return Err(past(format!(
                 "the {entries} entries of its IFD{ifd} (from byte {table})"
             )));
         }
-        for entry in (0..usize::from(entries)).map(|i| table + 12 * i) {
+        let entries = usize::from(entries).min(fit);
+        for entry in (0..entries).map(|i| table + 12 * i) {
             if u16_at(entry) != Some(0x0112) {
                 continue;
             }
@@ -546,6 +559,9 @@ fn exif_orientations(tiff: &[u8]) -> std::result::Result<Vec<ExifOrientation>, S
                     _ => u32_at(from).map(|v| v as u16),
                 };
                 if value.is_none() || (from as u64).saturating_add(bytes) > tiff.len() as u64 {
+                    if ifd == 1 {
+                        continue;
+                    }
                     return Err(past(format!(
                         "the {count} values of its IFD{ifd}'s orientation (at byte {from})"
                     )));
@@ -559,7 +575,7 @@ fn exif_orientations(tiff: &[u8]) -> std::result::Result<Vec<ExifOrientation>, S
                 value,
             });
         }
-        match u32_at(table + 12 * usize::from(entries)) {
+        match u32_at(table + 12 * entries) {
             Some(0) | None => break,
             Some(next) => at = next as usize,
         }
@@ -1189,6 +1205,61 @@ mod tests {
             assert!(err.contains("EXIF segment") && err.contains(says), "{err}");
         }
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// Cameras' files have an IFD1 offset past the EXIF segment's end, or an IFD1 running
+    /// past it: libexif skips what does not fit ("Bogus offset of IFD1") and every viewer
+    /// shows the picture, which compare once refused. What fits is read as libexif reads it.
+    #[test]
+    fn a_jpeg_whose_exif_ifd1_lies_past_its_end_is_read_as_libexif_reads() {
+        let jpeg = include_bytes!("../scenes/earthmap.jpg");
+        // Little-endian: IFD0 at byte 8 of one entry (Make), its next IFD at `next`, then
+        // `ifd1` (its count and entries as bytes).
+        let exif = |next: u32, ifd1: &[u8]| {
+            let mut segment = b"Exif\0\0II*\0".to_vec();
+            segment.extend(8u32.to_le_bytes());
+            segment.extend(1u16.to_le_bytes());
+            segment.extend([0x0f, 0x01, 2, 0, 1, 0, 0, 0, 0, 0, 0, 0]);
+            segment.extend(next.to_le_bytes());
+            segment.extend(ifd1);
+            let length = u16::try_from(segment.len() + 2).unwrap().to_be_bytes();
+            [&jpeg[..2], &[0xff, 0xe1], &length, &segment, &jpeg[2..]].concat()
+        };
+        let entry = |kind: u16, count: u32, value: u32| {
+            [
+                &0x112u16.to_le_bytes()[..],
+                &kind.to_le_bytes(),
+                &count.to_le_bytes(),
+                &value.to_le_bytes(),
+            ]
+            .concat()
+        };
+        // The TIFF structure's IFD0 ends at byte 26, where IFD1 begins if it reads.
+        let unread: [(&str, Vec<u8>); 4] = [
+            ("far", exif(0xffff_fff0, &[])),
+            ("just-past", exif(26 + 100, &[])),
+            ("half-a-count", exif(26, &[1])),
+            // IFD1's orientation (two LONGs) lies past the end: libexif skips it.
+            (
+                "value-past",
+                exif(26, &[&1u16.to_le_bytes()[..], &entry(4, 2, 60000)].concat()),
+            ),
+        ];
+        for (name, file) in unread {
+            let changes = listed(
+                &format!("jpeg-ifd1-{name}"),
+                ("a.jpg", jpeg),
+                ("b.jpg", &file),
+            );
+            assert!(changes.is_empty(), "{name}: {changes:?}");
+        }
+        // 65535 entries claimed, one within the segment: its orientation is read.
+        let many = exif(26, &[&u16::MAX.to_le_bytes()[..], &entry(3, 1, 8)].concat());
+        let changes = listed("jpeg-ifd1-many", ("a.jpg", jpeg), ("b.jpg", &many));
+        assert!(
+            changes.len() == 1 && changes[0].contains("(8) in IFD1"),
+            "{changes:?}"
+        );
     }
 
     /// Browsers read a JPEG's first EXIF segment, its decoder the last: a first one saying
