@@ -583,17 +583,15 @@ fn exif_orientations(tiff: &[u8]) -> std::result::Result<Vec<ExifOrientation>, S
     Ok(found)
 }
 
-/// What is said of the orientation entries `found`, if libexif reads one the decoder does
-/// not (the decoder reads the first in IFD0 of type SHORT and one value) and it does not
-/// say upright (1).
+/// What is said of the orientation entries `found`, if the one libexif reads is one the
+/// decoder does not (the decoder reads the first in IFD0 of type SHORT and one value) and
+/// it does not say upright (1). libexif keeps the first of an IFD's orientations and
+/// viewers ask for IFD0's before IFD1's: the first of `found`, which lists IFD0's first.
 fn odd_orientation(found: &[ExifOrientation]) -> Option<String> {
-    let plain = |o: &ExifOrientation| o.ifd == 0 && o.kind == 3 && o.count == 1;
-    if let [only] = found
-        && plain(only)
-    {
+    let odd = found.first()?;
+    if odd.value == Some(1) || odd.ifd == 0 && odd.kind == 3 && odd.count == 1 {
         return None;
     }
-    let odd = found.iter().find(|o| o.value != Some(1))?;
     let value = odd.value.map_or("no number".to_owned(), |v| v.to_string());
     let also = if found.len() > 1 {
         format!(", one of {} orientation entries", found.len())
@@ -1205,6 +1203,49 @@ mod tests {
             assert!(err.contains("EXIF segment") && err.contains(says), "{err}");
         }
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// libexif's viewers (eog) take IFD0's orientation before IFD1's, and the first of an
+    /// IFD's two: an IFD1 orientation (6) left from before a lossless turn whose IFD0 says
+    /// upright, or a second IFD0 one, was once listed as turning the picture.
+    #[test]
+    fn a_jpeg_orientation_libexif_does_not_read_is_not_listed() {
+        let jpeg = include_bytes!("../scenes/earthmap.jpg");
+        // Little-endian: IFD0 at byte 8 of `ifd0` orientation entries (type, count, value),
+        // then IFD1 of `ifd1` ones.
+        let exif = |ifd0: &[(u16, u32, u32)], ifd1: &[(u16, u32, u32)]| {
+            let ifd = |entries: &[(u16, u32, u32)], next: u32| {
+                let mut out = (entries.len() as u16).to_le_bytes().to_vec();
+                for &(kind, count, value) in entries {
+                    out.extend(0x112u16.to_le_bytes());
+                    out.extend(kind.to_le_bytes());
+                    out.extend(count.to_le_bytes());
+                    out.extend(value.to_le_bytes());
+                }
+                out.extend(next.to_le_bytes());
+                out
+            };
+            let mut segment = b"Exif\0\0II*\0".to_vec();
+            segment.extend(8u32.to_le_bytes());
+            segment.extend(ifd(ifd0, 8 + 6 + 12 * ifd0.len() as u32));
+            segment.extend(ifd(ifd1, 0));
+            let length = u16::try_from(segment.len() + 2).unwrap().to_be_bytes();
+            [&jpeg[..2], &[0xff, 0xe1], &length, &segment, &jpeg[2..]].concat()
+        };
+        for (name, file) in [
+            ("ifd1-left", exif(&[(3, 1, 1)], &[(3, 1, 6)])),
+            ("second-in-ifd0", exif(&[(3, 1, 1), (4, 1, 6)], &[])),
+        ] {
+            let changes = listed(&format!("jpeg-{name}"), ("a.jpg", jpeg), ("b.jpg", &file));
+            assert!(changes.is_empty(), "{name}: {changes:?}");
+        }
+        // A LONG first in IFD0 is what libexif reads, whatever IFD1 says.
+        let long = exif(&[(4, 1, 6)], &[(3, 1, 1)]);
+        let changes = listed("jpeg-long-first", ("a.jpg", jpeg), ("b.jpg", &long));
+        assert!(
+            changes.len() == 1 && changes[0].contains("(6) in IFD0, a LONG"),
+            "{changes:?}"
+        );
     }
 
     /// Cameras' files have an IFD1 offset past the EXIF segment's end, or an IFD1 running
