@@ -336,25 +336,47 @@ fn jpeg_display_changes<R: std::io::Read + Seek>(
 
 /// Whether the JPEG `r` is at the start of (or, `scanned`, just past its first start of
 /// scan) has an end-of-image marker (FF D9) after its last start of scan (FF DA), read
-/// through once: as `scene::textures` asks of a texture.
+/// through once: as `scene::textures` asks of a texture. A segment's bytes (a comment
+/// between two scans of a progressive file, a scan's header) are skipped by its length, as
+/// libjpeg skips them: an FF D9 within them ends nothing.
 fn jpeg_ends<R: std::io::Read>(
     r: &mut std::io::BufReader<R>,
     scanned: bool,
 ) -> std::io::Result<bool> {
     use std::io::BufRead;
     let (mut scanned, mut ended, mut after_ff) = (scanned, false, false);
+    // Where `scanned`, the scan's header (its length first) comes next.
+    let (mut length, mut skip) = (if scanned { Some(Vec::new()) } else { None }, 0usize);
     loop {
         let buf = r.fill_buf()?;
         if buf.is_empty() {
             return Ok(scanned && ended);
         }
         for &b in buf {
-            match (after_ff, b) {
-                (true, 0xda) => (scanned, ended) = (true, false),
-                (true, 0xd9) => ended = scanned,
-                _ => {}
+            if skip > 0 {
+                skip -= 1;
+                continue;
             }
-            after_ff = b == 0xff;
+            if let Some(two) = length.as_mut() {
+                two.push(b);
+                if two.len() == 2 {
+                    skip = usize::from(u16::from_be_bytes([two[0], two[1]])).saturating_sub(2);
+                    length = None;
+                }
+                continue;
+            }
+            match (after_ff, b) {
+                // Fill bytes, stuffed data, restarts, TEM and the start of the image.
+                (true, 0xff | 0x00 | 0x01 | 0xd0..=0xd8) | (false, _) => {}
+                (true, 0xd9) => ended = scanned,
+                (true, marker) => {
+                    if marker == 0xda {
+                        (scanned, ended) = (true, false);
+                    }
+                    length = Some(Vec::new());
+                }
+            }
+            after_ff = b == 0xff && length.is_none();
         }
         let n = buf.len();
         r.consume(n);
@@ -1109,6 +1131,29 @@ mod tests {
         let cut = cut.map(|e| e.to_string()).unwrap_or_default();
         assert!(cut.contains("ends before its image does"), "{cut}");
         assert_eq!(after.unwrap().rmse, 0.0);
+    }
+
+    /// An FF D9 within a segment after a scan (a comment between two scans of a
+    /// progressive file) once counted as the end: a progressive JPEG cut within such a
+    /// comment was measured from the scans the decoder had. The segment is skipped by its
+    /// length, as libjpeg skips it ("Premature end of JPEG file").
+    #[test]
+    fn a_jpeg_cut_within_a_segment_after_its_scan_is_refused() {
+        let jpeg = include_bytes!("../scenes/earthmap.jpg");
+        let (pixels, end) = jpeg.split_at(jpeg.len() - 2);
+        assert_eq!(end, [0xff, 0xd9]);
+        let comment = b"\xff\xfe\x00\x0fhello\xff\xd9 there";
+        let dir = std::env::temp_dir().join(format!("tessera-jpeg-com-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("a.jpg"), jpeg).unwrap();
+        std::fs::write(dir.join("cut.jpg"), [pixels, &comment[..11]].concat()).unwrap();
+        std::fs::write(dir.join("whole.jpg"), [pixels, comment, end].concat()).unwrap();
+        let cut = difference_of_files(&dir.join("a.jpg"), &dir.join("cut.jpg")).err();
+        let whole = difference_of_files(&dir.join("a.jpg"), &dir.join("whole.jpg"));
+        std::fs::remove_dir_all(&dir).unwrap();
+        let cut = cut.map(|e| e.to_string()).unwrap_or_default();
+        assert!(cut.contains("ends before its image does"), "{cut}");
+        assert_eq!(whole.unwrap().rmse, 0.0);
     }
 
     /// libexif (and eog, and the viewers built on it) reads an orientation of type LONG,
