@@ -339,7 +339,7 @@ fn jpeg_display_changes<R: std::io::Read + Seek>(
 /// through once: as `scene::textures` asks of a texture. A segment's bytes (a comment
 /// between two scans of a progressive file, a scan's header) are skipped by its length, as
 /// libjpeg skips them: an FF D9 within them ends nothing.
-fn jpeg_ends<R: std::io::Read>(
+pub(crate) fn jpeg_ends<R: std::io::Read>(
     r: &mut std::io::BufReader<R>,
     scanned: bool,
 ) -> std::io::Result<bool> {

@@ -300,12 +300,12 @@ pub fn decode(bytes: &[u8], pixels_left: u64) -> Result<ImageTexture, String> {
 
 /// Whether a JPEG's last scan is followed by its end-of-image marker (FF D9). The JPEG
 /// decoder fills what a truncated file lacks with grey rather than failing, so a cut-off
-/// texture would render as a grey band. Inside a scan's entropy-coded data every FF byte is
-/// followed by 00 or a restart marker (D0 to D7), so an FF D9 after the last start of scan
-/// (FF DA) is the real end, not one of an embedded thumbnail's, which comes before the scans.
+/// texture would render as a grey band. Read as `compare` reads a JPEG: the segments
+/// between scans (a comment, a table) are skipped by their length, so an FF D9 within one
+/// (a progressive file cut within a comment before its last scans) ends nothing.
 fn jpeg_ends(bytes: &[u8]) -> bool {
-    let last_scan = (bytes.windows(2)).rposition(|w| w == [0xFF, 0xDA]);
-    last_scan.is_some_and(|at| bytes[at + 2..].windows(2).any(|w| w == [0xFF, 0xD9]))
+    let mut r = std::io::BufReader::new(std::io::Cursor::new(bytes));
+    crate::image_diff::jpeg_ends(&mut r, false).unwrap_or(false)
 }
 
 #[cfg(test)]
@@ -363,6 +363,14 @@ mod tests {
             let e = decode(&whole[..cut], MAX_TEXTURE_PIXELS).err().unwrap();
             assert!(e.contains("ends before its image does"), "{cut}: {e}");
         }
+        // Cut within a comment after the scan that holds the bytes FF D9: no end, as a
+        // progressive file cut within a comment before its last scans has none; the comment
+        // whole and the end after it are one.
+        let (pixels, end) = whole.split_at(whole.len() - 2);
+        let comment = b"\xff\xfe\x00\x0fhello\xff\xd9 there";
+        let cut = decode(&[pixels, &comment[..11]].concat(), MAX_TEXTURE_PIXELS).err();
+        assert!(cut.is_some_and(|e| e.contains("ends before its image does")));
+        assert!(decode(&[pixels, comment, end].concat(), MAX_TEXTURE_PIXELS).is_ok());
         // Bytes after the end marker (a file with something appended) are not a truncation.
         let mut appended = whole.to_vec();
         appended.extend(b"appended");
