@@ -34,6 +34,23 @@ running_pid() {
   [ -f "$1" ] && pid=$(cat "$1") && [ -n "$pid" ] && kill -0 "$pid" 2>/dev/null && echo "$pid"
 }
 
+# The cluster's directory must be this user's own: root trusts its pid files (which
+# processes `stop` kills) and its slurm.conf (which plugins Slurm's commands load), so one
+# another user made or may write, in a shared /tmp, is refused, as is a link.
+check_dir() {
+  [ -e "$dir" ] || [ -L "$dir" ] || return 0
+  if [ -L "$dir" ] || [ ! -d "$dir" ]; then
+    fail "$dir is not a directory (a link or another file): remove it, or set TESSERA_SLURM_DIR"
+  fi
+  local owner mode
+  owner=$(stat -c %u -- "$dir")
+  [ "$owner" = "$(id -u)" ] ||
+    fail "$dir belongs to another user (uid $owner), whose pid files and slurm.conf are not trusted: remove it, or set TESSERA_SLURM_DIR"
+  mode=$(stat -c %a -- "$dir")
+  [ $((8#$mode & 8#022)) = 0 ] ||
+    fail "$dir may be written by other users (mode $mode), whose pid files and slurm.conf are not trusted: remove it, or set TESSERA_SLURM_DIR"
+}
+
 is_up() {
   running_pid "$dir/slurmctld.pid" >/dev/null && running_pid "$dir/slurmd.pid" >/dev/null
 }
@@ -101,10 +118,13 @@ start() {
   fi
   install_packages
   rm -rf "$dir"
-  mkdir -p "$dir/munge" "$dir/state" "$dir/spool" "$dir/log"
+  # Made afresh, not taken over: another user's directory made since the line above fails.
+  mkdir -p -- "$(dirname -- "$dir")"
+  mkdir -m 755 -- "$dir" || fail "could not make $dir afresh"
+  mkdir -- "$dir/munge" "$dir/state" "$dir/spool" "$dir/log"
   # munged insists on a private key and a socket directory others may enter.
-  chmod 755 "$dir" "$dir/munge"
-  head -c 1024 /dev/urandom >"$dir/munge/munge.key"
+  chmod 755 "$dir/munge"
+  (umask 077 && head -c 1024 /dev/urandom >"$dir/munge/munge.key")
   chmod 400 "$dir/munge/munge.key"
   munged --force --key-file="$dir/munge/munge.key" --socket="$dir/munge/munge.socket" \
     --pid-file="$dir/munge/munged.pid" --log-file="$dir/log/munged.log" \
@@ -167,6 +187,9 @@ status() {
   fi
 }
 
+case "${1:-}" in
+start | stop | status) check_dir ;;
+esac
 case "${1:-}" in
 start) start ;;
 stop) stop ;;

@@ -459,3 +459,75 @@ fn podman_tessera_mounts_the_directory_a_path_s_links_lead_to() {
     let expected = [bind_mount(&work), bind_mount(&shared), bind_mount(&scratch)];
     assert_eq!(mounts(&args), expected, "{args:?}");
 }
+
+/// local-cluster.sh lives in /tmp by default and trusted whatever was there: another user's
+/// directory of that name, its pid files naming any process, made root's `start` say
+/// "already running" and point Slurm's commands at that user's slurm.conf (whose plugins they
+/// load), and `stop` kill the processes named. A directory another user owns, one others may
+/// write, or a link is refused by every command, and nothing is stopped. No Slurm needed.
+#[test]
+fn local_cluster_refuses_a_directory_another_user_made() {
+    let dir = temp_dir("slurm-planted");
+    let planted = dir.join("cluster");
+    std::fs::create_dir(&planted).unwrap();
+    // A process of ours the planted pid files name: it must outlive `stop`.
+    let mut victim = Command::new("sleep").arg("600").spawn().unwrap();
+    for name in ["slurmctld.pid", "slurmd.pid"] {
+        std::fs::write(planted.join(name), victim.id().to_string()).unwrap();
+    }
+    std::fs::write(planted.join("slurm.conf"), "PluginDir=/nonexistent\n").unwrap();
+    if std::os::unix::fs::chown(&planted, Some(65534), Some(65534)).is_err() {
+        let _ = victim.kill();
+        let _ = victim.wait();
+        return skip(
+            "local_cluster_refuses_a_directory_another_user_made",
+            "changing a file's owner needs root",
+        );
+    }
+    let run = |command: &str| {
+        Command::new(root().join("deploy/slurm/local-cluster.sh"))
+            .arg(command)
+            .env("TESSERA_SLURM_DIR", &planted)
+            .env("TESSERA_SLURM_PORT", "16997")
+            .output()
+            .expect("run local-cluster.sh")
+    };
+    let refused = |command: &str, why: &str| {
+        let o = run(command);
+        assert!(!o.status.success(), "{command}: {}", text(&o.stderr));
+        assert!(o.stdout.is_empty(), "{command}: {}", text(&o.stdout));
+        assert!(
+            text(&o.stderr).contains(why),
+            "{command}: {}",
+            text(&o.stderr)
+        );
+    };
+    for command in ["status", "stop", "start"] {
+        refused(command, "belongs to another user (uid 65534)");
+    }
+    std::fs::set_permissions(
+        &planted,
+        std::os::unix::fs::PermissionsExt::from_mode(0o777),
+    )
+    .unwrap();
+    std::os::unix::fs::chown(&planted, Some(0), Some(0)).unwrap();
+    refused("stop", "may be written by other users (mode 777)");
+    let link = dir.join("link");
+    std::os::unix::fs::symlink(&planted, &link).unwrap();
+    let o = Command::new(root().join("deploy/slurm/local-cluster.sh"))
+        .arg("stop")
+        .env("TESSERA_SLURM_DIR", &link)
+        .output()
+        .unwrap();
+    assert!(
+        text(&o.stderr).contains("is not a directory (a link"),
+        "{}",
+        text(&o.stderr)
+    );
+    assert!(
+        victim.try_wait().unwrap().is_none(),
+        "stop killed a process another user named"
+    );
+    let _ = victim.kill();
+    let _ = victim.wait();
+}
