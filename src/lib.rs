@@ -20,7 +20,8 @@
 //! - Reading what a stranger made: [`input_file`] opens only regular files, [`exr_header`]
 //!   reads an EXR header within limits before any EXR library sees it, and [`png_header`] a
 //!   PNG's chunks the same way (for image files and image textures alike), [`pnm_header`] a
-//!   PNM's header; [`metadata`] says where an image carries its recipe.
+//!   PNM's header, [`jpeg_end`] whether a JPEG ends; [`metadata`] says where an image
+//!   carries its recipe.
 //!
 //! - [`preview`] watches a running job from the folding thread (a picture kept tile by
 //!   tile, published about once a second) and serves it to a browser.
@@ -54,6 +55,7 @@ pub mod image_file;
 pub mod input_file;
 pub mod integrator;
 pub mod job;
+pub mod jpeg_end;
 pub mod material;
 pub mod math;
 pub mod metadata;

@@ -305,7 +305,7 @@ pub fn decode(bytes: &[u8], pixels_left: u64) -> Result<ImageTexture, String> {
 /// (a progressive file cut within a comment before its last scans) ends nothing.
 fn jpeg_ends(bytes: &[u8]) -> bool {
     let mut r = std::io::BufReader::new(std::io::Cursor::new(bytes));
-    crate::image_diff::jpeg_ends(&mut r, false).unwrap_or(false)
+    crate::jpeg_end::ends(&mut r, false).unwrap_or(false)
 }
 
 #[cfg(test)]

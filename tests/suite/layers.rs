@@ -18,6 +18,7 @@ const LAYERS: &[&str] = &[
     "png_header",
     "exr_header",
     "pnm_header",
+    "jpeg_end",
     "confinement",
     "ray",
     "sampling",
