@@ -490,6 +490,9 @@ int calls_seen(void) { return calls; }
 CHAINED = textwrap.dedent(
     """
     import ctypes, os, signal, sys, threading, time, tessera
+    # Python's own handler, whatever this process inherited (a shell's background job
+    # starts with Ctrl-C ignored, and Python then installs none).
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     chains = ctypes.CDLL(sys.argv[1])
     def render(spp, said):
         try:
