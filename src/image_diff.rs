@@ -274,12 +274,11 @@ const JPEG_ICC_PROFILE: &str = "an ICC colour profile (an APP2 segment)";
 /// CMYK to the decoder. A file that is not a JPEG as far as its pixels is its decoder's to
 /// refuse. A colour profile is listed wherever libjpeg finds one (an APP2 segment of 14
 /// bytes or more, named ICC_PROFILE): the decoder takes none split over 255 segments, or
-/// with a segment of no bytes of the profile, where libjpeg takes it whole. Also whether
-/// `r` is left just past the first scan's marker (FF DA). An EXIF
-/// orientation the decoder does not read (one of type LONG, or of more than one value, or
-/// in IFD1, the thumbnail's, or a second one in IFD0), which libexif reads, is listed
-/// unless it says upright; an EXIF segment whose IFD0 or its values lie past its end is
-/// refused.
+/// with a segment of no bytes of the profile, where libjpeg takes it whole. The EXIF
+/// orientation libexif's viewers read (IFD0's first, or else IFD1's) is listed where the
+/// decoder does not read it (it reads IFD0's first, of type SHORT and one value) and it does
+/// not say upright; an EXIF segment whose IFD0 or its values lie past its end is refused.
+/// Also whether `r` is left just past the first scan's marker (FF DA).
 fn jpeg_display_changes<R: std::io::Read + Seek>(
     r: &mut std::io::BufReader<R>,
 ) -> std::result::Result<(Vec<String>, bool), String> {

@@ -12,8 +12,9 @@ pub fn ends<R: std::io::Read>(
 ) -> std::io::Result<bool> {
     use std::io::BufRead;
     let (mut scanned, mut ended, mut after_ff) = (scanned, false, false);
-    // Where `scanned`, the scan's header (its length first) comes next.
-    let (mut length, mut skip) = (if scanned { Some(Vec::new()) } else { None }, 0usize);
+    // A segment's length comes in two bytes: `length` is `Some` while they are read, holding
+    // the high one once it is in. Where `scanned`, the scan's header (its length first) is next.
+    let (mut length, mut skip) = (if scanned { Some(None) } else { None }, 0usize);
     loop {
         let buf = r.fill_buf()?;
         if buf.is_empty() {
@@ -24,11 +25,13 @@ pub fn ends<R: std::io::Read>(
                 skip -= 1;
                 continue;
             }
-            if let Some(two) = length.as_mut() {
-                two.push(b);
-                if two.len() == 2 {
-                    skip = usize::from(u16::from_be_bytes([two[0], two[1]])).saturating_sub(2);
-                    length = None;
+            if let Some(high) = length {
+                match high {
+                    None => length = Some(Some(b)),
+                    Some(high) => {
+                        skip = usize::from(u16::from_be_bytes([high, b])).saturating_sub(2);
+                        length = None;
+                    }
                 }
                 continue;
             }
@@ -40,7 +43,7 @@ pub fn ends<R: std::io::Read>(
                     if marker == 0xda {
                         (scanned, ended) = (true, false);
                     }
-                    length = Some(Vec::new());
+                    length = Some(None);
                 }
             }
             after_ff = b == 0xff && length.is_none();
