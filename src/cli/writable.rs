@@ -38,12 +38,12 @@ pub fn check_output(path: &Path) -> Result<()> {
         },
         Some(kind @ (ErrorKind::PermissionDenied | ErrorKind::ReadOnlyFilesystem)) => {
             let what = if kind == ErrorKind::ReadOnlyFilesystem {
-                format!("{} is on a read-only file system", dir.display())
+                format!("{} is on a read-only file system", named(&dir))
             } else {
                 format!(
                     "permission denied: this user ({}) may not create files in {}",
                     user(),
-                    dir.display()
+                    named(&dir)
                 )
             };
             match &container {
@@ -92,6 +92,18 @@ fn directory_of(path: &Path) -> PathBuf {
     match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_owned(),
         _ => PathBuf::from("."),
+    }
+}
+
+/// How a message names the directory `dir`: the current one in words, with its full name
+/// where that can be found (a bare "." before a full stop reads as the parent).
+fn named(dir: &Path) -> String {
+    if dir != Path::new(".") {
+        return dir.display().to_string();
+    }
+    match std::env::current_dir() {
+        Ok(full) => format!("the current directory ({})", full.display()),
+        Err(_) => "the current directory".to_owned(),
     }
 }
 

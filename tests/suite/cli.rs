@@ -424,6 +424,37 @@ fn output_that_cannot_be_written_is_an_error_not_a_crash() {
     );
 }
 
+/// An output in the current directory, where it cannot be written, is refused naming that
+/// directory in words and in full: a bare "." before the message's full stop read as the
+/// parent directory.
+#[test]
+fn an_output_the_current_directory_cannot_take_names_that_directory() {
+    let test = "an_output_the_current_directory_cannot_take_names_that_directory";
+    let dir = dir_with_scene("read-only-cwd", GOOD);
+    let tessera = env!("CARGO_BIN_EXE_tessera");
+    let script = format!(
+        "mount -o remount,ro small && cd small && {tessera} render ../scene.toml -o a.png -q; \
+         echo \"status=$?\""
+    );
+    let Some(o) = in_a_small_filesystem(&dir, 16, &script) else {
+        return skip(
+            test,
+            "this machine cannot make a private filesystem (unshare -rm)",
+        );
+    };
+    let (out, err) = (String::from_utf8_lossy(&o.stdout), stderr(&o));
+    assert!(out.contains("status=2"), "{out}{err}");
+    let full = dir.canonicalize().unwrap().join("small");
+    assert!(
+        err.contains(&format!(
+            "a.png: the current directory ({}) is on a read-only file system; choose another \
+             directory with -o",
+            full.display()
+        )),
+        "{err}"
+    );
+}
+
 #[test]
 fn a_closed_pipe_ends_quietly() {
     let dir = dir_with_scene("closed-pipe", GOOD);

@@ -455,7 +455,8 @@ fn the_image_is_small_labelled_and_runs_without_privileges() {
     // The message says what to do: mount a directory and run as yourself.
     assert!(
         (err.contains("permission denied") || err.contains("read-only file system"))
-            && err.contains("podman container"),
+            && err.contains("podman container")
+            && err.contains("the current directory (/app)"),
         "{err}"
     );
     assert!(
