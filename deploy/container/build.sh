@@ -9,8 +9,16 @@
 #   tessera:0.1.0-<commit>
 #
 # ENGINE=docker builds with Docker instead of Podman; SOURCE sets the source label (default:
-# the git remote `origin`). Further arguments go to the engine's `build`.
+# the git remote `origin`). Further arguments go to the engine's `build`; -h or --help,
+# first, prints this.
 set -euo pipefail
+# -h or --help first: this header, before anything is built.
+case "${1:-}" in
+-h | --help)
+  sed -n '2,/^set /{/^#/s/^# \{0,1\}//p}' "$0"
+  exit 0
+  ;;
+esac
 cd "$(dirname "$0")/../.."
 engine=${ENGINE:-podman}
 target=x86_64-unknown-linux-musl

@@ -236,6 +236,34 @@ fn kubernetes_expands_variables_as_the_emulation_does() {
     assert_eq!(expand("$(UNSET) $x $", &env), "$(UNSET) $x $");
 }
 
+/// `build.sh --help` prints what the script does and builds nothing: it once passed
+/// `--help` to the engine's `build`, after compiling the static binary. Here no cargo and no
+/// engine can be found (only `sed` is on the path), so any build fails.
+#[test]
+fn the_image_build_script_s_help_builds_nothing() {
+    let tools = temp_dir("build-sh-help");
+    let found = |name: &str| {
+        let path = std::env::var_os("PATH").unwrap_or_default();
+        (std::env::split_paths(&path).map(|d| d.join(name))).find(|p| p.is_file())
+    };
+    std::os::unix::fs::symlink(found("sed").unwrap(), tools.join("sed")).unwrap();
+    let o = Command::new(found("bash").unwrap())
+        .arg(root().join("deploy/container/build.sh"))
+        .arg("--help")
+        .env("PATH", &tools)
+        .env("ENGINE", "/nonexistent/podman")
+        .output()
+        .unwrap();
+    let out = text(&o.stdout);
+    assert!(o.status.success(), "{out}{}", text(&o.stderr));
+    assert!(
+        out.starts_with("Builds tessera's container image")
+            && out.contains("-h or --help,\nfirst, prints this.\n")
+            && !out.contains('#'),
+        "{out}"
+    );
+}
+
 #[test]
 fn the_manifests_agree_with_each_other_and_the_build() {
     let render = Job::read("render-job.yaml");
