@@ -37,11 +37,32 @@ fn temporary_beside(path: &Path) -> std::io::Result<tempfile::NamedTempFile> {
     let mut prefix = std::ffi::OsString::from(".");
     prefix.push(<std::ffi::OsStr as std::os::unix::ffi::OsStrExt>::from_bytes(name));
     prefix.push(".");
+    let dir = directory_of(path);
     tempfile::Builder::new()
         .prefix(&prefix)
         .suffix(".tmp")
         .permissions(std::fs::Permissions::from_mode(0o666))
-        .tempfile_in(directory_of(path))
+        .tempfile_in(&dir)
+        .map_err(|e| without_temporary_name(e, &dir))
+}
+
+/// `e`, an error of creating a temporary file in `dir`, said of the directory: tempfile
+/// ends its message with the temporary file's random name (`… at path "/d/.x.png.Ab12Cd.tmp"`),
+/// a file that never existed, which read as the file at fault.
+fn without_temporary_name(e: std::io::Error, dir: &Path) -> std::io::Error {
+    let message = e.to_string();
+    let cause = message
+        .rsplit_once(" at path ")
+        .map_or(&*message, |(cause, _)| cause);
+    let dir = if dir == Path::new(".") {
+        "the current directory".to_owned()
+    } else {
+        dir.display().to_string()
+    };
+    std::io::Error::new(
+        e.kind(),
+        format!("could not create a file in {dir}: {cause}"),
+    )
 }
 
 /// Refuses a path no file can be renamed to, before anything is written: one that ends in
@@ -291,6 +312,27 @@ mod tests {
         assert!(is_special(null), "/dev/null was replaced by a file");
         let full = write_atomically(Path::new("/dev/full"), b"x");
         assert!(full.is_err_and(|e| e.to_string().contains("/dev/full")));
+    }
+
+    /// A directory that cannot take the output is named, not the temporary file that was
+    /// never made there (the message once ended `at path "/…/.x.png.Ab12Cd.tmp"`).
+    #[test]
+    fn a_directory_that_takes_no_file_is_named_not_the_temporary_file() {
+        let missing = std::env::temp_dir().join(format!("tessera-gone-{}", std::process::id()));
+        let e = write_atomically(&missing.join("x.png"), b"x").unwrap_err();
+        assert!(
+            matches!(&e, Error::Io { cause, .. } if cause.kind() == std::io::ErrorKind::NotFound),
+            "{e}"
+        );
+        let said = e.to_string();
+        assert!(
+            said.contains(&format!(
+                "could not create a file in {}: ",
+                missing.display()
+            )) && !said.contains(".tmp")
+                && !said.contains(".x.png"),
+            "{said}"
+        );
     }
 
     #[test]

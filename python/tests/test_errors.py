@@ -397,3 +397,15 @@ def test_a_save_to_a_name_no_file_can_take_leaves_nothing(name, tmp_path):
     with pytest.raises(OSError):
         image.save(f"{tmp_path}/{name}")
     assert os.listdir(tmp_path) == []
+
+
+# A save into a directory that does not exist names the directory, not the random name of
+# the temporary file that was never made there (`at path "…/.out.png.Ab12Cd.tmp"`).
+def test_a_save_into_a_missing_directory_names_the_directory(tmp_path):
+    image = tessera.render("scenes/cover.toml", width=8, spp=1)
+    missing = tmp_path / "gone"
+    with pytest.raises(FileNotFoundError) as e:
+        image.save(missing / "out.png")
+    said = str(e.value)
+    assert f"could not create a file in {missing}: " in said, said
+    assert ".tmp" not in said and ".out.png" not in said, said
