@@ -200,23 +200,28 @@ impl RgbImage {
                 // The decoder fills what a file cut short lacks with grey rather than
                 // failing: a JPEG must end (as a texture must).
                 // The end is looked for from the first scan, where the walk stopped, or from
-                // the start where it stopped elsewhere.
+                // the start where it stopped elsewhere, and with it the Adobe segments
+                // between the scans.
                 image::ImageFormat::Jpeg => {
-                    jpeg_display_changes(&mut file).and_then(|(changes, at_scan)| {
+                    jpeg_display_changes(&mut file).and_then(|(mut changes, segments)| {
+                        let at_scan = segments.at_scan;
                         let from = if at_scan {
                             Ok(())
                         } else {
                             file.seek(std::io::SeekFrom::Start(0)).map(drop)
                         };
-                        from.and_then(|()| crate::jpeg_end::ends(&mut file, at_scan))
-                            .map_err(|e| format!("could not be read: {e}"))
-                            .and_then(|ends| {
-                                ends.then_some(changes).ok_or_else(|| {
-                                    "ends before its image does (a truncated file?): no end \
-                                 marker after its last scan"
-                                        .to_owned()
-                                })
-                            })
+                        let after = from
+                            .and_then(|()| crate::jpeg_end::after_scan(&mut file, at_scan))
+                            .map_err(|e| format!("could not be read: {e}"))?;
+                        if !after.ends {
+                            return Err("ends before its image does (a truncated file?): no \
+                                        end marker after its last scan"
+                                .to_owned());
+                        }
+                        if after.scans > 1 {
+                            changes.extend(late_adobe_change(&segments, &after.late_adobe));
+                        }
+                        Ok(changes)
                     })
                 }
                 _ => crate::exr_header::display_changes(&mut file, len),
@@ -278,16 +283,17 @@ const JPEG_ICC_PROFILE: &str = "an ICC colour profile (an APP2 segment)";
 /// orientation libexif's viewers read (IFD0's first, or else IFD1's) is listed where the
 /// decoder does not read it (it reads IFD0's first, of type SHORT and one value) and it does
 /// not say upright; an EXIF segment whose IFD0 or its values lie past its end is refused.
-/// Also whether `r` is left just past the first scan's marker (FF DA).
+/// Also what the segments say (`at_scan`: whether `r` is left just past the first scan's
+/// marker, FF DA).
 fn jpeg_display_changes<R: std::io::Read + Seek>(
     r: &mut std::io::BufReader<R>,
-) -> std::result::Result<(Vec<String>, bool), String> {
-    let segments = jpeg_segments(r).unwrap_or_default();
+) -> std::result::Result<(Vec<String>, JpegSegments), String> {
+    let mut segments = jpeg_segments(r).unwrap_or_default();
     let mut changes = Vec::new();
-    if let Some(fault) = segments.exif_fault {
+    if let Some(fault) = segments.exif_fault.take() {
         return Err(fault);
     }
-    if let Some(odd) = segments.odd_orientation {
+    if let Some(odd) = segments.odd_orientation.take() {
         changes.push(format!(
             "an EXIF orientation {odd}, which libexif, and the viewers built on it, read \
              otherwise than the decoder: it turns or flips the picture"
@@ -330,7 +336,41 @@ fn jpeg_display_changes<R: std::io::Read + Seek>(
     if segments.icc > 0 {
         changes.push(JPEG_ICC_PROFILE.to_owned());
     }
-    Ok((changes, segments.at_scan))
+    Ok((changes, segments))
+}
+
+/// What is said of the Adobe segments (APP14) of the colour transforms `late` after the first
+/// scan of the JPEG whose segments before it are `seen`, if one changes what the decoder
+/// measures. libjpeg takes a JPEG's colours from the segments before its first scan and
+/// reads past later ones; the decoder takes each as it comes and converts the colours of a
+/// file of several scans (a progressive one) by the last at their end (of one scan, as it
+/// reads it, before a later Adobe segment): a JPEG libjpeg shows
+/// as RGB (an Adobe transform 0 before its first scan, no JFIF segment) was measured as
+/// YCbCr with an Adobe transform 1 before its second scan, and so called identical to the
+/// same scans after a JFIF segment, which libjpeg shows as YCbCr 10.65 dB apart. Those that
+/// leave the decoder's reading as it was are not listed: of three components read as YCbCr,
+/// a transform of 1 or 2 (YCCK, taken as YCbCr of three); of four, the transform it read
+/// (0: CMYK, 2: YCCK); of one, 1. Of three read as RGB (named 'R', 'G', 'B', or an Adobe
+/// transform 0 before the scan), any: a later 0 is CMYK of three components.
+fn late_adobe_change(seen: &JpegSegments, late: &std::collections::BTreeSet<u8>) -> Option<String> {
+    let rgb = seen.names == Some(*b"RGB") || seen.adobe_transform == Some(0);
+    let keeps = |t: u8| match seen.components {
+        Some(3) => !rgb && t != 0,
+        Some(4) => {
+            t == if seen.adobe_transform == Some(2) {
+                2
+            } else {
+                0
+            }
+        }
+        Some(1) => t == 1,
+        _ => false,
+    };
+    let t = late.iter().copied().find(|&t| !keeps(t))?;
+    Some(format!(
+        "an Adobe segment (APP14) of colour transform {t} after its first scan: libjpeg, and \
+         the viewers built on it, read past it, the decoder measured the colours by it"
+    ))
 }
 
 /// What the segments of a JPEG before its first scan say of how it is shown.
@@ -1295,6 +1335,62 @@ mod tests {
         assert!(
             changes.len() == 1 && changes[0].contains("(8) in IFD1"),
             "{changes:?}"
+        );
+    }
+
+    /// libjpeg takes a JPEG's colours from the segments before its first scan, the decoder
+    /// takes an Adobe segment (APP14) between its scans too: a progressive JPEG libjpeg shows
+    /// as RGB (an Adobe transform 0 first, no JFIF segment) with an Adobe transform 1 before
+    /// its second scan was measured as YCbCr and called `inf dB (identical)` to the same
+    /// scans after a JFIF segment, which libjpeg (Pillow 13) shows 10.65 dB apart. It is
+    /// listed; one that leaves the decoder's reading as it was is not.
+    #[test]
+    fn a_jpeg_adobe_segment_after_its_first_scan_is_listed() {
+        // Pillow's, of 8x8 pixels: a JFIF segment (APP0) first, then ten scans.
+        let jpeg = include_bytes!("../tests/data/progressive-8x8.jpg");
+        let scans: Vec<usize> = (0..jpeg.len() - 1)
+            .filter(|&i| jpeg[i..i + 2] == [0xff, 0xda])
+            .collect();
+        assert_eq!(scans.len(), 10);
+        let adobe = |t: u8| [&b"\xff\xee\0\x0eAdobe\0\x64\0\0\0\0"[..], &[t]].concat();
+        let jfif = 2 + 2 + usize::from(u16::from_be_bytes([jpeg[4], jpeg[5]]));
+        assert_eq!(&jpeg[6..10], b"JFIF");
+        // No JFIF segment, an Adobe transform 0 before the first scan: RGB to both.
+        let rgb = [
+            &jpeg[..2],
+            &jpeg[jfif..scans[0]],
+            &adobe(0),
+            &jpeg[scans[0]..],
+        ]
+        .concat();
+        let second = scans[1] - jfif + 2 + adobe(0).len();
+        let late = [&rgb[..second], &adobe(1), &rgb[second..]].concat();
+        let changes = listed("jpeg-late-adobe", ("a.jpg", jpeg), ("b.jpg", &late));
+        assert!(
+            changes.len() == 1 && changes[0].contains("transform 1 after its first scan"),
+            "{changes:?}"
+        );
+        // YCbCr (JFIF) and a later transform 1: YCbCr to both.
+        let second = scans[1];
+        let kept = [&jpeg[..second], &adobe(1), &jpeg[second..]].concat();
+        assert!(listed("jpeg-late-adobe-1", ("a.jpg", jpeg), ("b.jpg", &kept)).is_empty());
+        // After the only scan of the earth map (baseline), read before it: not listed.
+        let earth = include_bytes!("../scenes/earthmap.jpg");
+        let (pixels, end) = earth.split_at(earth.len() - 2);
+        let tail = [pixels, &adobe(0), end].concat();
+        assert!(listed("jpeg-tail-adobe", ("a.jpg", earth), ("b.jpg", &tail)).is_empty());
+        // A later transform 0 of three components: CMYK to the decoder, not the same values.
+        let dir = std::env::temp_dir().join(format!("tessera-late-0-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let cmyk = [&jpeg[..second], &adobe(0), &jpeg[second..]].concat();
+        std::fs::write(dir.join("a.jpg"), jpeg).unwrap();
+        std::fs::write(dir.join("b.jpg"), cmyk).unwrap();
+        let d = difference_of_files(&dir.join("a.jpg"), &dir.join("b.jpg")).unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+        assert!(
+            d.display_changes.len() == 1 && d.display_changes[0].1.contains("transform 0"),
+            "{:?}",
+            d.display_changes
         );
     }
 
