@@ -16,11 +16,9 @@ fn directory_of(path: &Path) -> PathBuf {
     }
 }
 
-/// A new temporary file beside `path`, named `.NAME.XXXXXX.tmp` with six random characters:
-/// created exclusively (`O_CREAT | O_EXCL`, so nothing already there, a symbolic link that
-/// another user planted included, is opened or followed), with the permissions a new file
-/// gets from the umask, and removed again if it is dropped before it is persisted.
-fn temporary_beside(path: &Path) -> std::io::Result<tempfile::NamedTempFile> {
+/// The start of a temporary file's name beside `path`: `.NAME.`, to which six random
+/// characters and `.tmp` are added.
+fn temporary_prefix(path: &Path) -> std::io::Result<std::ffi::OsString> {
     let name = path.file_name().ok_or_else(|| {
         std::io::Error::new(
             std::io::ErrorKind::InvalidInput,
@@ -37,9 +35,17 @@ fn temporary_beside(path: &Path) -> std::io::Result<tempfile::NamedTempFile> {
     let mut prefix = std::ffi::OsString::from(".");
     prefix.push(<std::ffi::OsStr as std::os::unix::ffi::OsStrExt>::from_bytes(name));
     prefix.push(".");
+    Ok(prefix)
+}
+
+/// A new temporary file beside `path`, named `.NAME.XXXXXX.tmp` with six random characters:
+/// created exclusively (`O_CREAT | O_EXCL`, so nothing already there, a symbolic link that
+/// another user planted included, is opened or followed), with the permissions a new file
+/// gets from the umask, and removed again if it is dropped before it is persisted.
+fn temporary_beside(path: &Path) -> std::io::Result<tempfile::NamedTempFile> {
     let dir = directory_of(path);
     tempfile::Builder::new()
-        .prefix(&prefix)
+        .prefix(&temporary_prefix(path)?)
         .suffix(".tmp")
         .permissions(std::fs::Permissions::from_mode(0o666))
         .tempfile_in(&dir)
@@ -63,6 +69,48 @@ fn without_temporary_name(e: std::io::Error, dir: &Path) -> std::io::Error {
         e.kind(),
         format!("could not create a file in {dir}: {cause}"),
     )
+}
+
+/// A new file in `path`'s directory with no name at all (`O_TMPFILE`), with the permissions
+/// a new file gets from the umask, or None where the file system makes none or one cannot be
+/// named there (`name_beside`: no `/proc`, say). A file with a name while it is written
+/// outlived a process ended then: SIGTERM, Ctrl-C or a second Ctrl-C during the seconds a
+/// large image takes to write left a hidden `.NAME.XXXXXX.tmp` of hundreds of megabytes
+/// beside the output, one more at each stop. A file with no name goes with the process.
+fn unnamed_beside(path: &Path) -> Option<std::fs::File> {
+    use rustix::fs::{CWD, Mode, OFlags, openat};
+    let open = || {
+        let flags = OFlags::TMPFILE | OFlags::WRONLY | OFlags::CLOEXEC;
+        openat(CWD, directory_of(path), flags, Mode::from(0o666)).map(std::fs::File::from)
+    };
+    // Another such file is named and removed first: once written, a file that cannot be
+    // named would lose the work it holds.
+    let trial = open().ok()?;
+    drop(name_beside(path, &trial).ok()?);
+    open().ok()
+}
+
+/// The name `/proc` gives the open `file`: `/proc/self/fd/N`.
+fn proc_path(file: &std::fs::File) -> PathBuf {
+    use std::os::fd::AsRawFd;
+    PathBuf::from(format!("/proc/self/fd/{}", file.as_raw_fd()))
+}
+
+/// Gives `file`, made by `unnamed_beside(path)` and written whole, a temporary name beside
+/// `path` (`.NAME.XXXXXX.tmp`, as `temporary_beside`), to be renamed over `path` at once:
+/// the link is made only where no file is (a link planted there is not followed), and it
+/// is removed again if the name is dropped before it is persisted.
+fn name_beside(path: &Path, file: &std::fs::File) -> std::io::Result<tempfile::TempPath> {
+    use rustix::fs::{AtFlags, CWD, linkat};
+    let (from, dir) = (proc_path(file), directory_of(path));
+    let named = tempfile::Builder::new()
+        .prefix(&temporary_prefix(path)?)
+        .suffix(".tmp")
+        .make_in(&dir, |name| {
+            linkat(CWD, &from, CWD, name, AtFlags::SYMLINK_FOLLOW).map_err(std::io::Error::from)
+        })
+        .map_err(|e| without_temporary_name(e, &dir))?;
+    Ok(named.into_temp_path())
 }
 
 /// Refuses a path no file can be renamed to, before anything is written: one that ends in
@@ -263,29 +311,41 @@ fn write_whole(
             Err(why) => return Err(io(why)),
         }
     }
-    let tmp = temporary_beside(path).map_err(io)?;
-    let mut out = std::io::BufWriter::with_capacity(1 << 16, tmp);
+    // Written with no name where the system allows (`unnamed_beside`), named only once
+    // whole; else under its temporary name from the start.
+    let (file, named) = match unnamed_beside(path) {
+        Some(file) => (file, None),
+        None => {
+            let (file, name) = temporary_beside(path).map_err(io)?.into_parts();
+            (file, Some(name))
+        }
+    };
+    let mut out = std::io::BufWriter::with_capacity(1 << 16, file);
+    // On any error from here on, dropping the temporary file (or its name) removes it.
     write(&mut out).map_err(io)?;
-    // On any error from here on, dropping the temporary file removes it.
-    let tmp = out
+    let file = out
         .into_inner()
         .map_err(|e| io(std::io::IntoInnerError::into_error(e)))?;
-    tmp.as_file().sync_all().map_err(io)?;
+    file.sync_all().map_err(io)?;
+    let tmp = match named {
+        Some(name) => name,
+        None => name_beside(path, &file).map_err(io)?,
+    };
     let (why, tmp) = match refused {
         Some(why) => (why, tmp),
         None => match tmp.persist(path) {
-            Ok(_) => return Ok(()),
+            Ok(()) => return Ok(()),
             // Why: a file another user holds says so, rather than "Operation not permitted".
             Err(failed) => (
                 refuse_unreplaceable(path).err().unwrap_or(failed.error),
-                failed.file,
+                failed.path,
             ),
         },
     };
     if !keep {
         return Err(io(why));
     }
-    let Ok((_, kept)) = tmp.keep() else {
+    let Ok(kept) = tmp.keep() else {
         return Err(io(why));
     };
     Err(io(std::io::Error::new(
@@ -444,6 +504,57 @@ mod tests {
         assert!(failed.is_err_and(|e| e.to_string().contains("the disk is full")));
         assert_eq!(std::fs::read(&p).unwrap(), b"old");
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A file is written with no name: what ends the process while it is written (SIGTERM,
+    /// Ctrl-C, SIGKILL) leaves nothing behind. It once had its temporary name from the start:
+    /// `kill -TERM` three seconds into the write of an 8192x4096 PPM left a hidden
+    /// `.big.ppm.XXXXXX.tmp` of 59 MB beside it.
+    #[test]
+    fn nothing_has_a_name_beside_the_output_while_it_is_written() {
+        let dir = std::env::temp_dir().join(format!("tessera-unnamed-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let names = || -> Vec<String> {
+            std::fs::read_dir(&dir)
+                .unwrap()
+                .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+                .collect()
+        };
+        // Where the file system makes no file without a name, a named one is all there is.
+        let flags = rustix::fs::OFlags::TMPFILE | rustix::fs::OFlags::WRONLY;
+        let mode = rustix::fs::Mode::from(0o600);
+        if rustix::fs::openat(rustix::fs::CWD, &dir, flags, mode).is_err()
+            || !Path::new("/proc/self/fd").is_dir()
+        {
+            std::fs::remove_dir_all(&dir).unwrap();
+            return;
+        }
+        let p = dir.join("out.png");
+        write_atomically(&p, b"old").unwrap();
+        for keep in [false, true] {
+            let mut seen = Vec::new();
+            write_whole(
+                &p,
+                &mut |out| {
+                    out.write_all(b"half")?;
+                    seen = names();
+                    out.write_all(b" and the rest")
+                },
+                keep,
+            )
+            .unwrap();
+            assert_eq!(seen, ["out.png"], "while written");
+            assert_eq!(std::fs::read(&p).unwrap(), b"half and the rest");
+            assert_eq!(names(), ["out.png"], "once written");
+            use std::os::unix::fs::MetadataExt;
+            let mode = std::fs::metadata(&p).unwrap().mode() & 0o777;
+            // The umask as `/proc` says it (setting it to read it would race other tests).
+            let status = std::fs::read_to_string("/proc/self/status").unwrap();
+            let umask = status.lines().find_map(|l| l.strip_prefix("Umask:"));
+            let umask = u32::from_str_radix(umask.unwrap().trim(), 8).unwrap();
+            assert_eq!(mode, 0o666 & !umask, "the umask's permissions");
+        }
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }
