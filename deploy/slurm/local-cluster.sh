@@ -34,10 +34,38 @@ running_pid() {
   [ -f "$1" ] && pid=$(cat "$1") && [ -n "$pid" ] && kill -0 "$pid" 2>/dev/null && echo "$pid"
 }
 
+# Each directory above the cluster's, from its physical path up to /, must be this user's or
+# root's, and not writable by other users unless sticky (as /tmp is): one that another user
+# owns or may write lets them rename the cluster's directory away, even after the checks
+# below, and put their own in its place, whose slurm.conf root's sinfo and sbatch then read
+# and load plugins from. The cluster's directory is then named by that physical path, so a
+# link on the way cannot be pointed elsewhere later either.
+check_parents() {
+  local parent p owner mode
+  parent=$(dirname -- "$dir")
+  [ -d "$parent" ] || return 0
+  parent=$(realpath -e -- "$parent") || fail "could not resolve $(dirname -- "$dir")"
+  p=$parent
+  while :; do
+    owner=$(stat -c %u -- "$p")
+    [ "$owner" = 0 ] || [ "$owner" = "$(id -u)" ] ||
+      fail "$p, above $dir, belongs to another user (uid $owner), who could put their own directory in its place: choose a TESSERA_SLURM_DIR whose parents are root's"
+    mode=$(stat -c %a -- "$p")
+    [ $((8#$mode & 8#022)) = 0 ] || [ $((8#$mode & 8#1000)) != 0 ] ||
+      fail "$p, above $dir, may be written by other users (mode $mode), who could put their own directory in its place: choose a TESSERA_SLURM_DIR whose parents are root's"
+    [ "$p" = / ] && break
+    p=$(dirname -- "$p")
+  done
+  dir=${parent%/}/$(basename -- "$dir")
+  conf=$dir/slurm.conf
+  export SLURM_CONF=$conf
+}
+
 # The cluster's directory must be this user's own: root trusts its pid files (which
 # processes `stop` kills) and its slurm.conf (which plugins Slurm's commands load), so one
 # another user made or may write, in a shared /tmp, is refused, as is a link.
 check_dir() {
+  check_parents
   [ -e "$dir" ] || [ -L "$dir" ] || return 0
   if [ -L "$dir" ] || [ ! -d "$dir" ]; then
     fail "$dir is not a directory (a link or another file): remove it, or set TESSERA_SLURM_DIR"
@@ -120,6 +148,8 @@ start() {
   rm -rf "$dir"
   # Made afresh, not taken over: another user's directory made since the line above fails.
   mkdir -p -- "$(dirname -- "$dir")"
+  # Checked again now that every parent exists: another user may have made a missing one.
+  check_parents
   mkdir -m 755 -- "$dir" || fail "could not make $dir afresh"
   mkdir -- "$dir/munge" "$dir/state" "$dir/spool" "$dir/log"
   # munged insists on a private key and a socket directory others may enter.

@@ -531,3 +531,83 @@ fn local_cluster_refuses_a_directory_another_user_made() {
     let _ = victim.kill();
     let _ = victim.wait();
 }
+
+/// local-cluster.sh checked its directory but not the directories above it: with
+/// `TESSERA_SLURM_DIR=/tmp/work/slurm` in a `/tmp/work` another user made, root's `start` ran
+/// the cluster there, and that user then renamed root's directory away and put their own in
+/// its place, whose slurm.conf (`PluginDir=` their own) root's next `sinfo` read, running
+/// their code as root. Every directory above the cluster's must be root's or this user's and
+/// not writable by others unless sticky (as /tmp is); nothing is started otherwise. No Slurm
+/// needed.
+#[test]
+fn local_cluster_refuses_a_directory_whose_parent_another_user_controls() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = temp_dir("slurm-parent");
+    let theirs = dir.join("theirs");
+    std::fs::create_dir(&theirs).unwrap();
+    if std::os::unix::fs::chown(&theirs, Some(65534), Some(65534)).is_err() {
+        return skip(
+            "local_cluster_refuses_a_directory_whose_parent_another_user_controls",
+            "changing a file's owner needs root",
+        );
+    }
+    // Root's own directories below another user's, and one others may write.
+    let below = theirs.join("ours");
+    std::fs::create_dir(&below).unwrap();
+    std::os::unix::fs::chown(&below, Some(0), Some(0)).unwrap();
+    let open = dir.join("open");
+    std::fs::create_dir(&open).unwrap();
+    std::fs::set_permissions(&open, std::fs::Permissions::from_mode(0o777)).unwrap();
+    let run = |cluster: &std::path::Path, command: &str| {
+        Command::new(root().join("deploy/slurm/local-cluster.sh"))
+            .arg(command)
+            .env("TESSERA_SLURM_DIR", cluster)
+            .env("TESSERA_SLURM_PORT", "16997")
+            .output()
+            .expect("run local-cluster.sh")
+    };
+    for (cluster, above, why) in [
+        (
+            theirs.join("slurm"),
+            &theirs,
+            "belongs to another user (uid 65534)",
+        ),
+        (
+            below.join("slurm"),
+            &theirs,
+            "belongs to another user (uid 65534)",
+        ),
+        (
+            open.join("slurm"),
+            &open,
+            "may be written by other users (mode 777)",
+        ),
+    ] {
+        for command in ["status", "stop", "start"] {
+            let o = run(&cluster, command);
+            let said = text(&o.stderr);
+            assert!(
+                !o.status.success(),
+                "{command} {}: {said}",
+                cluster.display()
+            );
+            assert!(o.stdout.is_empty(), "{command}: {}", text(&o.stdout));
+            assert!(
+                said.contains(&format!("{}, above", above.display())) && said.contains(why),
+                "{command} {}: {said}",
+                cluster.display()
+            );
+            assert!(!cluster.exists(), "{command} made {}", cluster.display());
+        }
+    }
+    // A sticky directory others may write, as /tmp, is a parent like any other.
+    let sticky = dir.join("sticky");
+    std::fs::create_dir(&sticky).unwrap();
+    std::fs::set_permissions(&sticky, std::fs::Permissions::from_mode(0o1777)).unwrap();
+    let o = run(&sticky.join("slurm"), "status");
+    assert!(
+        text(&o.stderr).contains("not running"),
+        "{}",
+        text(&o.stderr)
+    );
+}
