@@ -9,6 +9,7 @@
 #           writes the configuration (the node line from `slurmd -C`), starts the daemons,
 #           waits until the node takes jobs, and prints the line that points Slurm's
 #           commands at it:  eval "$(deploy/slurm/local-cluster.sh start)"
+#           (one that fails, or is interrupted, half-way stops what it started)
 #   stop    cancels every job and stops every process it started (the logs stay)
 #   status  says whether the cluster runs, and prints the same line
 #
@@ -156,6 +157,11 @@ start() {
   chmod 755 "$dir/munge"
   (umask 077 && head -c 1024 /dev/urandom >"$dir/munge/munge.key")
   chmod 400 "$dir/munge/munge.key"
+  # From here a start that fails or is interrupted half-way (slurmd cannot start, Ctrl-C
+  # while waiting for the node) stops what it started rather than leave root's daemons
+  # running with nothing to say so.
+  trap 'stop >/dev/null 2>&1 || true' EXIT
+  trap 'exit 130' INT TERM
   munged --force --key-file="$dir/munge/munge.key" --socket="$dir/munge/munge.socket" \
     --pid-file="$dir/munge/munged.pid" --log-file="$dir/log/munged.log" \
     --seed-file="$dir/munge/munged.seed" ||
@@ -167,12 +173,12 @@ start() {
   until [ "$(sinfo -h -o %t 2>/dev/null)" = idle ]; do
     if [ $waited -ge 60 ]; then
       tail -n 20 "$dir"/log/*.log >&2 || true
-      stop >/dev/null 2>&1 || true
       fail "the node did not become idle within 30 s"
     fi
     sleep 0.5
     waited=$((waited + 1))
   done
+  trap - EXIT INT TERM
   say "running in $dir: $(sinfo -h -N -o '%N, %c CPUs, %m MB')"
   echo "export SLURM_CONF=$conf"
 }

@@ -611,3 +611,81 @@ fn local_cluster_refuses_a_directory_whose_parent_another_user_controls() {
         text(&o.stderr)
     );
 }
+
+/// A stand-in for each Slurm and munge program `local-cluster.sh start` runs, in `bin`:
+/// `munged` and `slurmctld` leave a `sleep` running under their pid files, as the daemons do;
+/// `slurmd -C` prints a node line and `slurmd` itself fails, as when its port is taken.
+fn stand_in_cluster_programs(bin: &std::path::Path) {
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::create_dir_all(bin).unwrap();
+    let daemon = |pid_file: &str| {
+        format!("#!/bin/sh\nsleep 600 </dev/null >/dev/null 2>&1 &\necho $! >\"{pid_file}\"\n")
+    };
+    for (name, script) in [
+        (
+            "munged",
+            daemon("$(printf '%s\\n' \"$@\" | sed -n 's/^--pid-file=//p')"),
+        ),
+        ("slurmctld", daemon("$(dirname \"$2\")/slurmctld.pid")),
+        (
+            "slurmd",
+            "#!/bin/sh\n[ \"$1\" = -C ] && echo 'NodeName=n CPUs=1' && exit 0\nexit 1\n".into(),
+        ),
+        ("sbatch", "#!/bin/sh\nexit 1\n".into()),
+        ("sinfo", "#!/bin/sh\nexit 1\n".into()),
+    ] {
+        std::fs::write(bin.join(name), script).unwrap();
+        std::fs::set_permissions(bin.join(name), std::fs::Permissions::from_mode(0o755)).unwrap();
+    }
+}
+
+/// `local-cluster.sh start` that failed half-way ("slurmd did not start", or SIGTERM while
+/// waiting for the node) exited leaving munged and slurmctld running as root, with nothing
+/// to say so. It stops what it started. No Slurm needed: stand-ins play the daemons.
+#[test]
+fn local_cluster_start_that_fails_half_way_stops_what_it_started() {
+    use std::os::unix::fs::MetadataExt;
+    // /proc/self belongs to the process's effective user.
+    if std::fs::metadata("/proc/self").map(|m| m.uid()).ok() != Some(0) {
+        return skip(
+            "local_cluster_start_that_fails_half_way_stops_what_it_started",
+            "local-cluster.sh start needs root",
+        );
+    }
+    let dir = temp_dir("slurm-half-way");
+    let bin = dir.join("bin");
+    stand_in_cluster_programs(&bin);
+    let cluster = dir.join("cluster");
+    let o = Command::new(root().join("deploy/slurm/local-cluster.sh"))
+        .arg("start")
+        .env(
+            "PATH",
+            format!("{}:{}", bin.display(), std::env::var("PATH").unwrap()),
+        )
+        .env("TESSERA_SLURM_DIR", &cluster)
+        .env("TESSERA_SLURM_PORT", "16997")
+        .output()
+        .expect("run local-cluster.sh");
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o.stderr));
+    assert!(
+        text(&o.stderr).contains("slurmd did not start"),
+        "{}",
+        text(&o.stderr)
+    );
+    // Every stand-in still running is ended before the test says which.
+    let mut running = Vec::new();
+    for pid_file in ["munge/munged.pid", "slurmctld.pid"] {
+        let pid = std::fs::read_to_string(cluster.join(pid_file)).unwrap();
+        let pid = pid.trim().to_owned();
+        if Command::new("kill")
+            .args(["-0", &pid])
+            .status()
+            .unwrap()
+            .success()
+        {
+            let _ = Command::new("kill").arg(&pid).status();
+            running.push(format!("{pid_file}: {pid}"));
+        }
+    }
+    assert!(running.is_empty(), "still running: {running:?}");
+}
