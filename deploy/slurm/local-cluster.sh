@@ -80,6 +80,18 @@ check_dir() {
     fail "$dir may be written by other users (mode $mode), whose pid files and slurm.conf are not trusted: remove it, or set TESSERA_SLURM_DIR"
 }
 
+# slurm.conf and munged's options take the directory's paths unquoted: a space or `#` ends
+# a value there, `%` is expanded, `,` splits AuthInfo's fields, so such a name failed only
+# once munged ran. Anything but letters, digits and `/._+-` is refused before anything
+# starts, which also keeps the line `start` prints for eval one word.
+check_name() {
+  case $dir in
+  *[!A-Za-z0-9/._+-]*)
+    fail "$dir holds a character slurm.conf cannot take (only letters, digits and /._+- may name the directory): set TESSERA_SLURM_DIR"
+    ;;
+  esac
+}
+
 is_up() {
   running_pid "$dir/slurmctld.pid" >/dev/null && running_pid "$dir/slurmd.pid" >/dev/null
 }
@@ -145,12 +157,14 @@ start() {
     echo "export SLURM_CONF=$conf"
     return 0
   fi
+  check_name
   install_packages
-  rm -rf "$dir"
+  rm -rf -- "$dir"
   # Made afresh, not taken over: another user's directory made since the line above fails.
   mkdir -p -- "$(dirname -- "$dir")"
   # Checked again now that every parent exists: another user may have made a missing one.
   check_parents
+  check_name
   mkdir -m 755 -- "$dir" || fail "could not make $dir afresh"
   mkdir -- "$dir/munge" "$dir/state" "$dir/spool" "$dir/log"
   # munged insists on a private key and a socket directory others may enter.

@@ -689,3 +689,41 @@ fn local_cluster_start_that_fails_half_way_stops_what_it_started() {
     }
     assert!(running.is_empty(), "still running: {running:?}");
 }
+
+/// slurm.conf and munged take local-cluster.sh's paths unquoted: `start` in a directory named
+/// with a space (or `#`, `%`, `,`) started munged, then failed at slurmctld's parse of
+/// slurm.conf ("Parse error ... line 10"). Such a name is refused before anything starts.
+/// No Slurm needed: stand-ins play the daemons.
+#[test]
+fn local_cluster_refuses_a_directory_name_slurm_conf_cannot_hold() {
+    let dir = temp_dir("slurm-names");
+    let bin = dir.join("bin");
+    stand_in_cluster_programs(&bin);
+    for name in ["a b", "a#b", "a%n", "a,b", "a$(id)"] {
+        let cluster = dir.join(name).join("cluster");
+        let o = Command::new(root().join("deploy/slurm/local-cluster.sh"))
+            .arg("start")
+            .env(
+                "PATH",
+                format!("{}:{}", bin.display(), std::env::var("PATH").unwrap()),
+            )
+            .env("TESSERA_SLURM_DIR", &cluster)
+            .env("TESSERA_SLURM_PORT", "16997")
+            .output()
+            .expect("run local-cluster.sh");
+        let said = text(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{name}: {said}");
+        if said.contains("needs root") {
+            return skip(
+                "local_cluster_refuses_a_directory_name_slurm_conf_cannot_hold",
+                "local-cluster.sh start needs root",
+            );
+        }
+        assert!(
+            said.contains("holds a character slurm.conf cannot take"),
+            "{name}: {said}"
+        );
+        assert!(o.stdout.is_empty(), "{name}: {}", text(&o.stdout));
+        assert!(!cluster.exists(), "{name}: made {}", cluster.display());
+    }
+}
