@@ -727,3 +727,31 @@ fn local_cluster_refuses_a_directory_name_slurm_conf_cannot_hold() {
         assert!(!cluster.exists(), "{name}: made {}", cluster.display());
     }
 }
+
+/// render.sbatch splits EXTRA into words and once also expanded each as a pattern in the
+/// job's directory: `--preview-file p[1].png` wrote the preview over a file `p1.png` lying
+/// there. EXTRA's words are taken as they are. No Slurm needed: the script runs as the one
+/// task of an array would.
+#[test]
+fn render_sbatch_takes_extra_s_words_as_they_are() {
+    let dir = dir_with_scene("sbatch-extra", GOOD);
+    std::fs::write(dir.join("p1.png"), "someone's file").unwrap();
+    let o = Command::new(root().join("deploy/slurm/render.sbatch"))
+        .current_dir(&dir)
+        .env("SCENE", "scene.toml")
+        .env("EXTRA", "--spp 1 --preview-file p[1].png")
+        .env("TESSERA", env!("CARGO_BIN_EXE_tessera"))
+        .env("SLURM_ARRAY_TASK_ID", "0")
+        .env("SLURM_ARRAY_TASK_MIN", "0")
+        .env("SLURM_ARRAY_TASK_COUNT", "1")
+        .env("SLURM_CPUS_PER_TASK", "1")
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    assert_eq!(
+        std::fs::read_to_string(dir.join("p1.png")).unwrap(),
+        "someone's file"
+    );
+    assert!(dir.join("p[1].png").is_file());
+    assert!(dir.join("parts/shard-0.part").is_file());
+}
