@@ -69,6 +69,10 @@ const DISPLAY_ATTRIBUTES: [(&str, &str); 8] = [
     ),
 ];
 
+/// What is said of a display window other than the data window.
+const DISPLAY_WINDOW: &str =
+    "a displayWindow other than its dataWindow: viewers show another frame";
+
 /// Attributes OpenEXR requires of every header, with their types, that the `exr` crate reads
 /// a file without (taking defaults of its own): the OpenEXR library refuses such a file, so
 /// every viewer built on it shows nothing where tessera decodes a picture.
@@ -257,7 +261,7 @@ pub fn check_bounds<R: Read>(r: R, len: u64) -> Result<(), String> {
 /// points to another chunk's data (`misplaced_chunk`): for `compare`.
 pub fn display_changes<R: Read + std::io::Seek>(mut r: R, len: u64) -> Result<Vec<String>, String> {
     let (mut changes, mut attributes) = (Vec::new(), Vec::new());
-    let (mut tiles, mut compression, mut data) = (None, None, None);
+    let (mut tiles, mut compression, mut data, mut display) = (None, None, None, None);
     let header_len = walk(&mut r, len, &mut |name, kind, value| {
         attributes.push((name.to_owned(), kind.to_owned()));
         changes.extend(misfit(name, kind, value.len()));
@@ -266,6 +270,7 @@ pub fn display_changes<R: Read + std::io::Seek>(mut r: R, len: u64) -> Result<Ve
         match (name, kind) {
             ("compression", "compression") => compression = value.first().copied(),
             ("dataWindow", "box2i") => data = box2i(&value, "dataWindow").ok(),
+            ("displayWindow", "box2i") => display = box2i(&value, "displayWindow").ok(),
             ("tiles", "tiledesc") => {
                 tiles = tile_size(&value);
                 // Levels past the first are the picture again at smaller sizes, which a
@@ -284,6 +289,12 @@ pub fn display_changes<R: Read + std::io::Seek>(mut r: R, len: u64) -> Result<Ve
         Ok(())
     })?;
     changes.extend(lacking(&attributes));
+    // The decoder measures the display window (what lies outside it cropped, what it
+    // holds outside the data window black), where viewers built on OpenEXR (GIMP,
+    // Blender) show the data window: the pixels measured are not those shown.
+    if display.is_some_and(|d| Some(d) != data) {
+        changes.push(DISPLAY_WINDOW.to_owned());
+    }
     if let Some(data) = data
         && let (Some(width), Some(height)) = (extent(data[0], data[2]), extent(data[1], data[3]))
     {
@@ -484,9 +495,7 @@ pub fn read<R: Read>(r: R, len: u64) -> Result<ExrHeader, String> {
     }
     let samples = (list.iter().all(|(_, k)| *k == list[0].1)).then_some(list[0].1);
     if display.is_some_and(|d| d != data) {
-        display_changes.push(
-            "a displayWindow other than its dataWindow: viewers show another frame".to_owned(),
-        );
+        display_changes.push(DISPLAY_WINDOW.to_owned());
     }
     let (Some(width), Some(height)) = (extent(data[0], data[2]), extent(data[1], data[3])) else {
         return Err(format!("has an empty or inverted dataWindow {data:?}"));

@@ -862,6 +862,35 @@ mod tests {
         }
     }
 
+    /// The decoder measures an EXR's display window, cropping what lies outside it, where
+    /// viewers built on OpenEXR (GIMP, Blender) show its data window: an EXR of 4x1 pixels,
+    /// two of them red, in a display window of 2x1 was `inf dB (identical)` with the 2x1
+    /// image of its first two. A display window other than the data window is listed, as
+    /// `reproduce` names it.
+    #[test]
+    fn an_exr_display_window_other_than_its_data_window_is_listed() {
+        use exr::prelude::*;
+        let exr = |width: usize, display: Option<usize>| {
+            let rgb = SpecificChannels::rgb(|at: Vec2<usize>| {
+                (if at.0 < 2 { 0.5f32 } else { 1.0 }, 0.25f32, 0.0f32)
+            });
+            let mut image = Image::from_channels((width, 1), rgb);
+            if let Some(display) = display {
+                image.attributes.display_window = IntegerBounds::new((0, 0), (display, 1));
+            }
+            let mut out = std::io::Cursor::new(Vec::new());
+            image.write().to_buffered(&mut out).unwrap();
+            out.into_inner()
+        };
+        let (two, overscan) = (exr(2, None), exr(4, Some(2)));
+        let changes = listed("exr-window", ("two.exr", &two), ("overscan.exr", &overscan));
+        assert_eq!(
+            changes,
+            ["a displayWindow other than its dataWindow: viewers show another frame"]
+        );
+        assert!(listed("exr-window", ("a.exr", &two), ("b.exr", &two)).is_empty());
+    }
+
     /// A NaN is measured as 0, so an EXR of NaN once compared identical with a black one,
     /// though viewers show NaN as they choose (some black, some a warning colour). Each NaN
     /// value is counted and listed.
