@@ -251,19 +251,91 @@ fn channels(value: &[u8]) -> Result<Vec<(String, SampleType)>, String> {
 /// the bounds every header is read in (one part, no deep data, at most `MAX_ATTRIBUTES`
 /// attributes of at most `MAX_VALUE` bytes), whatever its channels and attributes: for an
 /// EXR another program may have made (an image texture, an image to compare), which the
-/// `exr` crate then reads, keeping every attribute without a bound of its own.
-pub fn check_bounds<R: Read>(r: R, len: u64) -> Result<(), String> {
-    walk(r, len, &mut |_, _, _| Ok(())).map(drop)
+/// `exr` crate then reads, keeping every attribute without a bound of its own; and that its
+/// pixels take at most `most_decoded` bytes decoded (`Decoded`).
+pub fn check_bounds<R: Read>(r: R, len: u64, most_decoded: u64) -> Result<(), String> {
+    let mut decoded = Decoded::default();
+    walk(r, len, &mut |name, kind, value| {
+        decoded.note(name, kind, &value);
+        Ok(())
+    })?;
+    decoded.check(most_decoded)
 }
 
-/// `check_bounds`, and what the file holds that changes how a viewer shows the picture
-/// (`ExrHeader::display_changes`), whatever its channels, with an offset table entry that
-/// points to another chunk's data (`misplaced_chunk`): for `compare`.
-pub fn display_changes<R: Read + std::io::Seek>(mut r: R, len: u64) -> Result<Vec<String>, String> {
+/// What a header says of the bytes its pixels take decoded: the data window and the
+/// channels' bytes a pixel. The `exr` crate inflates each block of every channel in full
+/// before it hands the decoder the pixels it asks for (those of the display window, whose
+/// size is the one checked): a file of 3 MiB whose data window is 2^24 x 16 pixels of ZIP
+/// blocks (its display window one pixel) once asked for 6 GiB, and ended tessera on the
+/// failed allocation.
+#[derive(Default)]
+struct Decoded {
+    data: Option<[i32; 4]>,
+    bytes_per_pixel: Option<u64>,
+}
+
+impl Decoded {
+    /// Takes note of the attribute `name` of type `kind`, where it is one of the two.
+    fn note(&mut self, name: &str, kind: &str, value: &[u8]) {
+        match (name, kind) {
+            ("dataWindow", "box2i") => self.data = box2i(value, "dataWindow").ok(),
+            ("channels", "chlist") => self.bytes_per_pixel = bytes_per_pixel(value),
+            _ => {}
+        }
+    }
+
+    /// Refuses pixels that take more than `most` bytes decoded. A header without both, or
+    /// of an empty data window, is the decoder's to refuse.
+    fn check(&self, most: u64) -> Result<(), String> {
+        let (Some(data), Some(bytes)) = (self.data, self.bytes_per_pixel) else {
+            return Ok(());
+        };
+        let (Some(width), Some(height)) = (extent(data[0], data[2]), extent(data[1], data[3]))
+        else {
+            return Ok(());
+        };
+        let decoded = u128::from(width) * u128::from(height) * u128::from(bytes);
+        if decoded > u128::from(most) {
+            return Err(format!(
+                "has pixels that take {decoded} bytes decoded (a data window of \
+                 {width}x{height}, {bytes} bytes a pixel), more than the {most} an image's \
+                 pixels may take here"
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The bytes a pixel of the channels of a `chlist` value take decoded (a subsampled
+/// channel counted whole, 4 for one of a sample type the decoder does not know), None
+/// where the list is cut short.
+fn bytes_per_pixel(value: &[u8]) -> Option<u64> {
+    let (mut bytes, mut rest) = (0u64, value);
+    loop {
+        let end = rest.iter().position(|&b| b == 0)?;
+        if end == 0 {
+            return Some(bytes);
+        }
+        let fields = rest.get(end + 1..end + 17)?;
+        bytes += if i32_at(fields, 0) == 1 { 2 } else { 4 };
+        rest = &rest[end + 17..];
+    }
+}
+
+/// `check_bounds` (`most_decoded` bytes of pixels), and what the file holds that changes how
+/// a viewer shows the picture (`ExrHeader::display_changes`), whatever its channels, with an
+/// offset table entry that points to another chunk's data (`misplaced_chunk`): for `compare`.
+pub fn display_changes<R: Read + std::io::Seek>(
+    mut r: R,
+    len: u64,
+    most_decoded: u64,
+) -> Result<Vec<String>, String> {
     let (mut changes, mut attributes) = (Vec::new(), Vec::new());
     let (mut tiles, mut compression, mut data, mut display) = (None, None, None, None);
+    let mut decoded = Decoded::default();
     let header_len = walk(&mut r, len, &mut |name, kind, value| {
         attributes.push((name.to_owned(), kind.to_owned()));
+        decoded.note(name, kind, &value);
         changes.extend(misfit(name, kind, value.len()));
         // What places the chunks; a value of the wrong size leaves the table unchecked,
         // the decoder the judge.
@@ -288,6 +360,7 @@ pub fn display_changes<R: Read + std::io::Seek>(mut r: R, len: u64) -> Result<Ve
         changes.extend(display_change(name, kind, &value)?);
         Ok(())
     })?;
+    decoded.check(most_decoded)?;
     changes.extend(lacking(&attributes));
     // The decoder measures the display window (what lies outside it cropped, what it
     // holds outside the data window black), where viewers built on OpenEXR (GIMP,
@@ -669,6 +742,63 @@ mod tests {
         let file = header(b"string");
         let said = read(&file[..], file.len() as u64).err().unwrap_or_default();
         assert!(!said.contains("`type`"), "{said}");
+    }
+
+    /// The bytes a data window's pixels take decoded, all channels: a header claiming more
+    /// than the bound is refused, whatever its display window (one pixel here), by both
+    /// walks; one within it is not.
+    #[test]
+    fn pixels_that_take_more_than_the_bound_decoded_are_refused() {
+        let header = |width: i32, half: bool| {
+            let mut channels = Vec::new();
+            for name in [b"A", b"B", b"G", b"R"] {
+                channels.extend(name);
+                channels.push(0);
+                let kind = if half && name == b"A" { 1 } else { 2 };
+                channels.extend([kind, 0, 1, 1].iter().flat_map(|v: &i32| v.to_le_bytes()));
+            }
+            channels.push(0);
+            let window = |x: i32| -> Vec<u8> {
+                [0, 0, x - 1, 0]
+                    .iter()
+                    .flat_map(|v| v.to_le_bytes())
+                    .collect()
+            };
+            let mut file = vec![0x76, 0x2f, 0x31, 0x01, 2, 0, 0, 0];
+            for (name, kind, value) in [
+                ("channels", "chlist", channels),
+                ("dataWindow", "box2i", window(width)),
+                ("displayWindow", "box2i", window(1)),
+            ] {
+                file.extend([name.as_bytes(), b"\0", kind.as_bytes(), b"\0"].concat());
+                file.extend((value.len() as u32).to_le_bytes());
+                file.extend(value);
+            }
+            file.push(0);
+            file
+        };
+        for (width, half, within) in [(101, false, false), (100, false, true), (114, true, true)] {
+            let file = header(width, half);
+            let bounds = check_bounds(&file[..], file.len() as u64, 1600);
+            let changes = display_changes(Cursor::new(&file), file.len() as u64, 1600);
+            if within {
+                assert_eq!(bounds, Ok(()), "{width}");
+                assert!(changes.is_ok(), "{width}: {changes:?}");
+            } else {
+                let said = format!(
+                    "has pixels that take 1616 bytes decoded (a data window of {width}x1, 16 bytes \
+                     a pixel), more than the 1600"
+                );
+                assert!(
+                    bounds.as_ref().unwrap_err().starts_with(&said),
+                    "{bounds:?}"
+                );
+                assert!(
+                    changes.as_ref().unwrap_err().starts_with(&said),
+                    "{changes:?}"
+                );
+            }
+        }
     }
 
     /// A file that counts the reads and seeks that reach it.

@@ -224,7 +224,9 @@ impl RgbImage {
                         Ok(changes)
                     })
                 }
-                _ => crate::exr_header::display_changes(&mut file, len),
+                // Its pixels decoded (its data window's, all channels) may take no more
+                // than the longest file read: as many as an image without compression.
+                _ => crate::exr_header::display_changes(&mut file, len, MAX_COMPARED_BYTES),
             };
             display_changes = walked.map_err(fail)?;
             file.seek(std::io::SeekFrom::Start(0))
@@ -889,6 +891,75 @@ mod tests {
             ["a displayWindow other than its dataWindow: viewers show another frame"]
         );
         assert!(listed("exr-window", ("a.exr", &two), ("b.exr", &two)).is_empty());
+    }
+
+    /// The `exr` crate inflates every block of an EXR's data window, whatever the display
+    /// window the decoder is asked for: a file of 3 MiB of ZIP blocks of zeros whose data
+    /// window was 2^24 x 16 pixels and display window one pixel asked for 6 GiB and ended
+    /// tessera on the failed allocation. Pixels that take more decoded than the longest
+    /// file compare reads are refused before the decoder sees the file; here a data window
+    /// of 2^21 x 16 float RGB, 384 MiB, from a file of a few hundred KiB.
+    #[test]
+    fn an_exr_whose_data_window_inflates_past_the_bound_is_refused() {
+        let (width, lines) = (1u32 << 21, 16u32);
+        let attribute = |name: &str, kind: &str, value: &[u8]| {
+            let mut a = [name.as_bytes(), b"\0", kind.as_bytes(), b"\0"].concat();
+            a.extend((value.len() as u32).to_le_bytes());
+            a.extend(value);
+            a
+        };
+        let window = |x: u32, y: u32| -> Vec<u8> {
+            [0, 0, x as i32 - 1, y as i32 - 1]
+                .iter()
+                .flat_map(|v: &i32| v.to_le_bytes())
+                .collect()
+        };
+        let mut channels = Vec::new();
+        for name in [b"B", b"G", b"R"] {
+            channels.extend(name);
+            channels.push(0);
+            channels.extend([2i32, 0, 1, 1].iter().flat_map(|v| v.to_le_bytes()));
+        }
+        channels.push(0);
+        let mut file = vec![0x76, 0x2f, 0x31, 0x01, 2, 0, 0, 0];
+        for (name, kind, value) in [
+            ("channels", "chlist", channels),
+            ("compression", "compression", vec![3]),
+            ("dataWindow", "box2i", window(width, lines)),
+            ("displayWindow", "box2i", window(1, 1)),
+            ("lineOrder", "lineOrder", vec![0]),
+            ("pixelAspectRatio", "float", 1f32.to_le_bytes().to_vec()),
+            ("screenWindowCenter", "v2f", vec![0; 8]),
+            ("screenWindowWidth", "float", 1f32.to_le_bytes().to_vec()),
+        ] {
+            file.extend(attribute(name, kind, &value));
+        }
+        file.push(0);
+        // One block of 16 lines of zeros, as ZIP compresses them.
+        let mut zip = fdeflate::Compressor::new(Vec::new()).unwrap();
+        let zeros = vec![0u8; 1 << 20];
+        for _ in 0..(u64::from(width) * u64::from(lines) * 12) >> 20 {
+            zip.write_data(&zeros).unwrap();
+        }
+        let zip = zip.finish().unwrap();
+        file.extend((file.len() as u64 + 8).to_le_bytes());
+        file.extend(0i32.to_le_bytes());
+        file.extend((zip.len() as u32).to_le_bytes());
+        file.extend(zip);
+        let dir = std::env::temp_dir().join(format!("tessera-exr-bomb-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let (bomb, one) = (dir.join("bomb.exr"), dir.join("one.exr"));
+        std::fs::write(&bomb, &file).unwrap();
+        let mut black = crate::film::Film::new(1, 1, 1);
+        black.sums[0] = [0; 3];
+        black.save(&one, 1.0, None).unwrap();
+        let said = difference_of_files(&one, &bomb).map(|d| d.rmse);
+        std::fs::remove_dir_all(&dir).unwrap();
+        let e = said.unwrap_err().to_string();
+        assert!(
+            e.contains("has pixels that take 402653184 bytes decoded (a data window of 2097152x16"),
+            "{e}"
+        );
     }
 
     /// A NaN is measured as 0, so an EXR of NaN once compared identical with a black one,

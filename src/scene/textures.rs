@@ -251,9 +251,11 @@ pub fn decode(bytes: &[u8], pixels_left: u64) -> Result<ImageTexture, String> {
         Some(image::ImageFormat::Png) => {
             crate::png_header::read(std::io::Cursor::new(bytes), bytes.len() as u64)?;
         }
-        // The `exr` crate keeps every attribute of a header, whatever its count.
+        // The `exr` crate keeps every attribute of a header, whatever its count, and
+        // inflates the pixels of its data window, whatever the size read below (its display
+        // window's): at most four floats a pixel of the most a texture has.
         Some(image::ImageFormat::OpenExr) => {
-            crate::exr_header::check_bounds(bytes, bytes.len() as u64)?;
+            crate::exr_header::check_bounds(bytes, bytes.len() as u64, 16 * MAX_TEXTURE_PIXELS)?;
         }
         // The PNM decoder keeps each line of a PAM header, whatever its length.
         Some(image::ImageFormat::Pnm) => {
