@@ -40,13 +40,23 @@ running_pid() {
 # owns or may write lets them rename the cluster's directory away, even after the checks
 # below, and put their own in its place, whose slurm.conf root's sinfo and sbatch then read
 # and load plugins from. The cluster's directory is then named by that physical path, so a
-# link on the way cannot be pointed elsewhere later either.
+# link on the way cannot be pointed elsewhere later either, and `resolved` says so.
+#
+# A parent not made yet is checked from the nearest directory above it that exists, and the
+# cluster's directory is left unresolved: nothing runs there, and nothing at that path is
+# read or removed, since another user may make the missing parents (in a sticky /tmp) after
+# this check, with a link among them to any directory of root's. `start` once removed
+# whatever such a link led to (`rm -rf`) while apt-get installed Slurm.
+resolved=
 check_parents() {
   local parent p owner mode
   parent=$(dirname -- "$dir")
-  [ -d "$parent" ] || return 0
-  parent=$(realpath -e -- "$parent") || fail "could not resolve $(dirname -- "$dir")"
   p=$parent
+  while [ ! -d "$p" ]; do
+    p=$(dirname -- "$p")
+  done
+  p=$(realpath -e -- "$p") || fail "could not resolve $(dirname -- "$dir")"
+  local top=$p
   while :; do
     owner=$(stat -c %u -- "$p")
     [ "$owner" = 0 ] || [ "$owner" = "$(id -u)" ] ||
@@ -57,9 +67,13 @@ check_parents() {
     [ "$p" = / ] && break
     p=$(dirname -- "$p")
   done
-  dir=${parent%/}/$(basename -- "$dir")
+  [ -d "$parent" ] || return 0
+  # The parent exists now: `top` is it, physically, unless a link was made in between.
+  [ "$top" = "$(realpath -e -- "$parent")" ] || fail "$parent changed while it was checked"
+  dir=${top%/}/$(basename -- "$dir")
   conf=$dir/slurm.conf
   export SLURM_CONF=$conf
+  resolved=1
 }
 
 # The cluster's directory must be this user's own: root trusts its pid files (which
@@ -92,8 +106,10 @@ check_name() {
   esac
 }
 
+# Whether the cluster runs: never where its directory's parent does not exist (`resolved`).
 is_up() {
-  running_pid "$dir/slurmctld.pid" >/dev/null && running_pid "$dir/slurmd.pid" >/dev/null
+  [ -n "$resolved" ] &&
+    running_pid "$dir/slurmctld.pid" >/dev/null && running_pid "$dir/slurmd.pid" >/dev/null
 }
 
 install_packages() {
@@ -159,7 +175,9 @@ start() {
   fi
   check_name
   install_packages
-  rm -rf -- "$dir"
+  # Only a path resolved through directories no other user may change is removed: where the
+  # parent did not exist, nothing is there of an earlier cluster's.
+  [ -z "$resolved" ] || rm -rf -- "$dir"
   # Made afresh, not taken over: another user's directory made since the line above fails.
   mkdir -p -- "$(dirname -- "$dir")"
   # Checked again now that every parent exists: another user may have made a missing one.
@@ -210,6 +228,10 @@ end_process() {
 }
 
 stop() {
+  if [ -z "$resolved" ]; then
+    say "not running (there is no $(dirname -- "$dir"))"
+    return 0
+  fi
   if [ -f "$conf" ] && is_up; then
     # Jobs first, so no job step outlives the daemons.
     squeue -h -o %A 2>/dev/null | sort -u | xargs -r scancel --quiet 2>/dev/null || true

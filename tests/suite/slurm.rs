@@ -728,6 +728,93 @@ fn local_cluster_refuses_a_directory_name_slurm_conf_cannot_hold() {
     }
 }
 
+/// local-cluster.sh checked no directory above its own where the parent did not exist yet
+/// (`TESSERA_SLURM_DIR=/tmp/work/c/slurm`, no `/tmp/work`), and `start` then removed that
+/// path with `rm -rf`: another user who made `/tmp/work` while apt-get installed Slurm, with
+/// `c` a link to any directory of root's, had root remove the `slurm` in it, and the cluster
+/// ran there. A path whose parent did not exist is not removed (nor read by `status` or
+/// `stop`), and missing parents are checked from the nearest directory above that exists.
+/// No Slurm needed: stand-ins play the daemons, and apt-get plays the other user.
+#[test]
+fn local_cluster_start_removes_nothing_through_a_parent_made_after_its_check() {
+    use std::os::unix::fs::{MetadataExt, PermissionsExt};
+    if std::fs::metadata("/proc/self").map(|m| m.uid()).ok() != Some(0) {
+        return skip(
+            "local_cluster_start_removes_nothing_through_a_parent_made_after_its_check",
+            "local-cluster.sh start needs root",
+        );
+    }
+    let dir = temp_dir("slurm-late-parent");
+    let bin = dir.join("bin");
+    stand_in_cluster_programs(&bin);
+    // No sbatch on the way, so that start installs Slurm: the tools the script and the
+    // stand-ins use are all its PATH holds.
+    std::fs::remove_file(bin.join("sbatch")).unwrap();
+    let path = std::env::var_os("PATH").unwrap();
+    for tool in [
+        "bash", "sh", "dirname", "basename", "realpath", "stat", "id", "rm", "mkdir", "ln",
+        "chown", "cat", "head", "chmod", "sleep", "seq", "tail", "grep", "sed", "sort", "xargs",
+        "hostname",
+    ] {
+        if let Some(found) = std::env::split_paths(&path)
+            .map(|d| d.join(tool))
+            .find(|p| p.is_file())
+        {
+            std::os::unix::fs::symlink(found, bin.join(tool)).unwrap();
+        }
+    }
+    // Root's directory with a `slurm` of its own, and a sticky one others may write, as /tmp.
+    let keep = dir.join("keep");
+    std::fs::create_dir_all(keep.join("slurm")).unwrap();
+    std::fs::write(keep.join("slurm/precious"), "root's").unwrap();
+    let sticky = dir.join("sticky");
+    std::fs::create_dir(&sticky).unwrap();
+    std::fs::set_permissions(&sticky, std::fs::Permissions::from_mode(0o1777)).unwrap();
+    let work = sticky.join("work");
+    // While apt-get runs, the other user makes the missing parent, `c` a link to root's.
+    std::fs::write(
+        bin.join("apt-get"),
+        format!(
+            "#!/bin/sh\n[ \"$1\" = update ] || exit 0\nmkdir {work} && ln -s {keep} {work}/c && \
+             chown -h 65534:65534 {work} {work}/c\n",
+            work = work.display(),
+            keep = keep.display()
+        ),
+    )
+    .unwrap();
+    std::fs::set_permissions(bin.join("apt-get"), std::fs::Permissions::from_mode(0o755)).unwrap();
+    let run = |command: &str| {
+        Command::new(root().join("deploy/slurm/local-cluster.sh"))
+            .arg(command)
+            .env("PATH", &bin)
+            .env("TESSERA_SLURM_DIR", work.join("c/slurm"))
+            .env("TESSERA_SLURM_PORT", "16997")
+            .output()
+            .expect("run local-cluster.sh")
+    };
+    let o = run("start");
+    let said = text(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{said}");
+    assert!(said.contains("installing slurm-wlm"), "{said}");
+    assert_eq!(
+        std::fs::read_to_string(keep.join("slurm/precious"))
+            .ok()
+            .as_deref(),
+        Some("root's"),
+        "start removed what the other user's link led to: {said}"
+    );
+    // Their directory above a parent not made yet, there before the command: refused.
+    std::fs::remove_file(work.join("c")).unwrap();
+    let o = run("stop");
+    let said = text(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{said}");
+    assert!(
+        said.contains(&format!("{}, above", work.display()))
+            && said.contains("belongs to another user (uid 65534)"),
+        "{said}"
+    );
+}
+
 /// render.sbatch splits EXTRA into words and once also expanded each as a pattern in the
 /// job's directory: `--preview-file p[1].png` wrote the preview over a file `p1.png` lying
 /// there. EXTRA's words are taken as they are. No Slurm needed: the script runs as the one
