@@ -292,6 +292,14 @@ fn jpeg_display_changes<R: std::io::Read + Seek>(
 ) -> std::result::Result<(Vec<String>, JpegSegments), String> {
     let mut segments = jpeg_segments(r).unwrap_or_default();
     let mut changes = Vec::new();
+    // What lies past the segments walked is unread: an EXIF segment saying "turned" or an
+    // Adobe segment there changed how viewers show the picture, unlisted.
+    if segments.unwalked {
+        return Err(format!(
+            "has more than {MAX_JPEG_SEGMENTS} segments before its first scan, more than are \
+             walked for what changes how it is shown (a JPEG has a dozen)"
+        ));
+    }
     if let Some(fault) = segments.exif_fault.take() {
         return Err(fault);
     }
@@ -388,6 +396,8 @@ struct JpegSegments {
     odd_orientation: Option<String>,
     /// Whether the walk stopped just past the first scan's marker.
     at_scan: bool,
+    /// Whether the walk stopped at `MAX_JPEG_SEGMENTS` segments, before the first scan.
+    unwalked: bool,
     /// Its segments (APP2) of a colour profile, as libjpeg takes one (14 bytes or more).
     icc: usize,
     /// Whether it has a JFIF segment (APP0) libjpeg reads as one (14 bytes or more).
@@ -401,8 +411,8 @@ struct JpegSegments {
 }
 
 /// The segments of the JPEG `r` is at the start of, up to its first scan (or its first
-/// `MAX_JPEG_SEGMENTS` segments), each skipped past its first sixteen bytes, and what lies
-/// between segments skipped as libjpeg skips it.
+/// `MAX_JPEG_SEGMENTS` segments, `unwalked`), each skipped past its first sixteen bytes, and
+/// what lies between segments skipped as libjpeg skips it.
 fn jpeg_segments<R: std::io::Read + Seek>(
     r: &mut std::io::BufReader<R>,
 ) -> std::io::Result<JpegSegments> {
@@ -413,7 +423,8 @@ fn jpeg_segments<R: std::io::Read + Seek>(
     if two != [0xff, 0xd8] {
         return Ok(seen);
     }
-    for _ in 0..MAX_JPEG_SEGMENTS {
+    // One marker more than the segments: the first scan's, after as many as are walked.
+    for _ in 0..=MAX_JPEG_SEGMENTS {
         // The next marker, as libjpeg finds it: bytes other than 0xFF before it, and FF 00,
         // are skipped (libjpeg warns of them and reads on, as the decoder does), then fill
         // bytes.
@@ -436,7 +447,7 @@ fn jpeg_segments<R: std::io::Read + Seek>(
             // The first scan (the pixels), or what no segment begins with.
             0xd8..=0xda => {
                 seen.at_scan = byte[0] == 0xda;
-                break;
+                return Ok(seen);
             }
             _ => {}
         }
@@ -482,6 +493,7 @@ fn jpeg_segments<R: std::io::Read + Seek>(
         }
         r.seek_relative(rest.max(0) - n as i64)?;
     }
+    seen.unwalked = true;
     Ok(seen)
 }
 
@@ -1518,6 +1530,27 @@ mod tests {
         );
         let once = [&jpeg[..2], &exif(1), &jpeg[2..]].concat();
         assert!(listed("jpeg-one-exif", ("a.jpg", jpeg), ("b.jpg", &once)).is_empty());
+        // After as many empty comments (FF FE 00 02, 256 KiB) as the walk takes, the two
+        // segments went unread: `inf dB (identical)`, nothing listed. Such a file is refused.
+        let comments = |n| b"\xff\xfe\x00\x02".repeat(n);
+        let walked = [&jpeg[..2], &comments(MAX_JPEG_SEGMENTS - 100), &twice[2..]].concat();
+        let changes = listed("jpeg-walked-exif", ("a.jpg", jpeg), ("b.jpg", &walked));
+        assert!(
+            changes.len() == 1 && changes[0].contains("2 EXIF segments"),
+            "{changes:?}"
+        );
+        let hidden = [&jpeg[..2], &comments(MAX_JPEG_SEGMENTS), &twice[2..]].concat();
+        let dir = std::env::temp_dir().join(format!("tessera-jpeg-many-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("a.jpg"), jpeg).unwrap();
+        std::fs::write(dir.join("b.jpg"), &hidden).unwrap();
+        let d = difference_of_files(&dir.join("a.jpg"), &dir.join("b.jpg"));
+        std::fs::remove_dir_all(&dir).unwrap();
+        let refused = d.err().map(|e| e.to_string()).unwrap_or_default();
+        assert!(
+            refused.contains("b.jpg") && refused.contains("more than 65536 segments"),
+            "{refused}"
+        );
     }
 
     #[test]
