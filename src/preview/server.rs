@@ -52,6 +52,14 @@ const STOP_GRACE: Duration = Duration::from_secs(3);
 /// An event stream ends after this (before the connection's lifetime); the page's
 /// EventSource reconnects after `retry`.
 const STREAM_LIFETIME: Duration = Duration::from_secs(45);
+/// An event stream with no status to send for this long sends a comment (`:`, which the page's
+/// EventSource ignores). The server keeps serving a client that has closed its side
+/// (`half_close`), so it reads nothing more from a stream's connection and learns that its
+/// page has gone (closed, reloaded) only when a write fails, the second after the close:
+/// without anything to write, as when a held render has ended, a closed page's connection
+/// would keep its place among `MAX_CLIENTS` for the whole `STREAM_LIFETIME`, and a few
+/// reloads would leave the owner's next page refused.
+const STREAM_HEARTBEAT: Duration = Duration::from_secs(1);
 /// Requests a connection may make per second, with a burst of `BURST`; faster ones are
 /// delayed, so a flood costs the machine a bounded amount of work.
 const REQUESTS_PER_SEC: f64 = 20.0;
@@ -774,8 +782,8 @@ fn safe_name(name: &str) -> String {
 }
 
 /// The event stream: every new snapshot's status as an `status` event, from the latest one
-/// on. The stream holds only the latest snapshot, so a client that reads slowly gets fewer
-/// events, never a backlog.
+/// on, and a comment after each `STREAM_HEARTBEAT` without one. The stream holds only the
+/// latest snapshot, so a client that reads slowly gets fewer events, never a backlog.
 fn events(shared: &Arc<Shared>) -> Response<Body> {
     let (mut sender, body) = Channel::<Bytes, Infallible>::new(1);
     let mut snapshots = shared.hub.subscribe();
@@ -797,6 +805,10 @@ fn events(shared: &Arc<Shared>) -> Response<Body> {
             }
             tokio::select! {
                 changed = snapshots.changed() => if changed.is_err() { return },
+                _ = tokio::time::sleep(STREAM_HEARTBEAT) => {
+                    message = Some(Bytes::from_static(b":\n\n"));
+                    continue;
+                }
                 _ = &mut deadline => return,
                 _ = stopping.changed() => return,
             }

@@ -116,6 +116,44 @@ fn clients_without_the_key_cannot_keep_the_owner_out() {
     server.stop();
 }
 
+/// The owner closes or reloads a tab of a render that has ended and is held (no status comes
+/// any more), again and again: each page's event stream was its connection's last request,
+/// and the server, which keeps serving a client that has closed its side (`half_close`),
+/// sees it gone at its next write. Its place is given back within a few seconds, not at the
+/// stream's end: a page opened then is served, not told that too many viewers are connected.
+#[test]
+fn closed_pages_event_streams_give_their_places_back_while_nothing_is_published() {
+    let previewer = blank_previewer();
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let server = Server::start(listener, previewer.hub()).unwrap();
+    let (addr, key) = (server.addr(), server.key().to_owned());
+    use std::io::Read;
+    for _ in 0..MAX_CLIENTS {
+        let mut s = connect(addr);
+        let answer = ask(&mut s, addr, &format!("/{key}/events"));
+        assert!(answer.starts_with("HTTP/1.1 200"), "{answer}");
+        // The page has read all that came (the run's token, its chunk), so closing sends a FIN.
+        let mut event = Vec::new();
+        while !event.ends_with(b"\n\n\r\n") {
+            let mut byte = [0u8; 1];
+            assert_eq!(s.read(&mut byte).unwrap(), 1);
+            event.push(byte[0]);
+        }
+    }
+    // Well within the stream's life, however slow the machine; 2 heartbeats are enough.
+    let until = Instant::now() + STREAM_LIFETIME / 3;
+    while server.stats().keyed.load(Ordering::Relaxed) > 0 && Instant::now() < until {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let keyed = server.stats().keyed.load(Ordering::Relaxed);
+    assert_eq!(keyed, 0, "places still held by closed pages");
+    let mut s = connect(addr);
+    let answer = ask(&mut s, addr, &format!("/{key}/status"));
+    assert!(answer.starts_with("HTTP/1.1 200"), "{answer}");
+    drop(s);
+    server.stop();
+}
+
 /// A browser opens a connection before it has a request for it (a preconnection), and
 /// another local user floods the port meanwhile, holding connections or closing them at
 /// once: the owner's connection is not closed to make room for the newer ones, and every
