@@ -35,6 +35,46 @@ running_pid() {
   [ -f "$1" ] && pid=$(cat "$1") && [ -n "$pid" ] && kill -0 "$pid" 2>/dev/null && echo "$pid"
 }
 
+# Refuses the directory $1 above the cluster's where another user owns it or may write it
+# (unless it is sticky, as /tmp is): they could rename the cluster's directory away.
+trust_above() {
+  local owner mode
+  owner=$(stat -c %u -- "$1")
+  [ "$owner" = 0 ] || [ "$owner" = "$(id -u)" ] ||
+    fail "$1, above $dir, belongs to another user (uid $owner), who could put their own directory in its place: choose a TESSERA_SLURM_DIR whose parents are root's"
+  mode=$(stat -c %a -- "$1")
+  [ $((8#$mode & 8#022)) = 0 ] || [ $((8#$mode & 8#1000)) != 0 ] ||
+    fail "$1, above $dir, may be written by other users (mode $mode), who could put their own directory in its place: choose a TESSERA_SLURM_DIR whose parents are root's"
+}
+
+# Each directory above the cluster's as TESSERA_SLURM_DIR names it, from / down, is held to
+# the same rule, and a link among them must be root's or this user's: another user's link
+# (in a sticky /tmp) is theirs to point elsewhere whenever they like, so the physical path
+# found through it says nothing of the next command's, and root's `start` removed whatever
+# directory of that name it led to.
+check_given() {
+  local abs p part owner parts
+  case $dir in
+  /*) abs=$dir ;;
+  *) abs=$PWD/$dir ;;
+  esac
+  IFS=/ read -ra parts <<<"$(dirname -- "$abs")"
+  p=
+  for part in "${parts[@]}"; do
+    [ -n "$part" ] || continue
+    p=$p/$part
+    if [ -L "$p" ]; then
+      owner=$(stat -c %u -- "$p")
+      [ "$owner" = 0 ] || [ "$owner" = "$(id -u)" ] ||
+        fail "$p, above $dir, is a link of another user's (uid $owner), who could point it elsewhere: choose a TESSERA_SLURM_DIR whose parents are root's"
+    elif [ -d "$p" ]; then
+      trust_above "$p"
+    else
+      return 0
+    fi
+  done
+}
+
 # Each directory above the cluster's, from its physical path up to /, must be this user's or
 # root's, and not writable by other users unless sticky (as /tmp is): one that another user
 # owns or may write lets them rename the cluster's directory away, even after the checks
@@ -49,7 +89,8 @@ running_pid() {
 # whatever such a link led to (`rm -rf`) while apt-get installed Slurm.
 resolved=
 check_parents() {
-  local parent p owner mode
+  local parent p
+  check_given
   parent=$(dirname -- "$dir")
   p=$parent
   while [ ! -d "$p" ]; do
@@ -58,12 +99,7 @@ check_parents() {
   p=$(realpath -e -- "$p") || fail "could not resolve $(dirname -- "$dir")"
   local top=$p
   while :; do
-    owner=$(stat -c %u -- "$p")
-    [ "$owner" = 0 ] || [ "$owner" = "$(id -u)" ] ||
-      fail "$p, above $dir, belongs to another user (uid $owner), who could put their own directory in its place: choose a TESSERA_SLURM_DIR whose parents are root's"
-    mode=$(stat -c %a -- "$p")
-    [ $((8#$mode & 8#022)) = 0 ] || [ $((8#$mode & 8#1000)) != 0 ] ||
-      fail "$p, above $dir, may be written by other users (mode $mode), who could put their own directory in its place: choose a TESSERA_SLURM_DIR whose parents are root's"
+    trust_above "$p"
     [ "$p" = / ] && break
     p=$(dirname -- "$p")
   done

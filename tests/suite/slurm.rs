@@ -612,6 +612,64 @@ fn local_cluster_refuses_a_directory_whose_parent_another_user_controls() {
     );
 }
 
+/// A link of another user's among the directories TESSERA_SLURM_DIR names is theirs to point
+/// elsewhere at any time: with `/tmp/theirs` a link of mallory's to a directory of root's,
+/// every directory on the physical path was root's, so `TESSERA_SLURM_DIR=/tmp/theirs/slurm`
+/// was taken, and root's `start` removed whatever `slurm` directory she pointed it at. Such a
+/// link is refused, as is a directory of another user's among those named, though the
+/// physical path avoids it (`theirs/../ours`). No Slurm needed.
+#[test]
+fn local_cluster_refuses_a_path_through_another_user_s_link() {
+    let test = "local_cluster_refuses_a_path_through_another_user_s_link";
+    let dir = temp_dir("slurm-link");
+    let (ours, link, theirs) = (dir.join("ours"), dir.join("link"), dir.join("theirs"));
+    std::fs::create_dir_all(ours.join("slurm")).unwrap();
+    std::fs::write(ours.join("slurm/precious"), "root's").unwrap();
+    std::fs::create_dir(&theirs).unwrap();
+    std::os::unix::fs::symlink(&ours, &link).unwrap();
+    if std::os::unix::fs::lchown(&link, Some(65534), Some(65534)).is_err()
+        || std::os::unix::fs::chown(&theirs, Some(65534), Some(65534)).is_err()
+    {
+        return skip(test, "changing a file's owner needs root");
+    }
+    for (cluster, said) in [
+        (
+            link.join("slurm"),
+            format!(
+                "{}, above {}, is a link of another user's (uid 65534)",
+                link.display(),
+                link.join("slurm").display()
+            ),
+        ),
+        (
+            theirs.join("../ours/slurm"),
+            format!("{}, above", theirs.display()),
+        ),
+    ] {
+        for command in ["status", "stop", "start"] {
+            let o = Command::new(root().join("deploy/slurm/local-cluster.sh"))
+                .arg(command)
+                .env("TESSERA_SLURM_DIR", &cluster)
+                .env("TESSERA_SLURM_PORT", "16997")
+                .output()
+                .expect("run local-cluster.sh");
+            let err = text(&o.stderr);
+            assert!(
+                !o.status.success() && err.contains(&said),
+                "{command}: {err}"
+            );
+            assert!(o.stdout.is_empty(), "{command}: {}", text(&o.stdout));
+            assert_eq!(
+                std::fs::read_to_string(ours.join("slurm/precious"))
+                    .ok()
+                    .as_deref(),
+                Some("root's"),
+                "{command} removed root's directory"
+            );
+        }
+    }
+}
+
 /// A stand-in for each Slurm and munge program `local-cluster.sh start` runs, in `bin`:
 /// `munged` and `slurmctld` leave a `sleep` running under their pid files, as the daemons do;
 /// `slurmd -C` prints a node line and `slurmd` itself fails, as when its port is taken.
