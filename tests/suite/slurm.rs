@@ -484,14 +484,7 @@ fn local_cluster_refuses_a_directory_another_user_made() {
             "changing a file's owner needs root",
         );
     }
-    let run = |command: &str| {
-        Command::new(root().join("deploy/slurm/local-cluster.sh"))
-            .arg(command)
-            .env("TESSERA_SLURM_DIR", &planted)
-            .env("TESSERA_SLURM_PORT", "16997")
-            .output()
-            .expect("run local-cluster.sh")
-    };
+    let run = |command: &str| local_cluster(command, &planted, None);
     let refused = |command: &str, why: &str| {
         let o = run(command);
         assert!(!o.status.success(), "{command}: {}", text(&o.stderr));
@@ -514,11 +507,7 @@ fn local_cluster_refuses_a_directory_another_user_made() {
     refused("stop", "may be written by other users (mode 777)");
     let link = dir.join("link");
     std::os::unix::fs::symlink(&planted, &link).unwrap();
-    let o = Command::new(root().join("deploy/slurm/local-cluster.sh"))
-        .arg("stop")
-        .env("TESSERA_SLURM_DIR", &link)
-        .output()
-        .unwrap();
+    let o = local_cluster("stop", &link, None);
     assert!(
         text(&o.stderr).contains("is not a directory (a link"),
         "{}",
@@ -558,14 +547,7 @@ fn local_cluster_refuses_a_directory_whose_parent_another_user_controls() {
     let open = dir.join("open");
     std::fs::create_dir(&open).unwrap();
     std::fs::set_permissions(&open, std::fs::Permissions::from_mode(0o777)).unwrap();
-    let run = |cluster: &std::path::Path, command: &str| {
-        Command::new(root().join("deploy/slurm/local-cluster.sh"))
-            .arg(command)
-            .env("TESSERA_SLURM_DIR", cluster)
-            .env("TESSERA_SLURM_PORT", "16997")
-            .output()
-            .expect("run local-cluster.sh")
-    };
+    let run = |cluster: &std::path::Path, command: &str| local_cluster(command, cluster, None);
     for (cluster, above, why) in [
         (
             theirs.join("slurm"),
@@ -647,12 +629,7 @@ fn local_cluster_refuses_a_path_through_another_user_s_link() {
         ),
     ] {
         for command in ["status", "stop", "start"] {
-            let o = Command::new(root().join("deploy/slurm/local-cluster.sh"))
-                .arg(command)
-                .env("TESSERA_SLURM_DIR", &cluster)
-                .env("TESSERA_SLURM_PORT", "16997")
-                .output()
-                .expect("run local-cluster.sh");
+            let o = local_cluster(command, &cluster, None);
             let err = text(&o.stderr);
             assert!(
                 !o.status.success() && err.contains(&said),
@@ -668,6 +645,32 @@ fn local_cluster_refuses_a_path_through_another_user_s_link() {
             );
         }
     }
+}
+
+/// `deploy/slurm/local-cluster.sh COMMAND` on the cluster directory `cluster`, with `path`
+/// as its PATH where given (stand-ins for Slurm's programs), on a port no test cluster uses.
+fn local_cluster(
+    command: &str,
+    cluster: &std::path::Path,
+    path: Option<&std::ffi::OsStr>,
+) -> Output {
+    let mut script = Command::new(root().join("deploy/slurm/local-cluster.sh"));
+    script
+        .arg(command)
+        .env("TESSERA_SLURM_DIR", cluster)
+        .env("TESSERA_SLURM_PORT", "16997");
+    if let Some(path) = path {
+        script.env("PATH", path);
+    }
+    script.output().expect("run local-cluster.sh")
+}
+
+/// This process's PATH with `bin` (`stand_in_cluster_programs`) first.
+fn with_stand_ins(bin: &std::path::Path) -> std::ffi::OsString {
+    let mut path = bin.as_os_str().to_owned();
+    path.push(":");
+    path.push(std::env::var_os("PATH").unwrap_or_default());
+    path
 }
 
 /// A stand-in for each Slurm and munge program `local-cluster.sh start` runs, in `bin`:
@@ -714,16 +717,7 @@ fn local_cluster_start_that_fails_half_way_stops_what_it_started() {
     let bin = dir.join("bin");
     stand_in_cluster_programs(&bin);
     let cluster = dir.join("cluster");
-    let o = Command::new(root().join("deploy/slurm/local-cluster.sh"))
-        .arg("start")
-        .env(
-            "PATH",
-            format!("{}:{}", bin.display(), std::env::var("PATH").unwrap()),
-        )
-        .env("TESSERA_SLURM_DIR", &cluster)
-        .env("TESSERA_SLURM_PORT", "16997")
-        .output()
-        .expect("run local-cluster.sh");
+    let o = local_cluster("start", &cluster, Some(&with_stand_ins(&bin)));
     assert_eq!(o.status.code(), Some(1), "{}", text(&o.stderr));
     assert!(
         text(&o.stderr).contains("slurmd did not start"),
@@ -759,16 +753,7 @@ fn local_cluster_refuses_a_directory_name_slurm_conf_cannot_hold() {
     stand_in_cluster_programs(&bin);
     for name in ["a b", "a#b", "a%n", "a,b", "a$(id)"] {
         let cluster = dir.join(name).join("cluster");
-        let o = Command::new(root().join("deploy/slurm/local-cluster.sh"))
-            .arg("start")
-            .env(
-                "PATH",
-                format!("{}:{}", bin.display(), std::env::var("PATH").unwrap()),
-            )
-            .env("TESSERA_SLURM_DIR", &cluster)
-            .env("TESSERA_SLURM_PORT", "16997")
-            .output()
-            .expect("run local-cluster.sh");
+        let o = local_cluster("start", &cluster, Some(&with_stand_ins(&bin)));
         let said = text(&o.stderr);
         assert_eq!(o.status.code(), Some(1), "{name}: {said}");
         if said.contains("needs root") {
@@ -841,15 +826,7 @@ fn local_cluster_start_removes_nothing_through_a_parent_made_after_its_check() {
     )
     .unwrap();
     std::fs::set_permissions(bin.join("apt-get"), std::fs::Permissions::from_mode(0o755)).unwrap();
-    let run = |command: &str| {
-        Command::new(root().join("deploy/slurm/local-cluster.sh"))
-            .arg(command)
-            .env("PATH", &bin)
-            .env("TESSERA_SLURM_DIR", work.join("c/slurm"))
-            .env("TESSERA_SLURM_PORT", "16997")
-            .output()
-            .expect("run local-cluster.sh")
-    };
+    let run = |command: &str| local_cluster(command, &work.join("c/slurm"), Some(bin.as_os_str()));
     let o = run("start");
     let said = text(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{said}");
