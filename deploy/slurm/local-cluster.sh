@@ -22,6 +22,8 @@ dir=${TESSERA_SLURM_DIR:-/tmp/tessera-slurm}
 port=${TESSERA_SLURM_PORT:-16817}
 conf=$dir/slurm.conf
 export SLURM_CONF=$conf
+# What every cluster directory this script makes holds from its first moment.
+mark=.tessera-local-cluster
 
 say() { echo "local-cluster: $*" >&2; }
 fail() {
@@ -128,6 +130,24 @@ check_dir() {
   mode=$(stat -c %a -- "$dir")
   [ $((8#$mode & 8#022)) = 0 ] ||
     fail "$dir may be written by other users (mode $mode), whose pid files and slurm.conf are not trusted: remove it, or set TESSERA_SLURM_DIR"
+  # `start` removes the directory whole and `stop` ends the processes its pid files name, so
+  # only one this script made (its mark inside) or an empty one is taken: any other of
+  # root's was removed (TESSERA_SLURM_DIR=/var/lib), or had the system's own daemons stopped
+  # (=/run, where Debian's munged and slurmd keep their pid files).
+  if [ ! -f "$dir/$mark" ] && [ -n "$(ls -A -- "$dir")" ]; then
+    fail "$dir is not a cluster this script made (it has no $mark), so it is neither removed nor stopped: set TESSERA_SLURM_DIR to a new or an empty directory"
+  fi
+}
+
+# TESSERA_SLURM_PORT goes into slurm.conf and arithmetic: a decimal port, and the next one
+# free for slurmd, or nothing starts.
+check_port() {
+  case $port in
+  '' | *[!0-9]* | ??????*) fail "TESSERA_SLURM_PORT=$port is not a port from 1 to 65534" ;;
+  esac
+  [ $((10#$port)) -ge 1 ] && [ $((10#$port)) -le 65534 ] ||
+    fail "TESSERA_SLURM_PORT=$port is not a port from 1 to 65534"
+  port=$((10#$port))
 }
 
 # slurm.conf and munged's options take the directory's paths unquoted: a space or `#` ends
@@ -210,6 +230,7 @@ start() {
     return 0
   fi
   check_name
+  check_port
   install_packages
   # Only a path resolved through directories no other user may change is removed: where the
   # parent did not exist, nothing is there of an earlier cluster's.
@@ -220,6 +241,7 @@ start() {
   check_parents
   check_name
   mkdir -m 755 -- "$dir" || fail "could not make $dir afresh"
+  echo "A single-node Slurm cluster made by deploy/slurm/local-cluster.sh" >"$dir/$mark"
   mkdir -- "$dir/munge" "$dir/state" "$dir/spool" "$dir/log"
   # munged insists on a private key and a socket directory others may enter.
   chmod 755 "$dir/munge"

@@ -647,6 +647,87 @@ fn local_cluster_refuses_a_path_through_another_user_s_link() {
     }
 }
 
+/// local-cluster.sh took any directory of root's as its own: `TESSERA_SLURM_DIR=/var/lib
+/// start` removed it whole, and `TESSERA_SLURM_DIR=/run stop` ended the processes named by
+/// the pid files there (Debian's own munged and slurmd keep theirs in /run). Only a directory
+/// the script made (its mark inside) or an empty one is removed or stopped; a port that is
+/// not one is refused before anything starts. No Slurm needed: stand-ins play the daemons.
+#[test]
+fn local_cluster_removes_and_stops_only_a_directory_it_made() {
+    use std::os::unix::fs::MetadataExt;
+    let dir = temp_dir("slurm-not-ours");
+    let bin = dir.join("bin");
+    stand_in_cluster_programs(&bin);
+    let keep = dir.join("keep");
+    std::fs::create_dir(&keep).unwrap();
+    std::fs::write(keep.join("precious"), "root's").unwrap();
+    // A process of ours a pid file there names: it must outlive `stop`.
+    let mut victim = Command::new("sleep").arg("600").spawn().unwrap();
+    std::fs::write(keep.join("slurmd.pid"), victim.id().to_string()).unwrap();
+    let as_root = std::fs::metadata("/proc/self").map(|m| m.uid()).ok() == Some(0);
+    let commands: &[&str] = if as_root {
+        &["status", "stop", "start"]
+    } else {
+        &["status", "stop"]
+    };
+    for command in commands {
+        let o = local_cluster(command, &keep, Some(&with_stand_ins(&bin)));
+        let said = text(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{command}: {said}");
+        assert!(
+            said.contains("is not a cluster this script made"),
+            "{command}: {said}"
+        );
+        assert!(o.stdout.is_empty(), "{command}: {}", text(&o.stdout));
+    }
+    let alive = victim.try_wait().unwrap().is_none();
+    let _ = victim.kill();
+    let _ = victim.wait();
+    assert!(alive, "stop killed the process a pid file named");
+    assert_eq!(
+        std::fs::read_to_string(keep.join("precious"))
+            .ok()
+            .as_deref(),
+        Some("root's")
+    );
+    if !as_root {
+        return skip(
+            "local_cluster_removes_and_stops_only_a_directory_it_made",
+            "local-cluster.sh start needs root",
+        );
+    }
+    // An empty directory is taken, and marked as the cluster's from its start (which the
+    // stand-in slurmd then fails).
+    let empty = dir.join("empty");
+    std::fs::create_dir(&empty).unwrap();
+    let o = local_cluster("start", &empty, Some(&with_stand_ins(&bin)));
+    assert!(
+        text(&o.stderr).contains("slurmd did not start"),
+        "{}",
+        text(&o.stderr)
+    );
+    assert!(empty.join(".tessera-local-cluster").is_file());
+    let o = local_cluster("stop", &empty, Some(&with_stand_ins(&bin)));
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    for port in ["x", "0", "65535", "a[$(id)]", "1234567"] {
+        let fresh = dir.join("fresh");
+        let o = Command::new(root().join("deploy/slurm/local-cluster.sh"))
+            .arg("start")
+            .env("TESSERA_SLURM_DIR", &fresh)
+            .env("TESSERA_SLURM_PORT", port)
+            .env("PATH", with_stand_ins(&bin))
+            .output()
+            .unwrap();
+        let said = text(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{port}: {said}");
+        assert!(
+            said.contains(&format!("TESSERA_SLURM_PORT={port} is not a port")),
+            "{port}: {said}"
+        );
+        assert!(!fresh.exists(), "{port}: made {}", fresh.display());
+    }
+}
+
 /// `deploy/slurm/local-cluster.sh COMMAND` on the cluster directory `cluster`, with `path`
 /// as its PATH where given (stand-ins for Slurm's programs), on a port no test cluster uses.
 fn local_cluster(
