@@ -150,6 +150,56 @@ check_port() {
   port=$((10#$port))
 }
 
+# The socket listening on TCP port $1 on any address, as "inode uid" lines (/proc/net/tcp
+# and tcp6; state 0A is LISTEN), read without awk, which a bare PATH may lack.
+listeners() {
+  local hex file _sl addr st uid inode _rest
+  hex=$(printf '%04X' "$1")
+  for file in /proc/net/tcp /proc/net/tcp6; do
+    [ -r "$file" ] || continue
+    while read -r _sl addr _rest st _rest _rest _rest uid _rest inode _rest; do
+      [ "$st" = 0A ] && [ "${addr##*:}" = "$hex" ] && echo "$inode $uid"
+    done <"$file"
+  done
+  return 0
+}
+
+# slurmctld and slurmd take their ports only once started in the background, and one that
+# finds its port taken ends there; Slurm's commands then talk to whatever holds the port.
+# Another user's listener on 127.0.0.1 was sent root's sinfo requests (credentials of
+# root's, which root's slurmd takes as root's for five minutes) and the node's
+# registrations while `start` waited (minutes, not the 30 s it said). So a port taken
+# before anything starts is refused, and after the daemons start, each must hold its own.
+check_ports_free() {
+  local p taken
+  for p in "$port" $((port + 1)); do
+    taken=$(listeners "$p")
+    [ -z "$taken" ] ||
+      fail "port $p is already taken on this machine (by uid ${taken##* }), and Slurm's commands would talk to whoever holds it: set TESSERA_SLURM_PORT to a free port (slurmd takes the next)"
+  done
+}
+
+# Waits up to 10 s until the daemon in pid file $1 ($3) listens on port $2 itself, and fails
+# where it ended, or where another process holds the port.
+held_by() {
+  local pid inode uid fd i found
+  for i in $(seq 1 50); do
+    pid=$(running_pid "$1") ||
+      fail "$3 ended as it started (is port $2 taken?); see $dir/log/$3.log"
+    found=
+    while read -r inode uid; do
+      [ -n "$inode" ] || continue
+      for fd in /proc/"$pid"/fd/*; do
+        [ "$(readlink -- "$fd" 2>/dev/null)" = "socket:[$inode]" ] && found=1 && continue 2
+      done
+      fail "port $2 is held by another process (uid $uid), not $3: set TESSERA_SLURM_PORT to a free port (slurmd takes the next)"
+    done <<<"$(listeners "$2")"
+    [ -n "$found" ] && return 0
+    sleep 0.2
+  done
+  fail "$3 did not listen on port $2 within 10 s; see $dir/log/$3.log"
+}
+
 # slurm.conf and munged's options take the directory's paths unquoted: a space or `#` ends
 # a value there, `%` is expanded, `,` splits AuthInfo's fields, so such a name failed only
 # once munged ran. Anything but letters, digits and `/._+-` is refused before anything
@@ -232,6 +282,7 @@ start() {
   check_name
   check_port
   install_packages
+  check_ports_free
   # Only a path resolved through directories no other user may change is removed: where the
   # parent did not exist, nothing is there of an earlier cluster's.
   [ -z "$resolved" ] || rm -rf -- "$dir"
@@ -259,6 +310,9 @@ start() {
   write_config
   slurmctld -f "$conf" || fail "slurmctld did not start; see $dir/log/slurmctld.log"
   slurmd -f "$conf" || fail "slurmd did not start; see $dir/log/slurmd.log"
+  # Before any of Slurm's commands asks the port: each daemon holds its own.
+  held_by "$dir/slurmctld.pid" "$port" slurmctld
+  held_by "$dir/slurmd.pid" $((port + 1)) slurmd
   local waited=0
   until [ "$(sinfo -h -o %t 2>/dev/null)" = idle ]; do
     if [ $waited -ge 60 ]; then

@@ -931,6 +931,116 @@ fn local_cluster_start_removes_nothing_through_a_parent_made_after_its_check() {
     );
 }
 
+/// slurmctld and slurmd take their ports once in the background, and one that finds its port
+/// taken ends there: with another user's listener on slurmctld's port, root's `start` did not
+/// notice, and ran sinfo against that listener (root's credentials, and the node's
+/// registrations, sent to it) for minutes before saying "the node did not become idle within
+/// 30 s"; a listener that answered "idle" had `start` say the cluster ran. A port taken before
+/// anything starts is refused, and one taken after that check, before slurmctld binds it, is
+/// found before any of Slurm's commands asks it. No Slurm needed: stand-ins play the daemons,
+/// whose `sinfo` answers "idle" and notes that it was asked, and this test holds the port.
+#[test]
+fn local_cluster_start_refuses_a_port_another_process_holds() {
+    use std::os::unix::fs::{MetadataExt, PermissionsExt};
+    let test = "local_cluster_start_refuses_a_port_another_process_holds";
+    if std::fs::metadata("/proc/self").map(|m| m.uid()).ok() != Some(0) {
+        return skip(test, "local-cluster.sh start needs root");
+    }
+    let dir = temp_dir("slurm-port-taken");
+    let bin = dir.join("bin");
+    stand_in_cluster_programs(&bin);
+    // slurmd starts, as slurmctld does; slurmctld waits, where the test says so, until the
+    // port has been taken; sinfo says "idle"; squeue lists no job.
+    let daemon = |pid_file: &str, then: &str| {
+        format!(
+            "#!/bin/sh\n[ \"$1\" = -C ] && echo 'NodeName=n CPUs=1' && exit 0\n\
+             sleep 600 </dev/null >/dev/null 2>&1 &\necho $! >\"{pid_file}\"\n{then}"
+        )
+    };
+    let wait = "d=$(dirname \"$2\")\n[ -e \"$d/../wait\" ] || exit 0\ntouch \"$d/../started\"\n\
+                for i in $(seq 1 100); do [ -e \"$d/../taken\" ] && exit 0; sleep 0.1; done\n";
+    for (name, script) in [
+        ("slurmctld", daemon("$(dirname \"$2\")/slurmctld.pid", wait)),
+        ("slurmd", daemon("$(dirname \"$2\")/slurmd.pid", "")),
+        (
+            "sinfo",
+            "#!/bin/sh\necho asked >>\"$(dirname \"$SLURM_CONF\")/../asked\"\necho idle\n".into(),
+        ),
+        ("squeue", "#!/bin/sh\nexit 0\n".into()),
+    ] {
+        std::fs::write(bin.join(name), script).unwrap();
+        std::fs::set_permissions(bin.join(name), std::fs::Permissions::from_mode(0o755)).unwrap();
+    }
+    // A port whose next one is free too, held as another user's daemon would hold it.
+    let (listener, port) = loop {
+        let l = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        let port = l.local_addr().unwrap().port();
+        if port < 65535 && std::net::TcpListener::bind(("127.0.0.1", port + 1)).is_ok() {
+            break (l, port);
+        }
+    };
+    let cluster = dir.join("cluster");
+    let start = || {
+        Command::new(root().join("deploy/slurm/local-cluster.sh"))
+            .arg("start")
+            .env("TESSERA_SLURM_DIR", &cluster)
+            .env("TESSERA_SLURM_PORT", port.to_string())
+            .env("PATH", with_stand_ins(&bin))
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap()
+    };
+    // Ends every stand-in still running, saying which.
+    let still_running = || {
+        let mut running = Vec::new();
+        for pid_file in ["munge/munged.pid", "slurmctld.pid", "slurmd.pid"] {
+            let Ok(pid) = std::fs::read_to_string(cluster.join(pid_file)) else {
+                continue;
+            };
+            let pid = pid.trim().to_owned();
+            if Command::new("kill").arg(&pid).status().unwrap().success() {
+                running.push(pid_file);
+            }
+        }
+        running
+    };
+    let o = start().wait_with_output().unwrap();
+    let said = text(&o.stderr);
+    let running = still_running();
+    assert_eq!(o.status.code(), Some(1), "taken before: {said}");
+    assert!(
+        said.contains(&format!("port {port} is already taken")),
+        "taken before: {said}"
+    );
+    assert!(o.stdout.is_empty(), "taken before: {}", text(&o.stdout));
+    assert!(!dir.join("asked").exists(), "sinfo asked the port's holder");
+    assert!(!cluster.join("munge/munged.pid").exists(), "munged started");
+    assert!(running.is_empty(), "still running: {running:?}");
+    // Taken after that check, while slurmctld starts.
+    drop(listener);
+    std::fs::write(dir.join("wait"), "").unwrap();
+    let child = start();
+    let begun = Instant::now();
+    while !dir.join("started").exists() && begun.elapsed() < Duration::from_secs(10) {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let listener = std::net::TcpListener::bind(("127.0.0.1", port));
+    std::fs::write(dir.join("taken"), "").unwrap();
+    let o = child.wait_with_output().unwrap();
+    drop(listener);
+    let said = text(&o.stderr);
+    let running = still_running();
+    assert_eq!(o.status.code(), Some(1), "taken after: {said}");
+    assert!(
+        said.contains(&format!("port {port} is held by another process")),
+        "taken after: {said}"
+    );
+    assert!(o.stdout.is_empty(), "taken after: {}", text(&o.stdout));
+    assert!(!dir.join("asked").exists(), "sinfo asked the port's holder");
+    assert!(running.is_empty(), "still running: {running:?}");
+}
+
 /// render.sbatch splits EXTRA into words and once also expanded each as a pattern in the
 /// job's directory: `--preview-file p[1].png` wrote the preview over a file `p1.png` lying
 /// there. EXTRA's words are taken as they are. No Slurm needed: the script runs as the one
