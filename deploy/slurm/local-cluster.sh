@@ -31,10 +31,16 @@ fail() {
   exit 1
 }
 
-# The pid in pid file $1 if that process runs.
+# The pid in pid file $1 if that process runs and is root's daemon $2. A daemon that ended
+# without `stop` (slurmctld finding its port taken, a crash, a reboot) leaves its pid file,
+# and the pid is soon another process's (of 32768 pids, on many machines): `stop` sent TERM
+# and KILL to whatever had it, another user's process included, and `start` took two such
+# processes for a running cluster.
 running_pid() {
   local pid
-  [ -f "$1" ] && pid=$(cat "$1") && [ -n "$pid" ] && kill -0 "$pid" 2>/dev/null && echo "$pid"
+  [ -f "$1" ] && pid=$(cat "$1") && [[ $pid =~ ^[1-9][0-9]{0,9}$ ]] &&
+    [ "$(cat "/proc/$pid/comm" 2>/dev/null)" = "$2" ] &&
+    [ "$(stat -c %u "/proc/$pid" 2>/dev/null)" = 0 ] && echo "$pid"
 }
 
 # Refuses the directory $1 above the cluster's where another user owns it or may write it
@@ -184,7 +190,7 @@ check_ports_free() {
 held_by() {
   local pid inode uid fd i found
   for i in $(seq 1 50); do
-    pid=$(running_pid "$1") ||
+    pid=$(running_pid "$1" "$3") ||
       fail "$3 ended as it started (is port $2 taken?); see $dir/log/$3.log"
     found=
     while read -r inode uid; do
@@ -215,7 +221,8 @@ check_name() {
 # Whether the cluster runs: never where its directory's parent does not exist (`resolved`).
 is_up() {
   [ -n "$resolved" ] &&
-    running_pid "$dir/slurmctld.pid" >/dev/null && running_pid "$dir/slurmd.pid" >/dev/null
+    running_pid "$dir/slurmctld.pid" slurmctld >/dev/null &&
+    running_pid "$dir/slurmd.pid" slurmd >/dev/null
 }
 
 install_packages() {
@@ -327,16 +334,21 @@ start() {
   echo "export SLURM_CONF=$conf"
 }
 
-# Sends TERM to the process in pid file $1 and waits up to 10 s for it to end, then KILL.
+# Sends TERM to daemon $2 in pid file $1 and waits up to 10 s for it to end, then KILL; the
+# pid file, which names no daemon of the cluster's from then on, is removed.
 end_process() {
   local pid i
-  pid=$(running_pid "$1") || return 0
+  pid=$(running_pid "$1" "$2") || {
+    rm -f -- "$1"
+    return 0
+  }
   kill "$pid" 2>/dev/null || true
   for i in $(seq 1 50); do
     kill -0 "$pid" 2>/dev/null || return 0
     sleep 0.2
   done
   kill -9 "$pid" 2>/dev/null || true
+  rm -f -- "$1"
 }
 
 stop() {
@@ -353,9 +365,9 @@ stop() {
       sleep 0.2
     done
   fi
-  end_process "$dir/slurmd.pid"
-  end_process "$dir/slurmctld.pid"
-  end_process "$dir/munge/munged.pid"
+  end_process "$dir/slurmd.pid" slurmd
+  end_process "$dir/slurmctld.pid" slurmctld
+  end_process "$dir/munge/munged.pid" munged
   # The logs stay for a look after a failure; the next start begins afresh.
   rm -rf "$dir/state" "$dir/spool"
   say "stopped"

@@ -761,8 +761,22 @@ fn stand_in_cluster_programs(bin: &std::path::Path) {
     use std::os::unix::fs::PermissionsExt;
     std::fs::create_dir_all(bin).unwrap();
     let daemon = |pid_file: &str| {
-        format!("#!/bin/sh\nsleep 600 </dev/null >/dev/null 2>&1 &\necho $! >\"{pid_file}\"\n")
+        format!(
+            "#!/bin/sh\n\"$(dirname \"$0\")/daemons/$(basename \"$0\")\" 600 </dev/null >/dev/null 2>&1 &\n\
+             echo $! >\"{pid_file}\"\n"
+        )
     };
+    // The sleep each leaves running bears the daemon's name (`/proc/PID/comm`), as
+    // local-cluster.sh asks of a process its pid files name.
+    let sleep = std::env::split_paths(&std::env::var_os("PATH").unwrap_or_default())
+        .map(|d| d.join("sleep"))
+        .find(|p| p.is_file())
+        .expect("sleep on the PATH");
+    std::fs::create_dir_all(bin.join("daemons")).unwrap();
+    for name in ["munged", "slurmctld", "slurmd"] {
+        let _ = std::fs::remove_file(bin.join("daemons").join(name));
+        std::os::unix::fs::symlink(&sleep, bin.join("daemons").join(name)).unwrap();
+    }
     for (name, script) in [
         (
             "munged",
@@ -954,7 +968,8 @@ fn local_cluster_start_refuses_a_port_another_process_holds() {
     let daemon = |pid_file: &str, then: &str| {
         format!(
             "#!/bin/sh\n[ \"$1\" = -C ] && echo 'NodeName=n CPUs=1' && exit 0\n\
-             sleep 600 </dev/null >/dev/null 2>&1 &\necho $! >\"{pid_file}\"\n{then}"
+             \"$(dirname \"$0\")/daemons/$(basename \"$0\")\" 600 </dev/null >/dev/null 2>&1 &\n\
+             echo $! >\"{pid_file}\"\n{then}"
         )
     };
     let wait = "d=$(dirname \"$2\")\n[ -e \"$d/../wait\" ] || exit 0\ntouch \"$d/../started\"\n\
@@ -1039,6 +1054,53 @@ fn local_cluster_start_refuses_a_port_another_process_holds() {
     assert!(o.stdout.is_empty(), "taken after: {}", text(&o.stdout));
     assert!(!dir.join("asked").exists(), "sinfo asked the port's holder");
     assert!(running.is_empty(), "still running: {running:?}");
+}
+
+/// A daemon that ends without `stop` (slurmctld finding its port taken, a crash) leaves its
+/// pid file, and its pid is soon another process's: root's `stop` then sent TERM and KILL to
+/// whatever process had it (another user's `sleep`, in a cluster whose start had failed), and
+/// `status` took two such processes for a running cluster. Only root's process bearing the
+/// daemon's name is taken for it, and `stop` removes the pid files it is done with. No Slurm
+/// needed: stand-ins play the daemons, and a `sleep` of this test's plays the pid's new owner.
+#[test]
+fn local_cluster_stop_ends_only_the_daemons_its_pid_files_name() {
+    use std::os::unix::fs::MetadataExt;
+    let test = "local_cluster_stop_ends_only_the_daemons_its_pid_files_name";
+    if std::fs::metadata("/proc/self").map(|m| m.uid()).ok() != Some(0) {
+        return skip(test, "local-cluster.sh start needs root");
+    }
+    let dir = temp_dir("slurm-stale-pid");
+    let bin = dir.join("bin");
+    stand_in_cluster_programs(&bin);
+    let cluster = dir.join("cluster");
+    // A start that fails half-way leaves a cluster directory of the script's.
+    let o = local_cluster("start", &cluster, Some(&with_stand_ins(&bin)));
+    assert!(
+        text(&o.stderr).contains("slurmd did not start"),
+        "{}",
+        text(&o.stderr)
+    );
+    // Its daemons' pids, now another process's.
+    let mut victim = Command::new("sleep").arg("600").spawn().unwrap();
+    for pid_file in ["slurmctld.pid", "slurmd.pid", "munge/munged.pid"] {
+        std::fs::write(cluster.join(pid_file), format!("{}\n", victim.id())).unwrap();
+    }
+    let status = local_cluster("status", &cluster, Some(&with_stand_ins(&bin)));
+    let stop = local_cluster("stop", &cluster, Some(&with_stand_ins(&bin)));
+    let alive = victim.try_wait().unwrap().is_none();
+    let _ = victim.kill();
+    let _ = victim.wait();
+    assert!(alive, "stop killed the process a stale pid file named");
+    assert_eq!(status.status.code(), Some(1), "{}", text(&status.stderr));
+    assert!(
+        text(&status.stderr).contains("not running"),
+        "{}",
+        text(&status.stderr)
+    );
+    assert!(stop.status.success(), "{}", text(&stop.stderr));
+    for pid_file in ["slurmctld.pid", "slurmd.pid", "munge/munged.pid"] {
+        assert!(!cluster.join(pid_file).exists(), "{pid_file} is left");
+    }
 }
 
 /// render.sbatch splits EXTRA into words and once also expanded each as a pattern in the
