@@ -322,6 +322,38 @@ fn bytes_per_pixel(value: &[u8]) -> Option<u64> {
     }
 }
 
+/// The channels OpenEXR's RGBA interface (`RgbaInputFile`, which exrdisplay and ImageMagick
+/// read through) reads in place of R, G and B wherever one is there: luminance (`Y`),
+/// shown grey, and chroma (`RY`, `BY`), shown with it.
+const LUMINANCE_CHROMA: [&str; 3] = ["Y", "RY", "BY"];
+
+/// What is said of the luminance or chroma channels of a `chlist` value, if it has any
+/// (`LUMINANCE_CHROMA`): the decoder measures R, G and B and reads past them, so that a file
+/// of the same R, G and B and a `Y` of zeros, which those viewers show black, was
+/// `identical`. A list cut short names those before its cut.
+fn luminance_chroma(value: &[u8]) -> Option<String> {
+    let mut found = Vec::new();
+    let mut rest = value;
+    while let Some(end) = rest.iter().position(|&b| b == 0).filter(|&end| end > 0) {
+        let name = &rest[..end];
+        if let Some(known) = LUMINANCE_CHROMA.iter().find(|n| n.as_bytes() == name) {
+            found.push(format!("`{known}`"));
+        }
+        let Some(next) = rest.get(end + 17..) else {
+            break;
+        };
+        rest = next;
+    }
+    (!found.is_empty()).then(|| {
+        format!(
+            "luminance or chroma channels ({}), which viewers built on OpenEXR's RGBA \
+             interface (exrdisplay, ImageMagick) show in place of the R, G and B the decoder \
+             measured",
+            found.join(", ")
+        )
+    })
+}
+
 /// `check_bounds` (`most_decoded` bytes of pixels), and what the file holds that changes how
 /// a viewer shows the picture (`ExrHeader::display_changes`), whatever its channels, with an
 /// offset table entry that points to another chunk's data (`misplaced_chunk`): for `compare`.
@@ -343,6 +375,7 @@ pub fn display_changes<R: Read + std::io::Seek>(
             ("compression", "compression") => compression = value.first().copied(),
             ("dataWindow", "box2i") => data = box2i(&value, "dataWindow").ok(),
             ("displayWindow", "box2i") => display = box2i(&value, "displayWindow").ok(),
+            ("channels", "chlist") => changes.extend(luminance_chroma(&value)),
             ("tiles", "tiledesc") => {
                 tiles = tile_size(&value);
                 // Levels past the first are the picture again at smaller sizes, which a

@@ -905,6 +905,48 @@ mod tests {
         assert!(listed("exr-window", ("a.exr", &two), ("b.exr", &two)).is_empty());
     }
 
+    /// OpenEXR's RGBA interface (`RgbaInputFile`: exrdisplay, ImageMagick) reads a `Y`
+    /// channel, grey, in place of R, G and B wherever one is there, and `RY` and `BY` with
+    /// it: an EXR of the R, G and B of another and a `Y` of zeros, which those viewers show
+    /// black, was `inf dB (identical)` with it. Such channels are listed; another channel
+    /// (a depth) is not.
+    #[test]
+    fn an_exr_s_luminance_or_chroma_channels_are_listed() {
+        use exr::prelude::*;
+        let exr = |extra: &[&str]| {
+            let mut channels: SmallVec<[AnyChannel<FlatSamples>; 4]> = ["R", "G", "B"]
+                .iter()
+                .map(|name| AnyChannel::new(*name, FlatSamples::F32(vec![0.5; 2])))
+                .collect();
+            channels.extend(
+                extra
+                    .iter()
+                    .map(|name| AnyChannel::new(*name, FlatSamples::F32(vec![0.0; 2]))),
+            );
+            let image = Image::from_channels((2, 1), AnyChannels::sort(channels));
+            let mut out = std::io::Cursor::new(Vec::new());
+            image.write().to_buffered(&mut out).unwrap();
+            out.into_inner()
+        };
+        let rgb = exr(&[]);
+        for (name, extra, said) in [
+            ("exr-y", &["Y"][..], "(`Y`)"),
+            ("exr-ry-by", &["RY", "BY"][..], "(`BY`, `RY`)"),
+        ] {
+            let changes = listed(name, ("rgb.exr", &rgb), ("b.exr", &exr(extra)));
+            assert_eq!(
+                changes,
+                [format!(
+                    "luminance or chroma channels {said}, which viewers built on OpenEXR's \
+                     RGBA interface (exrdisplay, ImageMagick) show in place of the R, G and B \
+                     the decoder measured"
+                )],
+                "{name}"
+            );
+        }
+        assert!(listed("exr-z", ("rgb.exr", &rgb), ("b.exr", &exr(&["Z"]))).is_empty());
+    }
+
     /// The `exr` crate inflates every block of an EXR's data window, whatever the display
     /// window the decoder is asked for: a file of 3 MiB of ZIP blocks of zeros whose data
     /// window was 2^24 x 16 pixels and display window one pixel asked for 6 GiB and ended
