@@ -530,7 +530,7 @@ enum Event<T> {
 fn interruptible<T: Send + 'static>(
     py: Python<'_>,
     on_pass: Option<&Py<PyAny>>,
-    work: impl FnOnce(&AtomicBool, &dyn Fn(NativeImage)) -> Result<T, Failed> + Send + 'static,
+    work: impl FnOnce(&Arc<AtomicBool>, &dyn Fn(NativeImage)) -> Result<T, Failed> + Send + 'static,
 ) -> PyResult<T> {
     let stop = Arc::new(AtomicBool::new(false));
     let interrupts = if off_the_main_thread(py)? {
@@ -871,24 +871,37 @@ fn results<'py>(
     commit: Option<String>,
     limit: Option<u32>,
 ) -> PyResult<Vec<Bound<'py, PyDict>>> {
-    let fail = |e: anyhow::Error| TesseraError::new_err(safe(&format!("{e:#}")));
     let filter = db::Filter {
         workload,
         machine,
         commit,
         limit,
     };
-    let runs = py
-        .detach(|| -> anyhow::Result<_> {
+    // Read on a thread of its own, as a render is, so that Ctrl-C stops it: a wait for
+    // another process's lock (a colleague's database held locked, 30 s for each of two
+    // statements) ends at the next look, and the reading of a large one between runs.
+    let runs = interruptible(py, None, move |stop, _| {
+        let read = || -> anyhow::Result<Option<Vec<_>>> {
             let path = db::resolve(db)?;
             let db = db::ResultsDb::open_to_read(&path)?;
-            let runs = db.runs(&filter)?;
-            let with_results = (runs.into_iter())
-                .map(|run| db.result_json(run.id).map(|json| (run, json)))
-                .collect::<anyhow::Result<Vec<_>>>()?;
-            Ok(with_results)
-        })
-        .map_err(fail)?;
+            let mut with_results = Vec::new();
+            for run in db.runs(&filter)? {
+                if stop.load(Ordering::Relaxed) {
+                    return Ok(None);
+                }
+                let json = db.result_json(run.id)?;
+                with_results.push((run, json));
+            }
+            Ok(Some(with_results))
+        };
+        match db::stopped_by(Arc::clone(stop), read) {
+            Ok(Some(runs)) => Ok(runs),
+            // What a stop cut short (a wait given up as busy, say) is the stop's.
+            Ok(None) => Err(Failed::Interrupted),
+            Err(_) if stop.load(Ordering::Relaxed) => Err(Failed::Interrupted),
+            Err(e) => Err(Failed::Other(format!("{e:#}"))),
+        }
+    })?;
     let mut out = Vec::with_capacity(runs.len());
     for (run, json) in runs {
         let d = PyDict::new(py);

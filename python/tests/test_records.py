@@ -198,3 +198,51 @@ def test_results_with_a_result_that_is_not_json_raise_tessera_error(tmp_path, re
     with pytest.raises(tessera.TesseraError, match="run 1: its result is not JSON") as e:
         tessera.results(db)
     assert "made\\x1b[2J\\u202e.db: run 1" in str(e.value), str(e.value)
+
+
+# A database held locked by another process (a colleague's, writing it; one of theirs left
+# in a transaction) is waited for, 30 s for each of two statements: with the interpreter's
+# lock released but no look at Ctrl-C, `results` once sat out all 60 s after it.
+WAITING_FOR_A_LOCK = """
+import sys, tessera
+print("reading", flush=True)
+try:
+    tessera.results(sys.argv[1])
+except KeyboardInterrupt:
+    print("interrupted", flush=True)
+    sys.exit(0)
+sys.exit(3)
+"""
+
+
+def test_ctrl_c_stops_results_waiting_for_a_locked_database(tmp_path):
+    import signal
+    import sqlite3
+    import subprocess
+    import sys
+    import time
+
+    db = tmp_path / "locked.db"
+    conn = sqlite3.connect(db, isolation_level=None)
+    conn.executescript(FIRST_SCHEMA)
+    conn.execute("BEGIN EXCLUSIVE")
+    child = subprocess.Popen(
+        [sys.executable, "-c", WAITING_FOR_A_LOCK, str(db)],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        text=True,
+        # Ctrl-C's default action, as a shell with job control gives a program it starts.
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
+    try:
+        assert child.stdout.readline().strip() == "reading"
+        time.sleep(1.0)
+        sent = time.monotonic()
+        child.send_signal(signal.SIGINT)
+        rest, _ = child.communicate(timeout=90)
+        took = time.monotonic() - sent
+    finally:
+        child.kill()
+        conn.close()
+    assert (child.returncode, rest.strip()) == (0, "interrupted")
+    assert took < 1.5, took

@@ -19,7 +19,10 @@ use file::{
     refuse_dangling_link, schema_difference, whose,
 };
 use rusqlite::{Connection, OpenFlags, OptionalExtension, TransactionBehavior, params};
+use std::cell::RefCell;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 /// tessera's SQLite `application_id` (the file header's bytes 68..72, big-endian): the ASCII
@@ -76,6 +79,36 @@ pub const SCHEMA_VERSION: i64 = MIGRATIONS.len() as i64;
 
 /// How long a writer waits for another before giving up.
 const BUSY_TIMEOUT: Duration = Duration::from_secs(30);
+
+/// How long a wait for another process's lock sleeps between looks at its stop flag.
+const BUSY_LOOK: Duration = Duration::from_millis(10);
+
+thread_local! {
+    /// The flag that ends this thread's waits for another process's lock (`stopped_by`).
+    static STOP: RefCell<Option<Arc<AtomicBool>>> = const { RefCell::new(None) };
+}
+
+/// Runs `read` on this thread with each connection it opens waiting for another process's
+/// lock (up to `BUSY_TIMEOUT`, each statement) only until `stop` is set: then the statement
+/// gives up as busy at once. SQLite's own wait looks at nothing but the clock, and a reader
+/// that the user may stop (Python's `tessera.results`, on Ctrl-C) sat out two such waits,
+/// 60 s, on a database whose owner held it locked, deaf to Ctrl-C.
+pub fn stopped_by<R>(stop: Arc<AtomicBool>, read: impl FnOnce() -> R) -> R {
+    let before = STOP.with(|s| s.replace(Some(stop)));
+    let done = read();
+    STOP.with(|s| *s.borrow_mut() = before);
+    done
+}
+
+/// Whether a statement that has found the database locked since `since` waits again: after
+/// a sleep of `BUSY_LOOK`, unless `stop` is set or `BUSY_TIMEOUT` has passed.
+fn wait_unless(stop: &AtomicBool, since: Instant) -> bool {
+    if stop.load(Ordering::Relaxed) || since.elapsed() >= BUSY_TIMEOUT {
+        return false;
+    }
+    std::thread::sleep(BUSY_LOOK);
+    !stop.load(Ordering::Relaxed)
+}
 
 /// Where the database is unless `--db` or `TESSERA_DB` says: `$XDG_DATA_HOME/tessera/
 /// results.db`, or `~/.local/share/tessera/results.db`.
@@ -215,9 +248,23 @@ impl ResultsDb {
 
     /// A connection to `path` with `flags`, waiting for other writers.
     fn connect(path: &Path, flags: OpenFlags) -> Result<Self> {
-        let conn = Connection::open_with_flags(path, flags | OpenFlags::SQLITE_OPEN_NO_MUTEX)
-            .with_context(|| format!("{}: could not open the results database", path.display()))?;
-        conn.busy_timeout(BUSY_TIMEOUT)?;
+        let mut conn = Connection::open_with_flags(path, flags | OpenFlags::SQLITE_OPEN_NO_MUTEX)
+            .with_context(|| {
+            format!("{}: could not open the results database", path.display())
+        })?;
+        match STOP.with(|s| s.borrow().clone()) {
+            Some(stop) => {
+                // SQLite counts a statement's tries from 0: its wait starts at the first.
+                let mut since = Instant::now();
+                conn.busy_handler(Some(move |tries| {
+                    if tries == 0 {
+                        since = Instant::now();
+                    }
+                    wait_unless(&stop, since)
+                }))?
+            }
+            None => conn.busy_timeout(BUSY_TIMEOUT)?,
+        }
         // Nothing of the file's schema runs a function with side effects, whoever made it.
         conn.pragma_update(None, "trusted_schema", false)?;
         Ok(Self {
