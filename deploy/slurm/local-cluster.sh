@@ -190,8 +190,13 @@ check_ports_free() {
 held_by() {
   local pid inode uid fd i found
   for i in $(seq 1 50); do
-    pid=$(running_pid "$1" "$3") ||
-      fail "$3 ended as it started (is port $2 taken?); see $dir/log/$3.log"
+    # A daemon writes its pid file once in the background, after its command has returned:
+    # none yet is a daemon still starting, one naming no daemon is one that has ended.
+    if ! pid=$(running_pid "$1" "$3"); then
+      [ ! -s "$1" ] || fail "$3 ended as it started (is port $2 taken?); see $dir/log/$3.log"
+      sleep 0.2
+      continue
+    fi
     found=
     while read -r inode uid; do
       [ -n "$inode" ] || continue
@@ -344,10 +349,10 @@ end_process() {
   }
   kill "$pid" 2>/dev/null || true
   for i in $(seq 1 50); do
-    kill -0 "$pid" 2>/dev/null || return 0
+    kill -0 "$pid" 2>/dev/null || break
     sleep 0.2
   done
-  kill -9 "$pid" 2>/dev/null || true
+  kill -0 "$pid" 2>/dev/null && { kill -9 "$pid" 2>/dev/null || true; }
   rm -f -- "$1"
 }
 

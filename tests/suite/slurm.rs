@@ -763,7 +763,7 @@ fn stand_in_cluster_programs(bin: &std::path::Path) {
     let daemon = |pid_file: &str| {
         format!(
             "#!/bin/sh\n\"$(dirname \"$0\")/daemons/$(basename \"$0\")\" 600 </dev/null >/dev/null 2>&1 &\n\
-             echo $! >\"{pid_file}\"\n"
+             echo $! >\"{pid_file}\"\necho $! >>\"$(dirname \"$0\")/started\"\n"
         )
     };
     // The sleep each leaves running bears the daemon's name (`/proc/PID/comm`), as
@@ -819,19 +819,24 @@ fn local_cluster_start_that_fails_half_way_stops_what_it_started() {
         "{}",
         text(&o.stderr)
     );
-    // Every stand-in still running is ended before the test says which.
+    // Every stand-in still running is ended before the test says which: `stop` removes the
+    // pid files, so the stand-ins' own list (`bin/started`) names them.
+    let started = std::fs::read_to_string(bin.join("started")).unwrap();
+    assert_eq!(
+        started.lines().count(),
+        2,
+        "munged and slurmctld: {started}"
+    );
     let mut running = Vec::new();
-    for pid_file in ["munge/munged.pid", "slurmctld.pid"] {
-        let pid = std::fs::read_to_string(cluster.join(pid_file)).unwrap();
-        let pid = pid.trim().to_owned();
+    for pid in started.lines() {
         if Command::new("kill")
-            .args(["-0", &pid])
+            .args(["-0", pid])
             .status()
             .unwrap()
             .success()
         {
-            let _ = Command::new("kill").arg(&pid).status();
-            running.push(format!("{pid_file}: {pid}"));
+            let _ = Command::new("kill").arg(pid).status();
+            running.push(pid.to_owned());
         }
     }
     assert!(running.is_empty(), "still running: {running:?}");
