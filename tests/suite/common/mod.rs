@@ -159,12 +159,54 @@ pub fn render(scene: &Scene) -> Film {
     render_with(scene, 2, 16).0
 }
 
-/// A fresh, empty temporary directory for one test.
+/// A fresh, empty temporary directory for one test. The first one a run makes removes
+/// what earlier runs left (`remove_ended_runs_files`), so that a run's directories stay for a
+/// look after a failure, until the next run, and no more pile up: a whole run leaves about
+/// 230 of them, 350 MB.
 pub fn temp_dir(name: &str) -> PathBuf {
+    static SWEPT: std::sync::Once = std::sync::Once::new();
+    SWEPT.call_once(|| remove_ended_runs_files(&std::env::temp_dir()));
     let dir = std::env::temp_dir().join(format!("tessera-test-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     dir
+}
+
+/// Removes, from `tmp`, the files and directories (`tessera-test-PID-...`) of test runs whose
+/// process has ended, where they are this user's: a run still going (this one, or another
+/// beside it) keeps its own, and another user's are theirs.
+pub fn remove_ended_runs_files(tmp: &Path) {
+    use std::os::unix::fs::MetadataExt;
+    let Ok(me) = std::fs::metadata("/proc/self").map(|m| m.uid()) else {
+        return;
+    };
+    let Ok(entries) = std::fs::read_dir(tmp) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(pid) = (name.to_str())
+            .and_then(|n| n.strip_prefix("tessera-test-"))
+            .and_then(|rest| rest.split('-').next())
+            .and_then(|pid| pid.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        let Ok(meta) = entry.path().symlink_metadata() else {
+            continue;
+        };
+        if pid == std::process::id() || Path::new(&format!("/proc/{pid}")).exists() {
+            continue;
+        }
+        if meta.uid() != me {
+            continue;
+        }
+        let _ = if meta.is_dir() {
+            std::fs::remove_dir_all(entry.path())
+        } else {
+            std::fs::remove_file(entry.path())
+        };
+    }
 }
 
 /// A fresh temporary directory holding `text` as `scene.toml`.
@@ -273,3 +315,33 @@ center = [0.0, 0.0, -1.0]
 radius = 0.5
 material = "red"
 "#;
+
+#[test]
+fn the_files_of_ended_test_runs_are_removed_and_those_of_running_ones_kept() {
+    let tmp = temp_dir("ended-runs");
+    let mut ended = Command::new("true").spawn().unwrap();
+    let ended_pid = ended.id();
+    ended.wait().unwrap();
+    let mut running = Command::new("sleep").arg("60").spawn().unwrap();
+    let names = [
+        format!("tessera-test-{ended_pid}-a"),
+        format!("tessera-test-{ended_pid}-results.db"),
+        format!("tessera-test-{}-b", std::process::id()),
+        format!("tessera-test-{}-c", running.id()),
+        format!("other-{ended_pid}-d"),
+        "tessera-test-x-e".to_owned(),
+    ];
+    for (i, name) in names.iter().enumerate() {
+        if name.ends_with(".db") {
+            std::fs::write(tmp.join(name), "a database").unwrap();
+        } else {
+            std::fs::create_dir_all(tmp.join(name).join("inner")).unwrap();
+            std::fs::write(tmp.join(name).join("inner/file"), i.to_string()).unwrap();
+        }
+    }
+    remove_ended_runs_files(&tmp);
+    let _ = running.kill();
+    let _ = running.wait();
+    let left: Vec<bool> = names.iter().map(|n| tmp.join(n).exists()).collect();
+    assert_eq!(left, [false, false, true, true, true, true], "{names:?}");
+}
