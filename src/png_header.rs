@@ -1,9 +1,10 @@
 //! A PNG file's header read as a stranger's: its chunks walked within bounds (at most
 //! `MAX_PNG_CHUNKS`, every length inside the file, one IHDR first, an IEND last) for its size,
 //! tessera's recipe (an iTXt chunk, inflated no further than a recipe may be; one in a tEXt
-//! or zTXt chunk is refused), the chunks that change how a viewer shows it and the header of
-//! its pixels' zlib stream, the others skipped unread (a text chunk past its keyword). Below the scene, whose
-//! image textures are walked so before a decoder keeps their chunks, and the image files.
+//! or zTXt chunk, or under a keyword exiftool takes for its, is refused), the chunks that
+//! change how a viewer shows it and the header of its pixels' zlib stream, the others skipped
+//! unread (a text chunk past its keyword). Below the scene, whose image textures are walked
+//! so before a decoder keeps their chunks, and the image files.
 
 use crate::metadata::{KEY, MAX_BYTES};
 use std::io::{Read, Seek};
@@ -150,8 +151,9 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
                 // Its keyword first: only tessera's recipe chunk is read further. Another is
                 // skipped unread, as every other chunk is: 65,536 text chunks of 1 MiB, a
                 // sparse file of 64 GiB on 256 MiB of disk, were once read whole, minutes.
-                let (keyword, n, is_recipe) = read_keyword(&mut r, length)?;
-                if !is_recipe {
+                let (keyword, n) = read_keyword(&mut r, length)?;
+                if keyword != Keyword::Recipe {
+                    keyword.refuse_a_lookalike(&kind)?;
                     skip(&mut r, length as i64 - n as i64 + 4)?;
                 } else if length > MAX_BYTES as u64 + 1024 {
                     // Too long to be a recipe; a recipe so long is refused, not skipped.
@@ -159,7 +161,7 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
                         "has a recipe chunk of {length} bytes, more than a recipe may have"
                     ));
                 } else {
-                    let mut data = keyword.to_vec();
+                    let mut data = format!("{KEY}\0").into_bytes();
                     data.resize(length as usize, 0);
                     r.read_exact(&mut data[n..]).map_err(|e| e.to_string())?;
                     let mut crc = [0u8; 4];
@@ -181,8 +183,9 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
             b"tEXt" | b"zTXt" => {
                 // A recipe where tessera writes none: a reader of PNG text could show it for
                 // the image in place of the one checked (Python's PIL keeps a keyword's last).
-                let (_, n, is_recipe) = read_keyword(&mut r, length)?;
-                if is_recipe {
+                let (keyword, n) = read_keyword(&mut r, length)?;
+                keyword.refuse_a_lookalike(&kind)?;
+                if keyword == Keyword::Recipe {
                     return Err(format!(
                         "has a recipe in a {} chunk, where tessera writes none: readers of PNG \
                          text may show it in place of the one checked",
@@ -304,18 +307,84 @@ fn inflate_failure(e: fdeflate::DecompressionError) -> String {
     }
 }
 
-/// The start of a text chunk of `length` bytes, as far as tessera's keyword and the zero
-/// byte that ends it: those bytes, how many were read, and whether the keyword is tessera's.
-fn read_keyword<R: Read>(
-    r: &mut R,
-    length: u64,
-) -> Result<([u8; KEY.len() + 1], usize, bool), String> {
-    let mut keyword = [0u8; KEY.len() + 1];
-    let n = (length as usize).min(keyword.len());
-    r.read_exact(&mut keyword[..n]).map_err(|e| e.to_string())?;
-    let is_recipe =
-        n == keyword.len() && keyword[..KEY.len()] == *KEY.as_bytes() && keyword[KEY.len()] == 0;
-    Ok((keyword, n, is_recipe))
+/// The most bytes of a text chunk's keyword read: PNG allows 79. A longer one, made so far
+/// only of tessera's keyword and characters exiftool drops from a name, is taken for a
+/// lookalike of the recipe's (what follows is not read).
+const MAX_KEYWORD_READ: u64 = 1024;
+
+/// What a text chunk's keyword is to tessera.
+#[derive(Debug, PartialEq)]
+enum Keyword {
+    /// `tessera-recipe`, byte for byte.
+    Recipe,
+    /// Another keyword that exiftool names as it names the recipe's, `Tessera-recipe`: it
+    /// drops every character but ASCII letters, digits, `-` and `_` (spaces, punctuation,
+    /// controls, Latin-1) and capitalises the first letter, and of two chunks of one name
+    /// shows the later. The keyword's first bytes, for the message.
+    Lookalike(Vec<u8>),
+    /// Any other, or none (a chunk without the zero byte that ends its keyword, which
+    /// readers of PNG text skip).
+    Other,
+}
+
+impl Keyword {
+    /// Refuses a lookalike of the recipe's keyword in a `kind` chunk: exiftool would show
+    /// its text, which tessera does not check, as the image's recipe.
+    fn refuse_a_lookalike(&self, kind: &[u8; 4]) -> Result<(), String> {
+        let Keyword::Lookalike(start) = self else {
+            return Ok(());
+        };
+        let shown: String = String::from_utf8_lossy(start)
+            .escape_debug()
+            .take(80)
+            .collect();
+        Err(format!(
+            "has a {} chunk of the keyword `{shown}`, which a reader of PNG text (exiftool) \
+             takes for tessera's `{KEY}`: its text may be shown in place of the one checked",
+            String::from_utf8_lossy(kind)
+        ))
+    }
+}
+
+/// The keyword of a text chunk of `length` bytes, read as far as the zero byte that ends it
+/// (at most `MAX_KEYWORD_READ` bytes), and how many bytes were read. It is told apart from
+/// tessera's at its first letter, digit, `-` or `_` that is not the next of tessera's (letters
+/// compared without their case).
+fn read_keyword<R: Read>(r: &mut R, length: u64) -> Result<(Keyword, usize), String> {
+    let key = KEY.as_bytes();
+    let mut start = Vec::new();
+    let (mut matched, mut exact) = (0, true);
+    let mut byte = [0u8; 1];
+    while (start.len() as u64) < length.min(MAX_KEYWORD_READ) {
+        r.read_exact(&mut byte).map_err(|e| e.to_string())?;
+        let b = byte[0];
+        if b == 0 {
+            let n = start.len() + 1;
+            return Ok(
+                match (exact && start.len() == key.len(), matched == key.len()) {
+                    (true, _) => (Keyword::Recipe, n),
+                    (false, true) => (Keyword::Lookalike(start), n),
+                    (false, false) => (Keyword::Other, n),
+                },
+            );
+        }
+        exact &= key.get(start.len()) == Some(&b);
+        start.push(b);
+        if b.is_ascii_alphanumeric() || b == b'-' || b == b'_' {
+            if key.get(matched).is_none_or(|k| !k.eq_ignore_ascii_case(&b)) {
+                return Ok((Keyword::Other, start.len()));
+            }
+            matched += 1;
+        }
+    }
+    let n = start.len();
+    // The chunk's end without a zero byte: no keyword. The most read: what follows could
+    // still make tessera's name.
+    Ok(if n as u64 == length {
+        (Keyword::Other, n)
+    } else {
+        (Keyword::Lookalike(start), n)
+    })
 }
 
 /// The recipe in an iTXt chunk's `data`, when the chunk is tessera's.
@@ -550,6 +619,68 @@ mod tests {
                 assert!(read(Cursor::new(&png), png.len() as u64).is_ok());
             }
         }
+    }
+
+    /// A text chunk whose keyword is tessera's but for its case or for characters that are
+    /// not a tag name's (`Tessera-recipe`, `tessera-recipe!`, `tessera-recipe `): exiftool
+    /// drops those characters and capitalises the first letter, so it named the chunk as it
+    /// names the recipe's and showed the later of them, another scene, for an image
+    /// `reproduce` called identical.
+    #[test]
+    fn a_text_chunk_exiftool_takes_for_the_recipe_is_refused() {
+        let ihdr = chunk(b"IHDR", &[0, 0, 0, 4, 0, 0, 0, 2, 8, 2, 0, 0, 0]);
+        let mut itxt = format!("{KEY}\0\0\0\0\0").into_bytes();
+        itxt.extend(b"{}");
+        let end = chunk(b"IEND", &[]);
+        let with = |kind: &[u8; 4], keyword: &[u8]| {
+            let mut data = keyword.to_vec();
+            data.extend(if kind == b"iTXt" {
+                &b"\0\0\0\0\0{}"[..]
+            } else {
+                b"\0{}"
+            });
+            let png = [
+                &PNG_SIGNATURE[..],
+                &ihdr,
+                &chunk(b"iTXt", &itxt),
+                &chunk(kind, &data),
+                &end,
+            ]
+            .concat();
+            read(Cursor::new(&png), png.len() as u64)
+        };
+        for kind in [b"tEXt", b"zTXt", b"iTXt"] {
+            for keyword in [
+                &b"Tessera-recipe"[..],
+                b"TESSERA-RECIPE",
+                b"tessera-recipe!",
+                b"tessera-recipe ",
+                b" tessera-recipe",
+                b"tessera -recipe",
+                b"\xa0tessera\x01-recipe\xff",
+            ] {
+                let e = with(kind, keyword).unwrap_err();
+                assert!(e.contains("takes for tessera's"), "{e}");
+                assert!(e.contains("in place of the one checked"), "{e}");
+            }
+            // A keyword exiftool names otherwise is text like any other.
+            for keyword in [
+                &b"Comment"[..],
+                b"tessera_recipe",
+                b"tessera-recipes",
+                b"-tessera-recipe",
+                b"tessera-recip",
+            ] {
+                let header = with(kind, keyword).unwrap();
+                assert_eq!(header.recipe.as_deref(), Some("{}"));
+            }
+        }
+        // A keyword past the 79 bytes PNG allows, of characters exiftool drops, is refused
+        // once read so far; one of other letters is told apart at its first.
+        let mut long = vec![b'!'; 2000];
+        long.extend(KEY.as_bytes());
+        assert!(with(b"tEXt", &long).is_err());
+        assert!(with(b"tEXt", &[b'x'; 2000]).is_ok());
     }
 
     /// The zlib stream's header is taken from the first IDAT chunk only: where that chunk
