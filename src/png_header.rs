@@ -207,7 +207,13 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
                 idat_seen = true;
                 skip(&mut r, length as i64 + 4)?;
             }
-            b"IEND" => break,
+            b"IEND" => {
+                // What follows the end, walked as exiftool walks it (past IEND's head and
+                // CRC, whatever length it claims).
+                skip(&mut r, 4)?;
+                check_after_end(&mut r, at + 12, len, chunks + 1)?;
+                break;
+            }
             _ => skip(&mut r, length as i64 + 4)?,
         }
         at += 12 + length;
@@ -220,6 +226,55 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
         display_changes,
         zlib_header,
     })
+}
+
+/// Walks the bytes after a PNG's IEND chunk (from byte `at` of `len`) for a recipe: a PNG
+/// ends at IEND, and no decoder and not tessera reads past it, but exiftool goes on reading
+/// chunks there, to the first that does not fit in the file, and shows their text (a
+/// keyword's later chunk in place of the one before IEND). A text chunk there whose keyword
+/// is the recipe's, or one exiftool takes for it, is refused; other bytes are let be (a
+/// program may append its own). `chunks` were walked before, of `MAX_PNG_CHUNKS` in all.
+fn check_after_end<R: Read + Seek>(
+    r: &mut std::io::BufReader<R>,
+    mut at: u64,
+    len: u64,
+    mut chunks: u64,
+) -> Result<(), String> {
+    while at + 12 <= len {
+        if chunks == MAX_PNG_CHUNKS {
+            return Err(format!(
+                "has more than {MAX_PNG_CHUNKS} chunks, counting those after its IEND chunk \
+                 (where a reader of PNG text, exiftool, reads on for text chunks)"
+            ));
+        }
+        let mut head = [0u8; 8];
+        r.read_exact(&mut head).map_err(|e| e.to_string())?;
+        let length = u64::from(u32::from_be_bytes(head[..4].try_into().expect("4 bytes")));
+        let kind: [u8; 4] = head[4..].try_into().expect("4 bytes");
+        if length > (1 << 31) - 1 || at + 12 + length > len {
+            return Ok(());
+        }
+        let n = if matches!(&kind, b"tEXt" | b"zTXt" | b"iTXt") {
+            let (keyword, n) = read_keyword(r, length)?;
+            if keyword != Keyword::Other {
+                return Err(format!(
+                    "has a text chunk ({}) of the keyword `{}` after its IEND chunk, at byte {at}: a \
+                     PNG ends at IEND and tessera reads no recipe past it, but a reader of PNG \
+                     text (exiftool) reads on and may show it in place of the one checked",
+                    String::from_utf8_lossy(&kind),
+                    keyword.shown()
+                ));
+            }
+            n as i64
+        } else {
+            0
+        };
+        r.seek_relative(length as i64 - n + 4)
+            .map_err(|e| e.to_string())?;
+        at += 12 + length;
+        chunks += 1;
+    }
+    Ok(())
 }
 
 /// Output kept of the pixels' stream while it is inflated: a deflate stream reaches at most
@@ -331,18 +386,27 @@ impl Keyword {
     /// Refuses a lookalike of the recipe's keyword in a `kind` chunk: exiftool would show
     /// its text, which tessera does not check, as the image's recipe.
     fn refuse_a_lookalike(&self, kind: &[u8; 4]) -> Result<(), String> {
-        let Keyword::Lookalike(start) = self else {
+        if !matches!(self, Keyword::Lookalike(_)) {
             return Ok(());
-        };
-        let shown: String = String::from_utf8_lossy(start)
-            .escape_debug()
-            .take(80)
-            .collect();
+        }
         Err(format!(
-            "has a {} chunk of the keyword `{shown}`, which a reader of PNG text (exiftool) \
+            "has a text chunk ({}) of the keyword `{}`, which a reader of PNG text (exiftool) \
              takes for tessera's `{KEY}`: its text may be shown in place of the one checked",
-            String::from_utf8_lossy(kind)
+            String::from_utf8_lossy(kind),
+            self.shown()
         ))
+    }
+
+    /// The keyword as a message quotes it: its first 80 characters, escaped.
+    fn shown(&self) -> String {
+        match self {
+            Keyword::Recipe => KEY.to_owned(),
+            Keyword::Lookalike(start) => String::from_utf8_lossy(start)
+                .escape_debug()
+                .take(80)
+                .collect(),
+            Keyword::Other => String::new(),
+        }
     }
 }
 
@@ -681,6 +745,58 @@ mod tests {
         long.extend(KEY.as_bytes());
         assert!(with(b"tEXt", &long).is_err());
         assert!(with(b"tEXt", &[b'x'; 2000]).is_ok());
+    }
+
+    /// A recipe in a text chunk after the IEND chunk, where a PNG ends and no decoder
+    /// reads: exiftool walks the chunks there too, and showed that one, another scene, in
+    /// place of the one checked, for an image `reproduce` called identical. Other bytes
+    /// there are let be.
+    #[test]
+    fn a_recipe_after_the_iend_chunk_is_refused() {
+        let ihdr = chunk(b"IHDR", &[0, 0, 0, 4, 0, 0, 0, 2, 8, 2, 0, 0, 0]);
+        let mut itxt = format!("{KEY}\0\0\0\0\0").into_bytes();
+        itxt.extend(b"{}");
+        let end = chunk(b"IEND", &[]);
+        let followed_by = |trailer: &[u8]| {
+            let png = [
+                &PNG_SIGNATURE[..],
+                &ihdr,
+                &chunk(b"iTXt", &itxt),
+                &end,
+                trailer,
+            ]
+            .concat();
+            read(Cursor::new(&png), png.len() as u64)
+        };
+        let comment = chunk(b"tEXt", b"Comment\0x");
+        for trailer in [
+            chunk(b"iTXt", &itxt),
+            chunk(b"tEXt", format!("{KEY}\0{{}}").as_bytes()),
+            chunk(b"zTXt", b"Tessera-recipe\0\0x"),
+            // After another chunk, and after a second IEND.
+            [
+                &comment[..],
+                &end,
+                &chunk(b"tEXt", format!("{KEY}\0x").as_bytes()),
+            ]
+            .concat(),
+        ] {
+            let e = followed_by(&trailer).unwrap_err();
+            assert!(e.contains("after its IEND chunk"), "{e}");
+        }
+        for trailer in [
+            comment.clone(),
+            b"PK\x03\x04 any bytes".to_vec(),
+            // A chunk that does not fit in the file ends the walk, as it ends exiftool's.
+            [
+                &comment[..],
+                &chunk(b"tEXt", format!("{KEY}\0x").as_bytes())[..20],
+            ]
+            .concat(),
+        ] {
+            let header = followed_by(&trailer).unwrap();
+            assert_eq!(header.recipe.as_deref(), Some("{}"));
+        }
     }
 
     /// The zlib stream's header is taken from the first IDAT chunk only: where that chunk
