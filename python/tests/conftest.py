@@ -3,6 +3,7 @@ every test, where `scenes/` is) and the command line's binary, to compare agains
 
 import os
 import shutil
+import signal
 import subprocess
 from pathlib import Path
 
@@ -59,3 +60,11 @@ def read_ppm(path: Path):
     values = bytes(int(w) for w in words[4:])
     assert len(values) == width * height * 3
     return width, height, values
+
+
+def as_at_a_terminal():
+    """Ctrl-C's default action in the child, as a shell with job control gives a program it
+    starts: Python then raises KeyboardInterrupt for it. A shell without job control (a
+    script's `cmd &`, CI run in the background) starts its children with Ctrl-C ignored,
+    and Python, and tessera with it, then leave it ignored."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)

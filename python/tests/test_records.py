@@ -6,7 +6,7 @@ import json
 import pytest
 
 import tessera
-from conftest import ROOT
+from conftest import ROOT, as_at_a_terminal
 
 
 def test_reproduce_says_identical_for_its_own_image_and_the_cli_agrees(cli, tmp_path):
@@ -231,8 +231,7 @@ def test_ctrl_c_stops_results_waiting_for_a_locked_database(tmp_path):
         cwd=ROOT,
         stdout=subprocess.PIPE,
         text=True,
-        # Ctrl-C's default action, as a shell with job control gives a program it starts.
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+        preexec_fn=as_at_a_terminal,
     )
     try:
         assert child.stdout.readline().strip() == "reading"

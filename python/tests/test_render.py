@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 import tessera
-from conftest import ROOT, read_ppm
+from conftest import ROOT, as_at_a_terminal, read_ppm
 
 SCENES = sorted(p.name for p in (ROOT / "scenes").glob("*.toml"))
 # Small enough that every scene renders in a fraction of a second.
@@ -300,14 +300,6 @@ def test_a_process_forked_by_on_pass_is_told_not_left_waiting():
     lines = out.splitlines()
     assert lines[0].startswith("child refused: this process was forked during the render"), out
     assert lines[1] == "parent True", out
-
-
-def as_at_a_terminal():
-    """Ctrl-C's default action in the child, as a shell with job control gives a program it
-    starts: Python then raises KeyboardInterrupt for it. A shell without job control (a
-    script's `cmd &`, CI run in the background) starts its children with Ctrl-C ignored,
-    and Python, and tessera with it, then leave it ignored."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 INTERRUPTED = textwrap.dedent(
