@@ -24,6 +24,8 @@ conf=$dir/slurm.conf
 export SLURM_CONF=$conf
 # What every cluster directory this script makes holds from its first moment.
 mark=.tessera-local-cluster
+# The first line of every slurm.conf this script writes, the mark's before there was one.
+header="# Written by deploy/slurm/local-cluster.sh: a single-node cluster for tests."
 
 say() { echo "local-cluster: $*" >&2; }
 fail() {
@@ -140,7 +142,10 @@ check_dir() {
   # only one this script made (its mark inside) or an empty one is taken: any other of
   # root's was removed (TESSERA_SLURM_DIR=/var/lib), or had the system's own daemons stopped
   # (=/run, where Debian's munged and slurmd keep their pid files).
-  if [ ! -f "$dir/$mark" ] && [ -n "$(ls -A -- "$dir")" ]; then
+  # A directory an earlier version of this script made, before the mark, is known by the
+  # first line of its slurm.conf: nobody but this user writes there (checked above).
+  if [ ! -f "$dir/$mark" ] && [ -n "$(ls -A -- "$dir")" ] &&
+    ! { [ -f "$conf" ] && [ ! -L "$conf" ] && [ "$(head -n 1 -- "$conf")" = "$header" ]; }; then
     fail "$dir is not a cluster this script made (it has no $mark), so it is neither removed nor stopped: set TESSERA_SLURM_DIR to a new or an empty directory"
   fi
 }
@@ -250,7 +255,7 @@ write_config() {
   node=$(slurmd -C | grep '^NodeName=')
   [ -n "$node" ] || fail "slurmd -C printed no node line"
   cat >"$conf" <<EOF
-# Written by deploy/slurm/local-cluster.sh: a single-node cluster for tests.
+$header
 ClusterName=tessera-local
 SlurmctldHost=$host(127.0.0.1)
 SlurmctldPort=$port

@@ -728,6 +728,71 @@ fn local_cluster_removes_and_stops_only_a_directory_it_made() {
     }
 }
 
+/// A cluster directory made before the mark (`.tessera-local-cluster`) was written is still
+/// the script's own, known by its slurm.conf's first line: CI's `start` refused one left in
+/// /tmp by an earlier version, and every Slurm test failed. A slurm.conf that only resembles
+/// it, or a link to one, is not taken. No Slurm needed: stand-ins play the daemons.
+#[test]
+fn local_cluster_takes_a_directory_an_earlier_version_made() {
+    use std::os::unix::fs::MetadataExt;
+    let dir = temp_dir("slurm-earlier");
+    let bin = dir.join("bin");
+    stand_in_cluster_programs(&bin);
+    let header = "# Written by deploy/slurm/local-cluster.sh: a single-node cluster for tests.\n";
+    let earlier = dir.join("earlier");
+    std::fs::create_dir_all(earlier.join("log")).unwrap();
+    std::fs::write(
+        earlier.join("slurm.conf"),
+        format!("{header}ClusterName=tessera-local\n"),
+    )
+    .unwrap();
+    let o = local_cluster("status", &earlier, Some(&with_stand_ins(&bin)));
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o.stderr));
+    assert!(
+        text(&o.stderr).contains("not running"),
+        "{}",
+        text(&o.stderr)
+    );
+    let o = local_cluster("stop", &earlier, Some(&with_stand_ins(&bin)));
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    assert!(text(&o.stderr).contains("stopped"), "{}", text(&o.stderr));
+
+    let like = dir.join("like");
+    std::fs::create_dir(&like).unwrap();
+    std::fs::write(like.join("slurm.conf"), format!("\n{header}")).unwrap();
+    let linked = dir.join("linked");
+    std::fs::create_dir(&linked).unwrap();
+    std::os::unix::fs::symlink(earlier.join("slurm.conf"), linked.join("slurm.conf")).unwrap();
+    for other in [&like, &linked] {
+        for command in ["status", "stop"] {
+            let o = local_cluster(command, other, Some(&with_stand_ins(&bin)));
+            assert_eq!(o.status.code(), Some(1), "{command}: {}", text(&o.stderr));
+            assert!(
+                text(&o.stderr).contains("is not a cluster this script made"),
+                "{command} {}: {}",
+                other.display(),
+                text(&o.stderr)
+            );
+        }
+    }
+    if std::fs::metadata("/proc/self").map(|m| m.uid()).ok() != Some(0) {
+        return skip(
+            "local_cluster_takes_a_directory_an_earlier_version_made",
+            "local-cluster.sh start needs root",
+        );
+    }
+    // `start` takes it afresh, with the mark (the stand-in slurmd then fails).
+    let o = local_cluster("start", &earlier, Some(&with_stand_ins(&bin)));
+    assert!(
+        text(&o.stderr).contains("slurmd did not start"),
+        "{}",
+        text(&o.stderr)
+    );
+    assert!(earlier.join(".tessera-local-cluster").is_file());
+    let o = local_cluster("stop", &earlier, Some(&with_stand_ins(&bin)));
+    assert!(o.status.success(), "{}", text(&o.stderr));
+}
+
 /// `deploy/slurm/local-cluster.sh COMMAND` on the cluster directory `cluster`, with `path`
 /// as its PATH where given (stand-ins for Slurm's programs), on a port no test cluster uses.
 fn local_cluster(
