@@ -820,6 +820,21 @@ mod tests {
         );
     }
 
+    /// A PNG whose IEND chunk's CRC is wrong, which libpng refuses at its end, was
+    /// `inf dB (identical)` to the same PNG whole. It is listed, naming the chunk.
+    #[test]
+    fn a_png_whose_iend_crc_is_wrong_is_listed() {
+        let whole = png(png::ColorType::Rgb, &[255, 0, 0, 0, 0, 0]);
+        let mut damaged = whole.clone();
+        *damaged.last_mut().unwrap() ^= 1;
+        let changes = listed("png-iend-crc", ("a.png", &whole), ("b.png", &damaged));
+        assert!(
+            changes.len() == 1 && changes[0].contains("an IEND chunk at byte"),
+            "{changes:?}"
+        );
+        assert!(listed("png-iend-whole", ("a.png", &whole), ("b.png", &whole)).is_empty());
+    }
+
     /// compare measures the colour channels only: an image with an alpha channel (a PNG of
     /// colour type 4 or 6, an EXR with an `A` channel, a PAM of tuple type RGB_ALPHA) once
     /// compared `identical` with an opaque one of the same colours, though a viewer shows

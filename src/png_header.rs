@@ -208,9 +208,14 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
                 skip(&mut r, length as i64 + 4)?;
             }
             b"IEND" => {
-                // What follows the end, walked as exiftool walks it (past IEND's head and
-                // CRC, whatever length it claims).
-                skip(&mut r, 4)?;
+                // Its CRC: the decoder here stops at the last row and never reads it, where
+                // libpng checks it at the end (png_read_end, as a critical chunk's, so
+                // "IEND: CRC error" fails the file; browsers differ). What follows the end is
+                // walked as exiftool walks it (past IEND's head and CRC, whatever length it
+                // claims).
+                let mut crc = [0u8; 4];
+                r.read_exact(&mut crc).map_err(|e| e.to_string())?;
+                display_changes.extend(damaged_end(length, crc, at));
                 check_after_end(&mut r, at + 12, len, chunks + 1)?;
                 break;
             }
@@ -226,6 +231,27 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
         display_changes,
         zlib_header,
     })
+}
+
+/// What an IEND chunk at byte `at` of `length` bytes, whose head is followed by `crc`, says
+/// that a PNG's end does not: a wrong CRC, which libpng refuses as a critical chunk's, so
+/// that viewers built on it show nothing (the decoder here and `compare` never read it), or
+/// data, which a PNG's IEND has none of and libpng calls invalid (its CRC is then over data
+/// not read here).
+fn damaged_end(length: u64, crc: [u8; 4], at: u64) -> Option<String> {
+    if length != 0 {
+        Some(format!(
+            "an IEND chunk at byte {at} of {length} bytes, where a PNG's holds none: libpng \
+             calls it invalid and refuses the file where its CRC over them is wrong"
+        ))
+    } else if u32::from_be_bytes(crc) != crc32fast::hash(b"IEND") {
+        Some(format!(
+            "an IEND chunk at byte {at} whose CRC is wrong: libpng refuses the file at its end \
+             (\"IEND: CRC error\"), and viewers built on it may show nothing"
+        ))
+    } else {
+        None
+    }
 }
 
 /// Walks the bytes after a PNG's IEND chunk (from byte `at` of `len`) for a recipe: a PNG
@@ -851,5 +877,35 @@ mod tests {
         assert!(changes_with(&chunk(b"abCD", &[0; 3])).is_empty());
         assert!(changes_with(&chunk(b"IDAT", &[0; 3])).is_empty());
         assert!(changes_with(&[]).is_empty());
+    }
+
+    /// An IEND chunk whose CRC is wrong: libpng refuses the file at its end ("IEND: CRC
+    /// error"), where the decoder here never reads it, and `compare` and `reproduce` called
+    /// such a file identical to tessera's own. It is listed, and so is an IEND that holds
+    /// data; a second IEND after the end, which no decoder reads, is not.
+    #[test]
+    fn an_iend_chunk_of_a_wrong_crc_is_listed() {
+        let ihdr = chunk(b"IHDR", &[0, 0, 0, 4, 0, 0, 0, 2, 8, 2, 0, 0, 0]);
+        let idat = chunk(b"IDAT", &[0x78, 0x9c, 1]);
+        let changes_with = |end: &[u8]| {
+            let png = [&PNG_SIGNATURE[..], &ihdr, &idat, end].concat();
+            read(Cursor::new(&png), png.len() as u64)
+                .unwrap()
+                .display_changes
+        };
+        let mut damaged = chunk(b"IEND", &[]);
+        damaged[11] ^= 1;
+        let changes = changes_with(&damaged);
+        assert!(
+            changes.len() == 1 && changes[0].contains("IEND chunk at byte 48 whose CRC is wrong"),
+            "{changes:?}"
+        );
+        let changes = changes_with(&chunk(b"IEND", b"xy"));
+        assert!(
+            changes.len() == 1 && changes[0].contains("IEND chunk at byte 48 of 2 bytes"),
+            "{changes:?}"
+        );
+        assert!(changes_with(&chunk(b"IEND", &[])).is_empty());
+        assert!(changes_with(&[&chunk(b"IEND", &[])[..], &damaged].concat()).is_empty());
     }
 }
