@@ -129,6 +129,22 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
                 display_changes.push(said);
             }
         }
+        // EXIF in a chunk named `eXIf` but for its case (`exIf`, the case of the chunk's
+        // first proposal, `EXIF`), or in a `zxIf` chunk of compressed EXIF: libpng, the
+        // decoder here and browsers skip it, but exiftool reads it as eXIf (its `%stdCase`)
+        // and shows its orientation, by which a viewer that takes it turns or flips the
+        // picture.
+        let lower = kind.to_ascii_lowercase();
+        if (&lower == b"exif" && &kind != b"eXIf") || &lower == b"zxif" {
+            let said = format!(
+                "a {} chunk, which tessera does not write: EXIF data that exiftool reads as \
+                 eXIf's, which can turn or flip the picture",
+                String::from_utf8_lossy(&kind)
+            );
+            if !display_changes.contains(&said) {
+                display_changes.push(said);
+            }
+        }
         // A critical chunk after the pixels: libpng refuses an unknown one there (and takes
         // no palette there), so a viewer built on it shows nothing or another picture, where
         // the decoder here stops at the last row.
@@ -907,5 +923,35 @@ mod tests {
         );
         assert!(changes_with(&chunk(b"IEND", &[])).is_empty());
         assert!(changes_with(&[&chunk(b"IEND", &[])[..], &damaged].concat()).is_empty());
+    }
+
+    /// EXIF in a chunk exiftool reads as eXIf though its name is not (`exIf`, `EXIF`, a
+    /// `zxIf` of compressed EXIF): exiftool shows its orientation, which turns or flips the
+    /// picture, and such a file was called identical. It is listed; eXIf is listed as before,
+    /// and a chunk of another name is not.
+    #[test]
+    fn exif_in_a_chunk_exiftool_reads_as_exif_is_listed() {
+        let ihdr = chunk(b"IHDR", &[0, 0, 0, 4, 0, 0, 0, 2, 8, 2, 0, 0, 0]);
+        let changes_with = |kind: &[u8; 4]| {
+            let png = [
+                &PNG_SIGNATURE[..],
+                &ihdr,
+                &chunk(kind, b"MM\0\x2a\0\0\0\x08"),
+                &chunk(b"IDAT", &[0x78, 0x9c, 1]),
+                &chunk(b"IEND", &[]),
+            ]
+            .concat();
+            read(Cursor::new(&png), png.len() as u64)
+                .unwrap()
+                .display_changes
+        };
+        for kind in [b"exIf", b"eXIf", b"zxIf", b"zXIf"] {
+            let changes = changes_with(kind);
+            assert!(
+                changes.len() == 1 && changes[0].contains("turn or flip the picture"),
+                "{changes:?}"
+            );
+        }
+        assert!(changes_with(b"exIg").is_empty());
     }
 }
