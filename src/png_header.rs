@@ -415,9 +415,12 @@ enum Keyword {
     /// `tessera-recipe`, byte for byte.
     Recipe,
     /// Another keyword that exiftool names as it names the recipe's, `Tessera-recipe`: it
-    /// drops every character but ASCII letters, digits, `-` and `_` (spaces, punctuation,
-    /// controls, Latin-1) and capitalises the first letter, and of two chunks of one name
-    /// shows the later. The keyword's first bytes, for the message.
+    /// capitalises the character after a run of white space and drops the run, drops every
+    /// character but ASCII letters, digits, `-` and `_` (punctuation, controls, Latin-1),
+    /// and capitalises the first letter (`s/\s+(.)/\u$1/g`, `tr/-_a-zA-Z0-9//dc`,
+    /// `ucfirst` in Image::ExifTool), and of two chunks of one name shows the later. The
+    /// case of the other letters is kept: `TESSERA-RECIPE` is a name of its own. The
+    /// keyword's first bytes, for the message.
     Lookalike(Vec<u8>),
     /// Any other, or none (a chunk without the zero byte that ends its keyword, which
     /// readers of PNG text skip).
@@ -454,12 +457,13 @@ impl Keyword {
 
 /// The keyword of a text chunk of `length` bytes, read as far as the zero byte that ends it
 /// (at most `MAX_KEYWORD_READ` bytes), and how many bytes were read. It is told apart from
-/// tessera's at its first letter, digit, `-` or `_` that is not the next of tessera's (letters
-/// compared without their case).
+/// tessera's at its first letter, digit, `-` or `_` that, as exiftool names it, is not the
+/// next of tessera's name: the first compared without its case, the others with it (one
+/// after white space capitalised).
 fn read_keyword<R: Read>(r: &mut R, length: u64) -> Result<(Keyword, usize), String> {
     let key = KEY.as_bytes();
     let mut start = Vec::new();
-    let (mut matched, mut exact) = (0, true);
+    let (mut matched, mut exact, mut after_space) = (0, true, false);
     let mut byte = [0u8; 1];
     while (start.len() as u64) < length.min(MAX_KEYWORD_READ) {
         r.read_exact(&mut byte).map_err(|e| e.to_string())?;
@@ -476,8 +480,19 @@ fn read_keyword<R: Read>(r: &mut R, length: u64) -> Result<(Keyword, usize), Str
         }
         exact &= key.get(start.len()) == Some(&b);
         start.push(b);
-        if b.is_ascii_alphanumeric() || b == b'-' || b == b'_' {
-            if key.get(matched).is_none_or(|k| !k.eq_ignore_ascii_case(&b)) {
+        // Perl's `\s` on bytes: ASCII white space only.
+        let named = if after_space {
+            b.to_ascii_uppercase()
+        } else {
+            b
+        };
+        after_space = matches!(b, b' ' | b'\t' | b'\n' | 0x0b | 0x0c | b'\r');
+        if named.is_ascii_alphanumeric() || named == b'-' || named == b'_' {
+            let same = |k: &u8| match matched {
+                0 => k.eq_ignore_ascii_case(&named),
+                _ => *k == named,
+            };
+            if key.get(matched).is_none_or(|k| !same(k)) {
                 return Ok((Keyword::Other, start.len()));
             }
             matched += 1;
@@ -727,11 +742,12 @@ mod tests {
         }
     }
 
-    /// A text chunk whose keyword is tessera's but for its case or for characters that are
-    /// not a tag name's (`Tessera-recipe`, `tessera-recipe!`, `tessera-recipe `): exiftool
-    /// drops those characters and capitalises the first letter, so it named the chunk as it
-    /// names the recipe's and showed the later of them, another scene, for an image
-    /// `reproduce` called identical.
+    /// A text chunk whose keyword is tessera's but for its first letter's case or for
+    /// characters that are not a tag name's (`Tessera-recipe`, `tessera-recipe!`,
+    /// `tessera-recipe `): exiftool drops those characters and capitalises the first letter,
+    /// so it named the chunk as it names the recipe's and showed the later of them, another
+    /// scene, for an image `reproduce` called identical. One exiftool names apart
+    /// (`TESSERA-RECIPE`) is text like any other.
     #[test]
     fn a_text_chunk_exiftool_takes_for_the_recipe_is_refused() {
         let ihdr = chunk(b"IHDR", &[0, 0, 0, 4, 0, 0, 0, 2, 8, 2, 0, 0, 0]);
@@ -758,12 +774,12 @@ mod tests {
         for kind in [b"tEXt", b"zTXt", b"iTXt"] {
             for keyword in [
                 &b"Tessera-recipe"[..],
-                b"TESSERA-RECIPE",
                 b"tessera-recipe!",
                 b"tessera-recipe ",
                 b" tessera-recipe",
                 b"tessera -recipe",
                 b"\xa0tessera\x01-recipe\xff",
+                b"\ttessera-\x01 !recipe\n",
             ] {
                 let e = with(kind, keyword).unwrap_err();
                 assert!(e.contains("takes for tessera's"), "{e}");
@@ -776,6 +792,13 @@ mod tests {
                 b"tessera-recipes",
                 b"-tessera-recipe",
                 b"tessera-recip",
+                // exiftool keeps the case of the letters after the first (`TESSERA-RECIPE`
+                // was once refused, though exiftool names it apart), and capitalises one
+                // after white space (`tessera-Recipe`).
+                b"TESSERA-RECIPE",
+                b"tESSERA-RECIPE",
+                b"tessera- recipe",
+                b"tessera-\nrecipe",
             ] {
                 let header = with(kind, keyword).unwrap();
                 assert_eq!(header.recipe.as_deref(), Some("{}"));
