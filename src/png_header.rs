@@ -568,25 +568,54 @@ pub fn palette_index_past_its_entries<R: Read + Seek>(r: R, most: u64) -> Option
         return None;
     }
     let entries = info.palette.as_ref().map_or(0, |p| p.len() / 3);
-    let (width, depth) = (info.width as usize, info.bit_depth as usize);
-    let mut y = 0;
+    let (width, height) = (info.width as usize, info.height as usize);
+    let depth = info.bit_depth as usize;
+    // An interlaced image's rows come pass by pass (Adam7), each of its pass's pixels only,
+    // which lie `dx` apart from `x0` in the picture: a row of the first pass of an image 16
+    // wide holds 2, where indexing it as 16 once panicked.
+    let passes: &[(usize, usize, usize, usize)] = if info.interlaced {
+        &ADAM7_PASSES
+    } else {
+        &[(0, 0, 1, 1)]
+    };
+    let mut places = passes.iter().flat_map(|&(x0, y0, dx, dy)| {
+        let pixels = width.saturating_sub(x0).div_ceil(dx);
+        (y0..height)
+            .step_by(dy)
+            .filter(move |_| pixels > 0)
+            .map(move |y| (x0, dx, y, pixels))
+    });
     while let Ok(Some(row)) = reader.next_row() {
+        let (x0, dx, y, pixels) = places.next()?;
         let bits = row.data();
-        let index = |x: usize| {
-            let (byte, shift) = (x * depth / 8, 8 - depth - (x * depth % 8));
-            usize::from(bits[byte] >> shift) & ((1 << depth) - 1)
+        let index = |i: usize| {
+            let (byte, shift) = (i * depth / 8, 8 - depth - (i * depth % 8));
+            bits.get(byte)
+                .map_or(0, |b| usize::from(b >> shift) & ((1 << depth) - 1))
         };
-        if let Some(x) = (0..width).find(|&x| index(x) >= entries) {
+        if let Some(i) = (0..pixels).find(|&i| index(i) >= entries) {
             return Some(format!(
-                "a pixel ({x}, {y}) of palette index {}, past the entries of its palette \
+                "a pixel ({}, {y}) of palette index {}, past the entries of its palette \
                  ({entries}): libpng shows it black, Chrome the palette's last colour",
-                index(x)
+                x0 + i * dx,
+                index(i)
             ));
         }
-        y += 1;
     }
     None
 }
+
+/// The Adam7 passes of an interlaced PNG, each as the column and row of its first pixel and
+/// the steps between its pixels across and down.
+const ADAM7_PASSES: [(usize, usize, usize, usize); 7] = [
+    (0, 0, 8, 8),
+    (4, 0, 8, 8),
+    (0, 4, 4, 8),
+    (2, 0, 4, 4),
+    (0, 2, 2, 4),
+    (1, 0, 2, 2),
+    (0, 1, 1, 2),
+];
 
 #[cfg(test)]
 mod tests {
@@ -976,5 +1005,39 @@ mod tests {
             );
         }
         assert!(changes_with(b"exIg").is_empty());
+    }
+
+    /// A palette PNG whose pixels are interlaced: its rows come pass by pass, each of its
+    /// pass's pixels only, and indexing one as a row of the whole width panicked (`compare`
+    /// of a 16x1 one exited 101, "index out of bounds: the len is 2 but the index is 2").
+    /// An index past the palette is found where it lies in the picture.
+    #[test]
+    fn an_interlaced_palette_png_is_walked_pass_by_pass() {
+        // 16x1: passes 1, 2, 4 and 6 hold 2, 2, 4 and 8 pixels of the row, at x = 0 and 8,
+        // 4 and 12, 2 + 4k, 1 + 2k.
+        let interlaced = |rows: &[&[u8]], entries: usize| {
+            let ihdr = chunk(b"IHDR", &[0, 0, 0, 16, 0, 0, 0, 1, 8, 3, 0, 0, 1]);
+            let mut raw = Vec::new();
+            for row in rows {
+                raw.push(0);
+                raw.extend(*row);
+            }
+            let png = [
+                &PNG_SIGNATURE[..],
+                &ihdr,
+                &chunk(b"PLTE", &vec![255; 3 * entries]),
+                &chunk(b"IDAT", &fdeflate::compress_to_vec(&raw)),
+                &chunk(b"IEND", &[]),
+            ]
+            .concat();
+            palette_index_past_its_entries(Cursor::new(png), 1 << 20)
+        };
+        assert_eq!(interlaced(&[&[0; 2], &[0; 2], &[0; 4], &[0; 8]], 1), None);
+        let past = interlaced(&[&[0; 2], &[0; 2], &[0; 4], &[0, 0, 0, 1, 0, 0, 0, 0]], 1);
+        assert!(
+            past.as_deref()
+                .is_some_and(|p| p.starts_with("a pixel (7, 0) of palette index 1")),
+            "{past:?}"
+        );
     }
 }
