@@ -68,7 +68,7 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
     }
     let (mut at, mut size, mut found) = (8u64, None, None);
     let mut display_changes = Vec::new();
-    let (mut zlib_header, mut idat_seen) = (None, false);
+    let (mut zlib_header, mut idat_seen, mut idat_ended) = (None, false, false);
     // Skips `n` bytes, within the buffer where it can.
     let skip =
         |r: &mut std::io::BufReader<R>, n: i64| r.seek_relative(n).map_err(|e| e.to_string());
@@ -154,6 +154,19 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
                 String::from_utf8_lossy(&kind).escape_debug()
             ));
         }
+        // An IDAT chunk after another that follows the pixels' chunks: the decoder here
+        // reads the pixels from the first run and stops, but libpng reads this one at the
+        // file's end ("Too many IDATs found") and refuses the file where its CRC is wrong
+        // (a critical chunk's); it is not read here, as a chunk so placed is not tessera's.
+        if &kind == b"IDAT" && idat_ended {
+            let said = format!(
+                "an IDAT chunk at byte {at} after another chunk that follows the pixels: \
+                 libpng reads it at the end (\"Too many IDATs found\") and refuses the file \
+                 where its CRC is wrong"
+            );
+            display_changes.push(said);
+        }
+        idat_ended |= idat_seen && &kind != b"IDAT";
         match &kind {
             b"IHDR" => {
                 let mut data = [0u8; 13];
@@ -945,6 +958,40 @@ mod tests {
         assert!(changes_with(&chunk(b"abCD", &[0; 3])).is_empty());
         assert!(changes_with(&chunk(b"IDAT", &[0; 3])).is_empty());
         assert!(changes_with(&[]).is_empty());
+    }
+
+    /// An IDAT chunk after another chunk that follows the pixels (a second run of them):
+    /// the decoder here stops after the first, libpng reads it at the end and refuses the
+    /// file where its CRC is wrong. Such a file, its late IDAT's CRC wrong, was called
+    /// identical. It is listed, once for each; IDAT chunks of one run are not.
+    #[test]
+    fn an_idat_chunk_after_the_pixels_run_is_listed() {
+        let ihdr = chunk(b"IHDR", &[0, 0, 0, 4, 0, 0, 0, 2, 8, 2, 0, 0, 0]);
+        let idat = chunk(b"IDAT", &[0x78, 0x9c, 1]);
+        let changes_with = |after: &[u8]| {
+            let png = [
+                &PNG_SIGNATURE[..],
+                &ihdr,
+                &idat,
+                after,
+                &chunk(b"IEND", &[]),
+            ]
+            .concat();
+            read(Cursor::new(&png), png.len() as u64)
+                .unwrap()
+                .display_changes
+        };
+        let mut damaged = chunk(b"IDAT", &[]);
+        damaged[11] ^= 1;
+        let text = chunk(b"tEXt", b"Comment\0x");
+        let changes = changes_with(&[&text[..], &damaged].concat());
+        assert!(
+            changes.len() == 1 && changes[0].starts_with("an IDAT chunk at byte 69 after"),
+            "{changes:?}"
+        );
+        let changes = changes_with(&[&text[..], &damaged, &damaged].concat());
+        assert_eq!(changes.len(), 2, "{changes:?}");
+        assert!(changes_with(&[&idat[..], &text].concat()).is_empty());
     }
 
     /// An IEND chunk whose CRC is wrong: libpng refuses the file at its end ("IEND: CRC
