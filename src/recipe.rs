@@ -6,7 +6,7 @@
 use crate::error::{Error, Result};
 use crate::film::Film;
 use crate::math::PixelRect;
-use crate::scene::{Overrides, Scene, TextureSource};
+use crate::scene::{Overrides, RenderSettings, Scene, TextureSource};
 use crate::text::terminal_safe;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -166,7 +166,10 @@ pub struct Effective {
 
 impl Effective {
     fn of(scene: &Scene) -> Self {
-        let s = &scene.settings;
+        Self::of_settings(&scene.settings)
+    }
+
+    fn of_settings(s: &RenderSettings) -> Self {
         let w = s.window;
         Effective {
             width: s.width,
@@ -306,11 +309,10 @@ impl Recipe {
     /// `image` and the recipe's scene), with its settings checked against the recipe's, and
     /// its image textures looked for in `dirs` and checked against the recipe's hashes.
     pub fn scene(&self, image: &Path, dirs: &[PathBuf]) -> Result<Scene> {
-        let origin = PathBuf::from(format!(
-            "{} (recipe scene {})",
-            image.display(),
-            terminal_safe(&self.scene.name, 80)
-        ));
+        // Before any texture file is looked for: a recipe that lies about its settings
+        // is refused as `info` refuses it.
+        self.check_settings(image)?;
+        let origin = self.origin(image);
         let looked: Vec<String> = dirs.iter().map(|d| d.display().to_string()).collect();
         // The textures the recipe names must be found, each the very file it was made with.
         // A file named again, however spelt (`a.png`, `./a.png`), is read and hashed once:
@@ -369,32 +371,79 @@ impl Recipe {
                 });
             }
         }
-        // An override out of range is the recipe's fault, named as such.
-        let scene = self.source().parse(&origin, dirs).map_err(|e| match e {
-            Error::Setting { field, message } => Error::Image {
-                path: image.to_owned(),
-                message: format!("its recipe's override `{field}` is refused: {message}"),
-            },
-            e => e,
-        })?;
+        let scene = (self.source().parse(&origin, dirs)).map_err(|e| overrides_fault(image, e))?;
         if textures_of(&scene) != self.textures {
             return Err(Error::Image {
                 path: image.to_owned(),
                 message: "its recipe's texture files are not those its scene reads".to_owned(),
             });
         }
-        let effective = Effective::of(&scene);
-        if effective != self.image {
-            return Err(Error::Image {
-                path: image.to_owned(),
-                message: format!(
-                    "its recipe's settings ({}) are not what its scene and overrides give ({})",
-                    describe(&self.image),
-                    describe(&effective)
-                ),
-            });
-        }
+        self.agrees(image, Effective::of(&scene))?;
         Ok(scene)
+    }
+
+    /// Checks the recipe's settings (`image`) against what its scene text and overrides
+    /// give, parsed and checked as a scene file is, with nothing else built and no texture
+    /// file read: a recipe whose scene is not a scene, or gives other settings than it
+    /// claims, is refused, naming each setting that differs. `info` and `reproduce` both
+    /// check it, so `info` shows no claim that `reproduce` would refuse.
+    pub fn check_settings(&self, image: &Path) -> Result<()> {
+        let origin = self.origin(image);
+        let settings = Scene::settings_of(&self.scene.text, &origin, &self.overrides.into())
+            .map_err(|e| overrides_fault(image, e))?;
+        self.agrees(image, Effective::of_settings(&settings))
+    }
+
+    /// Refuses the recipe where `given`, the settings its scene and overrides give, are not
+    /// the ones it claims: naming each that differs, then both in full.
+    fn agrees(&self, image: &Path, given: Effective) -> Result<()> {
+        if given == self.image {
+            return Ok(());
+        }
+        let (r, g) = (&self.image, &given);
+        let differing: Vec<String> = [
+            ("width", r.width.to_string(), g.width.to_string()),
+            ("height", r.height.to_string(), g.height.to_string()),
+            (
+                "window",
+                format!("{:?}", r.window),
+                format!("{:?}", g.window),
+            ),
+            (
+                "samples_per_pixel",
+                r.samples_per_pixel.to_string(),
+                g.samples_per_pixel.to_string(),
+            ),
+            (
+                "max_depth",
+                r.max_depth.to_string(),
+                g.max_depth.to_string(),
+            ),
+            ("seed", r.seed.to_string(), g.seed.to_string()),
+            ("gamma", r.gamma.to_string(), g.gamma.to_string()),
+        ]
+        .into_iter()
+        .filter(|(_, claimed, gives)| claimed != gives)
+        .map(|(field, claimed, gives)| format!("{field} {claimed}, the scene gives {gives}"))
+        .collect();
+        Err(Error::Image {
+            path: image.to_owned(),
+            message: format!(
+                "its recipe's settings ({}) are not what its scene and overrides give ({}): {}",
+                describe(&self.image),
+                describe(&given),
+                differing.join("; ")
+            ),
+        })
+    }
+
+    /// The name a recipe's scene goes by in errors: the image, and the scene file's name.
+    fn origin(&self, image: &Path) -> PathBuf {
+        PathBuf::from(format!(
+            "{} (recipe scene {})",
+            image.display(),
+            terminal_safe(&self.scene.name, 80)
+        ))
     }
 
     /// The scene file and overrides it was made from.
@@ -414,6 +463,18 @@ impl Recipe {
             width,
             height,
         }
+    }
+}
+
+/// An error of the recipe's scene, where an override out of range is the recipe's fault,
+/// named as such.
+fn overrides_fault(image: &Path, e: Error) -> Error {
+    match e {
+        Error::Setting { field, message } => Error::Image {
+            path: image.to_owned(),
+            message: format!("its recipe's override `{field}` is refused: {message}"),
+        },
+        e => e,
     }
 }
 

@@ -63,6 +63,10 @@ fn recipe_of(path: &Path) -> Result<(ImageHeader, Recipe)> {
 pub fn info(args: InfoArgs) -> Result<ExitCode> {
     let path = &args.image;
     let (header, recipe) = recipe_of(path)?;
+    // What `reproduce` refuses before rendering, `info` does not print as true: a recipe
+    // whose settings are not what its own scene gives (exit 2, as reproduce), whatever the
+    // form. Its textures are not looked for: the image may be shown where they are not.
+    recipe.check_settings(path)?;
     if args.json {
         out(&format!("{}\n", recipe.to_json()))?;
         return Ok(ExitCode::SUCCESS);

@@ -461,6 +461,17 @@ impl Textures {
     }
 }
 
+/// The settings `build` gives the scene of `desc` (whose text is `text`), and nothing else
+/// built: one function, so the settings checked without the scene are the scene's.
+pub(super) fn settings(
+    desc: &SceneDesc,
+    text: &str,
+    path: &Path,
+    overrides: &Overrides,
+) -> Result<RenderSettings> {
+    render_settings(desc, &Checker::new(text, path), overrides)
+}
+
 fn render_settings(desc: &SceneDesc, ck: &Checker, ov: &Overrides) -> Result<RenderSettings> {
     let img = &desc.image;
     let file_width = ck.positive_int(&img.width, "image.width")?;

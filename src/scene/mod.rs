@@ -210,56 +210,72 @@ impl Scene {
         overrides: &Overrides,
         source: &TextureSource,
     ) -> Result<Scene> {
-        let syntax = |e: &toml::de::Error, field: Option<String>| {
-            let start = e.span().map_or(0, |s| s.start);
-            let message = name_the_table(text, start, &plain_types(e.message().trim()));
-            let at = Location::of_offset(text, start);
-            match field {
-                Some(field) => Error::SceneValue {
-                    path: path.to_owned(),
-                    at,
-                    field,
-                    message,
-                },
-                None => Error::SceneSyntax {
-                    path: path.to_owned(),
-                    at,
-                    message,
-                },
-            }
-        };
-        if let Some((offset, bound)) = values::past_the_bound(text) {
-            let message = match bound {
-                values::Bound::Values => format!(
-                    "more than {} values, tables and arrays (commas, equals signs, dots, \
-                     brackets and braces) in one scene file; a scene of more spheres draws \
-                     them with a generator",
-                    values::MAX_SCENE_VALUES
-                ),
-                values::Bound::Tokens => format!(
-                    "more than {} words, strings, comments, line ends, runs of blanks and \
-                     closing brackets in one scene file",
-                    values::MAX_SCENE_TOKENS
-                ),
-            };
-            return Err(Error::SceneSyntax {
-                path: path.to_owned(),
-                at: Location::of_offset(text, offset),
-                message,
-            });
-        }
-        let document = toml::Deserializer::parse(text).map_err(|e| syntax(&e, None))?;
-        // The path of keys to a value of the wrong shape names its field, as a value out
-        // of range does; a missing key names its table instead (`name_the_table`).
-        let desc: desc::SceneDesc = serde_path_to_error::deserialize(document).map_err(|e| {
-            let field = key_path(e.path());
-            let missing = e.inner().message().starts_with("missing field");
-            let field = (!field.is_empty() && !missing).then_some(field);
-            syntax(e.inner(), field)
-        })?;
-        build::build(&desc, text, path, overrides, source)
+        build::build(&describe(text, path)?, text, path, overrides, source)
     }
 
+    /// The settings scene text gives with `overrides` (size, crop, sampling, depth, seed,
+    /// gamma), checked as `parse` checks them, without building the rest or reading a
+    /// texture file: what a recipe's settings are checked against where its textures may
+    /// not be at hand (`tessera info`).
+    pub fn settings_of(text: &str, path: &Path, overrides: &Overrides) -> Result<RenderSettings> {
+        build::settings(&describe(text, path)?, text, path, overrides)
+    }
+}
+
+/// Scene text parsed into its description, within the bounds on its values and tokens;
+/// `path` names the source in errors.
+fn describe(text: &str, path: &Path) -> Result<desc::SceneDesc> {
+    let syntax = |e: &toml::de::Error, field: Option<String>| {
+        let start = e.span().map_or(0, |s| s.start);
+        let message = name_the_table(text, start, &plain_types(e.message().trim()));
+        let at = Location::of_offset(text, start);
+        match field {
+            Some(field) => Error::SceneValue {
+                path: path.to_owned(),
+                at,
+                field,
+                message,
+            },
+            None => Error::SceneSyntax {
+                path: path.to_owned(),
+                at,
+                message,
+            },
+        }
+    };
+    if let Some((offset, bound)) = values::past_the_bound(text) {
+        let message = match bound {
+            values::Bound::Values => format!(
+                "more than {} values, tables and arrays (commas, equals signs, dots, \
+                     brackets and braces) in one scene file; a scene of more spheres draws \
+                     them with a generator",
+                values::MAX_SCENE_VALUES
+            ),
+            values::Bound::Tokens => format!(
+                "more than {} words, strings, comments, line ends, runs of blanks and \
+                     closing brackets in one scene file",
+                values::MAX_SCENE_TOKENS
+            ),
+        };
+        return Err(Error::SceneSyntax {
+            path: path.to_owned(),
+            at: Location::of_offset(text, offset),
+            message,
+        });
+    }
+    let document = toml::Deserializer::parse(text).map_err(|e| syntax(&e, None))?;
+    // The path of keys to a value of the wrong shape names its field, as a value out
+    // of range does; a missing key names its table instead (`name_the_table`).
+    let desc: desc::SceneDesc = serde_path_to_error::deserialize(document).map_err(|e| {
+        let field = key_path(e.path());
+        let missing = e.inner().message().starts_with("missing field");
+        let field = (!field.is_empty() && !missing).then_some(field);
+        syntax(e.inner(), field)
+    })?;
+    Ok(desc)
+}
+
+impl Scene {
     pub fn material(&self, hit: &Hit) -> &Material {
         &self.materials[hit.material.0 as usize]
     }

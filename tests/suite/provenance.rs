@@ -324,6 +324,67 @@ fn an_edited_or_stripped_image_is_never_called_identical() {
     );
 }
 
+/// `info` printed whatever settings a recipe claimed, where `reproduce` refused them as not
+/// what its own scene gives: a stranger's image claiming 500 samples and seed 9 of a scene of
+/// 4 and seed 1 was shown as such. Both now run one check (`Recipe::check_settings`) and
+/// refuse it alike, naming each setting that differs; no texture file is needed for it.
+#[test]
+fn info_refuses_a_recipe_whose_settings_its_scene_does_not_give() {
+    let dir = temp_dir("provenance-info-lying");
+    let image = small_cover(&dir, "cover.png");
+    let recipe_text = png_recipe_text(&image).unwrap();
+    let pixels = png_pixels(&image);
+    let mut lying: serde_json::Value = serde_json::from_str(&recipe_text).unwrap();
+    lying["image"]["seed"] = serde_json::Value::from(9);
+    lying["image"]["samples_per_pixel"] = serde_json::Value::from(500);
+    write_png(
+        &dir.join("lying.png"),
+        &pixels,
+        &[(recipe::KEY, &lying.to_string(), true)],
+    );
+    for args in [
+        &["info", "lying.png"][..],
+        &["info", "--json", "lying.png"],
+        &["reproduce", "lying.png", "-q"],
+    ] {
+        let o = run(args, &dir);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(out_text(&o).is_empty(), "{args:?}: {}", out_text(&o));
+        for expected in [
+            "lying.png: its recipe's settings (96x64, 500 spp, depth 50, seed 9, gamma 2) are \
+             not what its scene and overrides give (96x64, 4 spp, depth 50, seed 1, gamma 2)",
+            "samples_per_pixel 500, the scene gives 4; seed 9, the scene gives 1",
+        ] {
+            assert!(
+                err.contains(expected),
+                "{args:?}: `{expected}` not in {err}"
+            );
+        }
+    }
+    // A recipe whose scene is not a scene is refused by `info` as by `reproduce`.
+    let mut broken = lying.clone();
+    broken["image"] =
+        serde_json::from_str::<serde_json::Value>(&recipe_text).unwrap()["image"].clone();
+    broken["scene"]["text"] = serde_json::Value::from("[image]\nwidth = 0\n");
+    write_png(
+        &dir.join("broken.png"),
+        &pixels,
+        &[(recipe::KEY, &broken.to_string(), true)],
+    );
+    let o = run(&["info", "broken.png"], &dir);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("broken.png (recipe scene cover.toml)"),
+        "{}",
+        stderr(&o)
+    );
+    // The recipe as rendered still prints, with its settings.
+    let o = run(&["info", "cover.png"], &dir);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(out_text(&o).contains("settings   96x64, 4 spp, depth 50, seed 1, gamma 2"));
+}
+
 /// Runs `info` and `reproduce` on a PNG whose recipe chunk holds `text` (compressed or
 /// not), expecting a refusal naming `expected`.
 fn assert_refused(dir: &Path, name: &str, text: &str, compressed: bool, expected: &str) {
