@@ -373,14 +373,14 @@ pub(super) fn refuse_dangling_link(path: &Path) -> Result<()> {
 /// Makes a whole database of the latest schema, in WAL mode, at `made` (named `path` in
 /// messages), and closes it.
 pub(super) fn build_new(made: &Path, path: &Path) -> Result<()> {
-    let mut db = ResultsDb::connect(made, OpenFlags::SQLITE_OPEN_READ_WRITE)?;
+    let started = Instant::now();
+    let mut db = ResultsDb::connect(made, OpenFlags::SQLITE_OPEN_READ_WRITE, started)?;
     // Messages name the database being made, not its temporary name.
     db.path = path.to_owned();
-    let started = Instant::now();
     db.conn
         .pragma_update(None, "journal_mode", "wal")
         .map_err(|e| db.error(e, "could not create it", started))?;
-    db.migrate(0)?;
+    db.migrate(0, started)?;
     // Everything written back from the WAL into the file itself before it is published under
     // `path`: its -wal file is `made`'s, which `path` never reads. A close does this too, but
     // says nothing when it cannot (a full disk), and the published file would be empty.

@@ -77,7 +77,8 @@ const MIGRATIONS: &[&str] = &[
 /// The schema version this build makes and reads.
 pub const SCHEMA_VERSION: i64 = MIGRATIONS.len() as i64;
 
-/// How long a writer waits for another before giving up.
+/// How long one open of the database, or one statement after it, waits for another
+/// process's lock before giving up.
 const BUSY_TIMEOUT: Duration = Duration::from_secs(30);
 
 /// How long a wait for another process's lock sleeps between looks at its stop flag.
@@ -89,8 +90,8 @@ thread_local! {
 }
 
 /// Runs `read` on this thread with each connection it opens waiting for another process's
-/// lock (up to `BUSY_TIMEOUT`, each statement) only until `stop` is set: then the statement
-/// gives up as busy at once. SQLite's own wait looks at nothing but the clock, and a reader
+/// lock (up to `BUSY_TIMEOUT`: `wait_for_others`) only until `stop` is set: then the
+/// statement gives up as busy at once. SQLite's own wait looks at nothing but the clock, and a reader
 /// that the user may stop (Python's `tessera.results`, on Ctrl-C) sat out two such waits,
 /// 60 s, on a database whose owner held it locked, deaf to Ctrl-C.
 pub fn stopped_by<R>(stop: Arc<AtomicBool>, read: impl FnOnce() -> R) -> R {
@@ -100,14 +101,41 @@ pub fn stopped_by<R>(stop: Arc<AtomicBool>, read: impl FnOnce() -> R) -> R {
     done
 }
 
-/// Whether a statement that has found the database locked since `since` waits again: after
-/// a sleep of `BUSY_LOOK`, unless `stop` is set or `BUSY_TIMEOUT` has passed.
-fn wait_unless(stop: &AtomicBool, since: Instant) -> bool {
-    if stop.load(Ordering::Relaxed) || since.elapsed() >= BUSY_TIMEOUT {
+#[cfg(test)]
+thread_local! {
+    /// How many times this thread slept waiting for another process's lock.
+    static SLEPT: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+}
+
+/// Whether a statement that has waited for another process's lock since `since` waits
+/// again: after a sleep of `BUSY_LOOK`, unless `stop` is set or `BUSY_TIMEOUT` has passed.
+fn wait_unless(stop: Option<&AtomicBool>, since: Instant) -> bool {
+    let stopped = || stop.is_some_and(|s| s.load(Ordering::Relaxed));
+    if stopped() || since.elapsed() >= BUSY_TIMEOUT {
         return false;
     }
+    #[cfg(test)]
+    SLEPT.with(|n| n.set(n.get() + 1));
     std::thread::sleep(BUSY_LOOK);
-    !stop.load(Ordering::Relaxed)
+    !stopped()
+}
+
+/// Has `conn` wait for another process's lock, a look every `BUSY_LOOK`, up to
+/// `BUSY_TIMEOUT` from `since`, or where it is None from each statement's first try; and
+/// only until this thread's stop flag (`stopped_by`) is set. An open gives its start as
+/// `since`, so that its statements (the first read, `quick_check`, the schema's, a
+/// migration's) share one wait: each once waited `BUSY_TIMEOUT` of its own, and a locked
+/// database kept `results list` 60 s while its message said 30 s.
+fn wait_for_others(conn: &mut Connection, since: Option<Instant>) -> rusqlite::Result<()> {
+    let stop = STOP.with(|s| s.borrow().clone());
+    let mut began = since.unwrap_or_else(Instant::now);
+    conn.busy_handler(Some(move |tries| {
+        // SQLite counts a statement's tries from 0: its own wait starts at the first.
+        if tries == 0 && since.is_none() {
+            began = Instant::now();
+        }
+        wait_unless(stop.as_deref(), began)
+    }))
 }
 
 /// Where the database is unless `--db` or `TESSERA_DB` says: `$XDG_DATA_HOME/tessera/
@@ -186,7 +214,7 @@ pub struct ResultsDb {
 impl ResultsDb {
     /// Opens the database at `path`, creating it (and its directory) if it does not exist.
     pub fn open(path: &Path) -> Result<Self> {
-        Self::open_as(path, Access::Write)
+        Self::open_as(path, Access::Write, Instant::now())?.opened()
     }
 
     /// Opens the database at `path` to read it: it is not created, and nothing is written,
@@ -200,10 +228,19 @@ impl ResultsDb {
                 path.display()
             );
         }
-        Self::open_as(path, Access::Read)
+        Self::open_as(path, Access::Read, Instant::now())?.opened()
     }
 
-    fn open_as(path: &Path, access: Access) -> Result<Self> {
+    /// The database once open: each statement from now waits up to `BUSY_TIMEOUT` of its
+    /// own for another process's lock.
+    fn opened(mut self) -> Result<Self> {
+        wait_for_others(&mut self.conn, None)?;
+        Ok(self)
+    }
+
+    /// Opens the database at `path` for `access`; every wait for another process's lock
+    /// it makes counts from `since`, when the open began.
+    fn open_as(path: &Path, access: Access, since: Instant) -> Result<Self> {
         let missing = matches!(std::fs::metadata(path),
             Err(e) if e.kind() == std::io::ErrorKind::NotFound);
         if missing && access == Access::Write {
@@ -218,11 +255,11 @@ impl ResultsDb {
             refuse_a_strangers_database(path)?;
         }
         let mut db = match access {
-            Access::Read => Self::connect_to_read(path)?,
-            Access::Write => Self::connect(path, OpenFlags::SQLITE_OPEN_READ_WRITE)?,
+            Access::Read => Self::connect_to_read(path, since)?,
+            Access::Write => Self::connect(path, OpenFlags::SQLITE_OPEN_READ_WRITE, since)?,
         };
         // The same checks through SQLite, which also reads what the WAL holds.
-        db.schema = db.check()?;
+        db.schema = db.check(since)?;
         // Again once SQLite has opened them: one planted between the first look and the open.
         refuse_strangers_companions(path)?;
         if access == Access::Read {
@@ -232,39 +269,28 @@ impl ResultsDb {
                 // file's header itself, and closing a file drops every POSIX lock the
                 // process holds on it, SQLite's too.
                 drop(db);
-                return Self::open_as(path, Access::Write).or_else(|_| {
-                    let mut db = Self::connect_to_read(path)?;
-                    db.schema = db.check()?;
+                return Self::open_as(path, Access::Write, since).or_else(|_| {
+                    let mut db = Self::connect_to_read(path, since)?;
+                    db.schema = db.check(since)?;
                     Ok(db)
                 });
             }
             return Ok(db);
         }
         db.conn.pragma_update(None, "foreign_keys", true)?;
-        db.migrate(db.schema)?;
+        db.migrate(db.schema, since)?;
         db.schema = SCHEMA_VERSION;
         Ok(db)
     }
 
-    /// A connection to `path` with `flags`, waiting for other writers.
-    fn connect(path: &Path, flags: OpenFlags) -> Result<Self> {
+    /// A connection to `path` with `flags`, waiting for other writers up to `BUSY_TIMEOUT`
+    /// from `since`, when the open began.
+    fn connect(path: &Path, flags: OpenFlags, since: Instant) -> Result<Self> {
         let mut conn = Connection::open_with_flags(path, flags | OpenFlags::SQLITE_OPEN_NO_MUTEX)
             .with_context(|| {
             format!("{}: could not open the results database", path.display())
         })?;
-        match STOP.with(|s| s.borrow().clone()) {
-            Some(stop) => {
-                // SQLite counts a statement's tries from 0: its wait starts at the first.
-                let mut since = Instant::now();
-                conn.busy_handler(Some(move |tries| {
-                    if tries == 0 {
-                        since = Instant::now();
-                    }
-                    wait_unless(&stop, since)
-                }))?
-            }
-            None => conn.busy_timeout(BUSY_TIMEOUT)?,
-        }
+        wait_for_others(&mut conn, Some(since))?;
         // Nothing of the file's schema runs a function with side effects, whoever made it.
         conn.pragma_update(None, "trusted_schema", false)?;
         Ok(Self {
@@ -277,7 +303,7 @@ impl ResultsDb {
     /// A read-only connection to `path`. A WAL database needs its -shm file to be read,
     /// and a read-only file system cannot hold a new one: there it is read as immutable,
     /// which is true of it, since nobody can write it.
-    fn connect_to_read(path: &Path) -> Result<Self> {
+    fn connect_to_read(path: &Path, since: Instant) -> Result<Self> {
         if read_immutable_as_a_stranger(path)? {
             let conn = open_immutable(path).with_context(|| {
                 format!("{}: could not open the results database", path.display())
@@ -288,7 +314,7 @@ impl ResultsDb {
                 schema: 0,
             });
         }
-        let db = Self::connect(path, OpenFlags::SQLITE_OPEN_READ_ONLY)?;
+        let db = Self::connect(path, OpenFlags::SQLITE_OPEN_READ_ONLY, since)?;
         // The first read is where SQLite opens the -wal and -shm files. Any other error
         // shows at the checks that follow.
         let first = db
@@ -302,7 +328,7 @@ impl ResultsDb {
                 // process holds on it, SQLite's too.
                 drop(db);
                 if !immutable_there(path) {
-                    return Self::connect(path, OpenFlags::SQLITE_OPEN_READ_ONLY);
+                    return Self::connect(path, OpenFlags::SQLITE_OPEN_READ_ONLY, since);
                 }
                 let conn = open_immutable(path).with_context(|| {
                     format!("{}: could not open the results database", path.display())
@@ -318,10 +344,9 @@ impl ResultsDb {
     }
 
     /// Checks that the database is whole and tessera's, of a schema this build knows, and
-    /// returns that schema version. It only reads.
-    fn check(&self) -> Result<i64> {
+    /// returns that schema version. It only reads; `started` is when the open began.
+    fn check(&self, started: Instant) -> Result<i64> {
         let shown = self.path.display();
-        let started = Instant::now();
         let check: String = (self.conn)
             .query_row("PRAGMA quick_check", [], |r| r.get(0))
             .map_err(|e| self.error(e, "could not read it", started))?;
@@ -351,9 +376,10 @@ impl ResultsDb {
         explain(&self.path, e, doing, started)
     }
 
-    fn migrate(&self, from: i64) -> Result<()> {
+    /// Brings the schema from version `from` to this build's; `started` is when the open
+    /// began.
+    fn migrate(&self, from: i64, started: Instant) -> Result<()> {
         for (i, sql) in MIGRATIONS.iter().enumerate().skip(from as usize) {
-            let started = Instant::now();
             let tx =
                 rusqlite::Transaction::new_unchecked(&self.conn, TransactionBehavior::Immediate)
                     .map_err(|e| self.error(e, "could not update its schema", started))?;
@@ -814,7 +840,7 @@ mod tests {
                 path: PathBuf::from(":memory:"),
                 schema: start as i64,
             };
-            db.migrate(start as i64).unwrap();
+            db.migrate(start as i64, Instant::now()).unwrap();
             let v: i64 = db
                 .conn
                 .query_row("PRAGMA user_version", [], |r| r.get(0))
@@ -831,6 +857,52 @@ mod tests {
             );
         }
         assert_eq!(&APPLICATION_ID.to_be_bytes(), b"TSRA");
+    }
+
+    /// One open of a database that another connection holds locked waits once: its first
+    /// read and its `quick_check` each waited `BUSY_TIMEOUT` of their own, so `results list`
+    /// sat 60 s before saying it gave up after 30. Here the open began `BUSY_TIMEOUT` ago:
+    /// every statement of it finds the wait used up, and gives up without a sleep, saying
+    /// how long the open waited.
+    #[test]
+    fn one_open_of_a_locked_database_shares_one_wait() {
+        let dir = std::env::temp_dir().join(format!("tessera-db-locked-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("locked.db");
+        let _ = std::fs::remove_file(&path);
+        // A schema 1 database, in the rollback journal that locks readers out too.
+        let holder = Connection::open(&path).unwrap();
+        holder.execute_batch(MIGRATIONS[0]).unwrap();
+        holder.pragma_update(None, "user_version", 1).unwrap();
+        holder.execute_batch("BEGIN EXCLUSIVE").unwrap();
+        let Some(long_ago) = Instant::now().checked_sub(BUSY_TIMEOUT) else {
+            return;
+        };
+        SLEPT.with(|n| n.set(0));
+        for access in [Access::Read, Access::Write] {
+            let e = ResultsDb::open_as(&path, access, long_ago)
+                .err()
+                .expect("a locked database is not opened")
+                .to_string();
+            assert!(
+                e.contains("another process held the database; gave up after 30."),
+                "{e}"
+            );
+        }
+        assert_eq!(
+            SLEPT.with(std::cell::Cell::get),
+            0,
+            "a statement of the open waited anew"
+        );
+        drop(holder);
+        // Unlocked, the same open goes through (and brings the schema up to date).
+        let db = ResultsDb::open_as(&path, Access::Read, long_ago)
+            .and_then(ResultsDb::opened)
+            .unwrap();
+        assert_eq!(db.count().unwrap(), 0);
+        assert_eq!(db.schema, SCHEMA_VERSION);
+        drop(db);
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]
