@@ -591,29 +591,48 @@ fn copies_of_the_first_run(db: &Path, n: usize, own: &str) {
 
 /// `rank` and `report` found each run's workload by looking through the workloads so far,
 /// and `report` each ranked machine's runs by looking through every run: time grew with
-/// the square of the runs. 50,000 runs of as many workloads took 105 s to rank (and over
-/// 120 s to report); of as many machines, over 120 s to report. Each is found in a map now:
-/// 2 s and 3 s. (The report of as many workloads is a page of 200 MB: not made here.)
+/// the square of the runs (50,000 runs of as many workloads took 105 s to rank). Each is
+/// found in a map now, and the unit test `grouping_compares_each_item_with_few_others`
+/// counts the comparisons that takes. This runs both commands on many workloads and
+/// machines, and checks what they make: a table for each workload, a section for each.
+/// (It once asserted they took under 30 s: a bound a busy machine can break, which the
+/// count replaces.)
 #[test]
-fn rank_and_report_of_many_workloads_and_machines_take_seconds() {
+fn rank_and_report_of_many_workloads_and_machines_show_each() {
+    const RUNS: usize = 5_000;
     let dir = temp_dir("results-many");
     let base = root().join("fuzz/corpus/result/quick-one-thread.json");
-    for (own, args) in [
-        ("workload", &["rank"][..]),
-        ("machine", &["report", "-o", "r.html"]),
-    ] {
+    for own in ["workload", "machine"] {
         let db = dir.join(format!("{own}.db"));
         let o = results(&dir, &db, &["import", base.to_str().unwrap()]);
         assert!(o.status.success(), "{}", stderr(&o));
-        copies_of_the_first_run(&db, 50_000, own);
-        let started = std::time::Instant::now();
-        let o = results_within_a_minute(&dir, &db, args);
-        assert!(o.status.success(), "{own} {args:?}: {}", stderr(&o));
-        let took = started.elapsed();
-        assert!(
-            took < std::time::Duration::from_secs(30),
-            "{own} {args:?} took {took:?}"
+        copies_of_the_first_run(&db, RUNS, own);
+        let o = results_within_a_minute(&dir, &db, &["rank"]);
+        assert!(o.status.success(), "{own} rank: {}", stderr(&o));
+        let tables = stdout(&o)
+            .lines()
+            .filter(|l| l.starts_with("workload "))
+            .count();
+        assert_eq!(
+            tables,
+            if own == "workload" { RUNS } else { 1 },
+            "{own} rank"
         );
+        let o = results_within_a_minute(&dir, &db, &["report", "-o", "r.html"]);
+        assert!(o.status.success(), "{own} report: {}", stderr(&o));
+        let page = std::fs::read_to_string(dir.join("r.html")).unwrap();
+        let (sections, machines) = if own == "workload" {
+            (RUNS, 1)
+        } else {
+            (1, RUNS)
+        };
+        assert_eq!(page.matches("<h2>Workload ").count(), sections, "{own}");
+        if own == "machine" {
+            assert!(
+                page.contains(&format!("machine-{machines:08}")),
+                "the last machine is not in the report"
+            );
+        }
         let _ = std::fs::remove_file(&db);
     }
     let _ = std::fs::remove_file(dir.join("r.html"));

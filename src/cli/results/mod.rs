@@ -13,7 +13,9 @@ use super::writable::{check_output, names_database_file};
 use anyhow::{Result, bail};
 use clap::Subcommand;
 use clap::builder::NonEmptyStringValueParser;
-use std::collections::HashMap;
+use std::collections::hash_map::Entry;
+use std::collections::{HashMap, HashSet};
+use std::hash::Hash;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use tessera::record::db::{self, Added, Filter, ResultsDb, Run};
@@ -219,23 +221,14 @@ fn workloads(db: &ResultsDb, workload: Option<&str>) -> Result<Vec<WorkloadRuns>
         workload: workload.map(str::to_owned),
         ..Filter::default()
     })?;
-    // Each group found by its id in a map, not by looking through the groups so far: a
-    // database of 50,000 runs of as many workloads took 105 s to rank that way.
-    let mut groups: Vec<WorkloadRuns> = Vec::new();
-    let mut index: HashMap<String, usize> = HashMap::new();
-    for run in runs {
-        match index.get(&run.workload_id) {
-            Some(&i) => groups[i].runs.push(run),
-            None => {
-                index.insert(run.workload_id.clone(), groups.len());
-                groups.push(WorkloadRuns {
-                    name: run.workload.clone(),
-                    id: run.workload_id.clone(),
-                    runs: vec![run],
-                });
-            }
-        }
-    }
+    let mut groups: Vec<WorkloadRuns> = grouped(runs, |r| r.workload_id.clone())
+        .into_iter()
+        .map(|runs| WorkloadRuns {
+            name: runs[0].workload.clone(),
+            id: runs[0].workload_id.clone(),
+            runs,
+        })
+        .collect();
     // A named workload is its newest scene and settings: `custom` covers several.
     if workload.is_some() {
         groups.truncate(1);
@@ -243,15 +236,40 @@ fn workloads(db: &ResultsDb, workload: Option<&str>) -> Result<Vec<WorkloadRuns>
     Ok(groups)
 }
 
-/// Each group's title: its name, with the start of its id where another group shares the
-/// name. The names are counted once, not once per group.
-fn titles(groups: &[WorkloadRuns]) -> Vec<String> {
-    let mut named: HashMap<&str, usize> = HashMap::new();
-    for g in groups {
-        *named.entry(g.name.as_str()).or_default() += 1;
+/// `items` in groups of one `key`, each group in the order of its items, the groups in the
+/// order of their first: each item's group is found in a map. Looking through the groups
+/// so far for each item made rank and report's time grow with the square of the runs:
+/// 50,000 runs of as many workloads took 105 s to rank, of as many machines over 120 s to
+/// report. Every grouping of runs here goes through this one function, whose lookups
+/// `grouping_compares_each_item_with_few_others` counts.
+fn grouped<T, K: Eq + Hash>(
+    items: impl IntoIterator<Item = T>,
+    key: impl Fn(&T) -> K,
+) -> Vec<Vec<T>> {
+    let mut groups: Vec<Vec<T>> = Vec::new();
+    let mut index: HashMap<K, usize> = HashMap::new();
+    for item in items {
+        match index.entry(key(&item)) {
+            Entry::Occupied(at) => groups[*at.get()].push(item),
+            Entry::Vacant(at) => {
+                at.insert(groups.len());
+                groups.push(vec![item]);
+            }
+        }
     }
+    groups
+}
+
+/// Each group's title: its name, with the start of its id where another group shares the
+/// name.
+fn titles(groups: &[WorkloadRuns]) -> Vec<String> {
+    let shared: HashSet<&str> = grouped(groups, |&g| g.name.as_str())
+        .into_iter()
+        .filter(|same| same.len() > 1)
+        .map(|same| same[0].name.as_str())
+        .collect();
     (groups.iter())
-        .map(|g| g.title(named[g.name.as_str()] > 1))
+        .map(|g| g.title(shared.contains(g.name.as_str())))
         .collect()
 }
 
@@ -470,10 +488,13 @@ fn report(path: &Path, output: &Path, workload: Option<&str>, all: bool) -> Resu
             .collect();
         // Each machine's runs, gathered once: looking through every run for each ranked
         // machine took minutes for 50,000 runs of as many machines.
-        let mut by_machine: HashMap<&str, Vec<Run>> = HashMap::new();
-        for r in &runs {
-            (by_machine.entry(r.machine_id.as_str()).or_default()).push(r.clone());
-        }
+        let by_machine: HashMap<&str, Vec<Run>> = grouped(&runs, |&r| r.machine_id.as_str())
+            .into_iter()
+            .map(|mine| {
+                let machine = mine[0].machine_id.as_str();
+                (machine, mine.into_iter().cloned().collect())
+            })
+            .collect();
         let ranked = analysis::rank(&runs, all);
         let scaling = (ranked.iter())
             .map(|line| {
@@ -731,6 +752,57 @@ mod tests {
         assert_eq!(utc(951_782_400), "2000-02-29 00:00");
         assert_eq!(utc(1_796_145_000), "2026-12-01 17:10");
         assert_eq!(utc(-1), "1969-12-31 23:59");
+    }
+
+    /// A key whose comparisons are counted.
+    struct Counted<'a> {
+        key: u32,
+        compared: &'a std::cell::Cell<u64>,
+    }
+
+    impl PartialEq for Counted<'_> {
+        fn eq(&self, other: &Self) -> bool {
+            self.compared.set(self.compared.get() + 1);
+            self.key == other.key
+        }
+    }
+    impl Eq for Counted<'_> {}
+    impl Hash for Counted<'_> {
+        fn hash<H: std::hash::Hasher>(&self, h: &mut H) {
+            self.key.hash(h);
+        }
+    }
+
+    /// Rank and report group runs by workload, name and machine (`grouped`). Found by
+    /// looking through the groups so far, 50,000 runs of as many workloads took 105 s to
+    /// rank: each run was compared with every group before it. Counted, not timed: 20,000
+    /// items of as many keys (which that search compares 200 million times), and of one
+    /// key, are each compared with at most a few others.
+    #[test]
+    fn grouping_compares_each_item_with_few_others() {
+        const N: u32 = 20_000;
+        for distinct in [true, false] {
+            let compared = std::cell::Cell::new(0);
+            let items: Vec<u32> = (0..N).map(|i| if distinct { i } else { 7 }).collect();
+            let groups = grouped(items, |&key| Counted {
+                key,
+                compared: &compared,
+            });
+            assert_eq!(groups.len(), if distinct { N as usize } else { 1 });
+            assert_eq!(groups.iter().map(Vec::len).sum::<usize>(), N as usize);
+            assert!(
+                compared.get() <= 2 * u64::from(N),
+                "{} comparisons grouping {N} items (distinct keys: {distinct})",
+                compared.get()
+            );
+        }
+        // In the order of their first items, each in its items' order.
+        let words = ["b", "a", "b", "c", "a"];
+        let groups = grouped(words.iter().enumerate(), |&(_, w)| *w);
+        let order: Vec<Vec<usize>> = (groups.iter())
+            .map(|g| g.iter().map(|&(i, _)| i).collect())
+            .collect();
+        assert_eq!(order, [vec![0, 2], vec![1, 4], vec![3]]);
     }
 
     #[test]
