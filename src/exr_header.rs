@@ -268,30 +268,43 @@ pub fn check_bounds<R: Read>(r: R, len: u64, most_decoded: u64) -> Result<(), St
 /// size is the one checked): a file of 3 MiB whose data window is 2^24 x 16 pixels of ZIP
 /// blocks (its display window one pixel) once asked for 6 GiB, and ended tessera on the
 /// failed allocation.
+/// And what it says of its chunks: their count (`MAX_CHUNKS_READ`).
 #[derive(Default)]
 struct Decoded {
     data: Option<[i32; 4]>,
     bytes_per_pixel: Option<u64>,
+    compression: Option<u8>,
+    tiles: Option<Tiles>,
 }
 
 impl Decoded {
-    /// Takes note of the attribute `name` of type `kind`, where it is one of the two.
+    /// Takes note of the attribute `name` of type `kind`, where it is one of those that
+    /// size the pixels or place the chunks.
     fn note(&mut self, name: &str, kind: &str, value: &[u8]) {
         match (name, kind) {
             ("dataWindow", "box2i") => self.data = box2i(value, "dataWindow").ok(),
             ("channels", "chlist") => self.bytes_per_pixel = bytes_per_pixel(value),
+            ("compression", "compression") => self.compression = value.first().copied(),
+            ("tiles", "tiledesc") => self.tiles = tiles(value),
             _ => {}
         }
     }
 
-    /// Refuses pixels that take more than `most` bytes decoded. A header without both, or
-    /// of an empty data window, is the decoder's to refuse.
+    /// Refuses pixels that take more than `most` bytes decoded, and more than
+    /// `MAX_CHUNKS_READ` chunks. A header without what sizes them, or of an empty data
+    /// window, is the decoder's to refuse.
     fn check(&self, most: u64) -> Result<(), String> {
-        let (Some(data), Some(bytes)) = (self.data, self.bytes_per_pixel) else {
+        let Some(data) = self.data else {
             return Ok(());
         };
         let (Some(width), Some(height)) = (extent(data[0], data[2]), extent(data[1], data[3]))
         else {
+            return Ok(());
+        };
+        if let Some(chunks) = chunk_count(width, height, self.compression, self.tiles) {
+            check_chunks(chunks, width, height, MAX_CHUNKS_READ)?;
+        }
+        let Some(bytes) = self.bytes_per_pixel else {
             return Ok(());
         };
         let decoded = u128::from(width) * u128::from(height) * u128::from(bytes);
@@ -304,6 +317,128 @@ impl Decoded {
         }
         Ok(())
     }
+}
+
+/// The most chunks (blocks of scan lines, or tiles of every level) of a file another
+/// program made that are read. The `exr` crate takes about 72 bytes to place each chunk
+/// before it decodes a pixel (its offset twice, and where it lies in the picture, 48
+/// bytes), whatever the chunk holds: a column of 14 million scan lines of one pixel, one a
+/// chunk (308 MB, within the length `compare` reads), took 1.0 GB to compare with itself,
+/// where a square image of as many pixels takes 0.5 GB. Such chunks take at most 80 MB:
+/// tessera writes one a row (4,096 for an image of 4,096 rows), and 16x16 tiles of
+/// 4096x4096 pixels are 65,536.
+pub const MAX_CHUNKS_READ: u64 = 1 << 20;
+
+/// A tiled part's tile size and level mode (a `tiledesc` value's last byte: the levels in
+/// its low four bits, the rounding of their sizes in the next).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Tiles {
+    width: u32,
+    height: u32,
+    mode: u8,
+}
+
+/// The tile description of a `tiledesc` value, None where it is cut short.
+fn tiles(value: &[u8]) -> Option<Tiles> {
+    let (width, height) = tile_size(value)?;
+    Some(Tiles {
+        width,
+        height,
+        mode: *value.get(8)?,
+    })
+}
+
+/// The scan lines of a chunk of a file of scan lines of the compression `compression` (as
+/// EXR numbers it): none, RLE and ZIPS one; ZIP and PXR24 16; PIZ, B44, B44A, DWAA and
+/// HTJ2K32 32; DWAB and HTJ2K256 256. None for one the decoder does not know.
+fn scan_lines_per_chunk(compression: u8) -> Option<u32> {
+    match compression {
+        0..=2 => Some(1),
+        3 | 5 => Some(16),
+        4 | 6..=8 | 11 => Some(32),
+        9 | 10 => Some(256),
+        _ => None,
+    }
+}
+
+/// The chunks of a part of `width` x `height` pixels of the compression `compression`,
+/// tiled as `tiles` says where it is, counted as the `exr` crate counts them (every level
+/// of a mipmap or ripmap) before it reads the offset table: from the header alone. None
+/// where the compression or the tiles are ones the decoder refuses.
+fn chunk_count(
+    width: u32,
+    height: u32,
+    compression: Option<u8>,
+    tiles: Option<Tiles>,
+) -> Option<u64> {
+    let Some(tiles) = tiles else {
+        return Some(u64::from(
+            height.div_ceil(scan_lines_per_chunk(compression?)?),
+        ));
+    };
+    if tiles.width == 0 || tiles.height == 0 {
+        return None;
+    }
+    let round_up = tiles.mode >> 4 & 1 == 1;
+    // The levels of a side of `size` pixels (log2 of it, rounded, and one), and the size
+    // of the side at level `level` (halved that many times, rounded, at least one).
+    let levels = |size: u32| {
+        if round_up {
+            size.next_power_of_two().trailing_zeros() + 1
+        } else {
+            u32::BITS - size.leading_zeros()
+        }
+    };
+    let side = |size: u32, level: u32| {
+        let size = u64::from(size);
+        if round_up {
+            size.div_ceil(1 << level).max(1)
+        } else {
+            (size >> level).max(1)
+        }
+    };
+    let of_level =
+        |w: u64, h: u64| w.div_ceil(u64::from(tiles.width)) * h.div_ceil(u64::from(tiles.height));
+    match tiles.mode & 0xf {
+        0 => Some(of_level(u64::from(width), u64::from(height))),
+        1 => Some(
+            (0..levels(width.max(height)))
+                .map(|l| of_level(side(width, l), side(height, l)))
+                .sum(),
+        ),
+        2 => Some(
+            (0..levels(width))
+                .flat_map(|x| (0..levels(height)).map(move |y| (x, y)))
+                .map(|(x, y)| of_level(side(width, x), side(height, y)))
+                .sum(),
+        ),
+        _ => None,
+    }
+}
+
+/// Refuses `chunks` chunks of a `width` x `height` data window where they are more than
+/// `most`.
+fn check_chunks(chunks: u64, width: u32, height: u32, most: u64) -> Result<(), String> {
+    if chunks > most {
+        return Err(format!(
+            "has {chunks} chunks (blocks of scan lines or tiles of a data window of \
+             {width}x{height}), more than the {most} read here: the decoder takes some 72 bytes \
+             to place each before it decodes a pixel"
+        ));
+    }
+    Ok(())
+}
+
+/// The chunks of the `width` x `height` file of `layout` (counted as `chunk_count` counts
+/// them), None where its compression or tiles are ones the decoder refuses: for a file
+/// `read` has read the header of, which refuses mipmap and ripmap levels.
+pub fn chunks_of(width: u32, height: u32, layout: &ExrLayout) -> Option<u64> {
+    let tiles = layout.tiles.map(|(width, height)| Tiles {
+        width,
+        height,
+        mode: 0,
+    });
+    chunk_count(width, height, layout.compression, tiles)
 }
 
 /// The bytes a pixel of the channels of a `chlist` value take decoded (a subsampled
@@ -659,18 +794,13 @@ pub fn misplaced_chunk<R: Read + std::io::Seek>(
     layout: &ExrLayout,
 ) -> std::io::Result<Option<String>> {
     use std::io::SeekFrom;
-    // Chunks across and down, and the scan lines of a chunk of a file of scan lines: none,
-    // RLE and ZIPS one; ZIP and PXR24 16; PIZ, B44, B44A and DWAA 32; DWAB 256.
+    // Chunks across and down, and the scan lines of a chunk of a file of scan lines.
     let (columns, rows, lines) = match layout.tiles {
         Some((0, _) | (_, 0)) => return Ok(None),
         Some((w, h)) => (width.div_ceil(w), height.div_ceil(h), 0),
         None => {
-            let lines = match layout.compression {
-                Some(0..=2) => 1,
-                Some(3 | 5) => 16,
-                Some(4 | 6..=8) => 32,
-                Some(9) => 256,
-                _ => return Ok(None),
+            let Some(lines) = layout.compression.and_then(scan_lines_per_chunk) else {
+                return Ok(None);
             };
             (1, height.div_ceil(lines), lines)
         }
@@ -830,6 +960,169 @@ mod tests {
                     changes.as_ref().unwrap_err().starts_with(&said),
                     "{changes:?}"
                 );
+            }
+        }
+    }
+
+    /// A header of the attributes `attributes` (name, type, value), and its end.
+    fn header_of(attributes: &[(&str, &str, Vec<u8>)]) -> Vec<u8> {
+        let mut file = vec![0x76, 0x2f, 0x31, 0x01, 2, 0, 0, 0];
+        if attributes.iter().any(|(name, _, _)| *name == "tiles") {
+            file[5] = 2;
+        }
+        for (name, kind, value) in attributes {
+            file.extend([name.as_bytes(), b"\0", kind.as_bytes(), b"\0"].concat());
+            file.extend((value.len() as u32).to_le_bytes());
+            file.extend(value);
+        }
+        file.push(0);
+        file
+    }
+
+    /// The attributes of a `width` x `height` file of half R, G and B of the compression
+    /// `compression`, tiled as `tiles` says (tile width and height, level mode) where given.
+    fn chunked(
+        width: i32,
+        height: i32,
+        compression: u8,
+        tiles: Option<(u32, u32, u8)>,
+    ) -> Vec<(&'static str, &'static str, Vec<u8>)> {
+        let mut channels = Vec::new();
+        for name in [b"B", b"G", b"R"] {
+            channels.extend(name);
+            channels.push(0);
+            channels.extend([1, 0, 1, 1].iter().flat_map(|v: &i32| v.to_le_bytes()));
+        }
+        channels.push(0);
+        let window: Vec<u8> = [0, 0, width - 1, height - 1]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        let mut attributes = vec![
+            ("channels", "chlist", channels),
+            ("compression", "compression", vec![compression]),
+            ("dataWindow", "box2i", window.clone()),
+            ("displayWindow", "box2i", window),
+        ];
+        if let Some((w, h, mode)) = tiles {
+            let value = [&w.to_le_bytes()[..], &h.to_le_bytes(), &[mode]].concat();
+            attributes.push(("tiles", "tiledesc", value));
+        }
+        attributes
+    }
+
+    /// The chunks of a part are counted from its header as the `exr` crate counts them
+    /// (which reads its offset table, and places each chunk, by that count): scan lines of
+    /// each compression, tiles of one level, of mipmap and ripmap levels rounded down and
+    /// up.
+    #[test]
+    fn chunks_are_counted_as_the_decoder_counts_them() {
+        use exr::meta::{BlockDescription, attribute, compute_chunk_count};
+        use exr::prelude::{Compression, Vec2};
+        let compressions = [
+            Compression::Uncompressed,
+            Compression::RLE,
+            Compression::ZIP1,
+            Compression::ZIP16,
+            Compression::PIZ,
+            Compression::PXR24,
+            Compression::B44,
+            Compression::B44A,
+            Compression::DWAA(None),
+            Compression::DWAB(None),
+            Compression::HTJ2K256,
+            Compression::HTJ2K32,
+        ];
+        for (number, compression) in compressions.into_iter().enumerate() {
+            for (width, height) in [(1, 1), (7, 300), (4096, 4097), (1, 1 << 24)] {
+                let theirs = compute_chunk_count(
+                    compression,
+                    Vec2(width as usize, height as usize),
+                    BlockDescription::ScanLines,
+                );
+                let ours = chunk_count(width, height, Some(number as u8), None);
+                assert_eq!(
+                    ours,
+                    Some(theirs as u64),
+                    "{compression:?} {width}x{height}"
+                );
+            }
+        }
+        let levels = [
+            attribute::LevelMode::Singular,
+            attribute::LevelMode::MipMap,
+            attribute::LevelMode::RipMap,
+        ];
+        let roundings = [exr::math::RoundingMode::Down, exr::math::RoundingMode::Up];
+        for (mode, level_mode) in levels.into_iter().enumerate() {
+            for (up, rounding_mode) in roundings.into_iter().enumerate() {
+                for (width, height, tile) in [(1, 1, 1), (5, 300, 2), (4097, 33, 16), (600, 1, 64)]
+                {
+                    let tiles = attribute::TileDescription {
+                        tile_size: Vec2(tile, tile),
+                        level_mode,
+                        rounding_mode,
+                    };
+                    let theirs = compute_chunk_count(
+                        Compression::Uncompressed,
+                        Vec2(width as usize, height as usize),
+                        BlockDescription::Tiles(tiles),
+                    );
+                    let tiles = Tiles {
+                        width: tile as u32,
+                        height: tile as u32,
+                        mode: mode as u8 | (up as u8) << 4,
+                    };
+                    let ours = chunk_count(width, height, Some(0), Some(tiles));
+                    assert_eq!(
+                        ours,
+                        Some(theirs as u64),
+                        "{level_mode:?} {rounding_mode:?} {width}x{height} of {tile}"
+                    );
+                }
+            }
+        }
+    }
+
+    /// The `exr` crate takes some 72 bytes to place each chunk before it decodes a pixel:
+    /// a column of 14 million one-pixel scan lines, one a chunk (308 MB), took 1.0 GB to
+    /// compare with itself. A header claiming more than `MAX_CHUNKS_READ` chunks is refused
+    /// by both walks from the header alone (these files are a few hundred bytes); one of
+    /// that many is not.
+    #[test]
+    fn a_header_of_more_chunks_than_are_read_is_refused() {
+        let most = MAX_CHUNKS_READ as i32;
+        for (attributes, chunks) in [
+            // A column of scan lines, one a chunk, uncompressed or ZIPS.
+            (chunked(1, most + 1, 0, None), Some(most + 1)),
+            (chunked(1, most + 1, 2, None), Some(most + 1)),
+            (chunked(1, most, 0, None), None),
+            // Scan lines 16 a chunk (ZIP).
+            (chunked(1, 16 * most, 3, None), None),
+            (chunked(1, 16 * most + 1, 3, None), Some(most + 1)),
+            // Tiles of one pixel of 1025x1024 pixels, and 16x16 tiles of 4096x4096.
+            (chunked(1025, 1024, 0, Some((1, 1, 0))), Some(1025 * 1024)),
+            (chunked(4096, 4096, 0, Some((16, 16, 0))), None),
+            // Mipmap levels of 1024x1024 tiles of one pixel: 1024^2 * 4/3 and more.
+            (chunked(1024, 1024, 0, Some((1, 1, 1))), Some(1_398_101)),
+        ] {
+            let file = header_of(&attributes);
+            let len = file.len() as u64;
+            let bounds = check_bounds(&file[..], len, u64::MAX);
+            let changes = display_changes(Cursor::new(&file), len, u64::MAX).map(drop);
+            match chunks {
+                None => {
+                    assert_eq!(bounds, Ok(()));
+                    assert_eq!(changes, Ok(()));
+                }
+                Some(chunks) => {
+                    let said = format!("has {chunks} chunks (blocks of scan lines or tiles");
+                    for refused in [bounds, changes] {
+                        let refused = refused.unwrap_err();
+                        assert!(refused.starts_with(&said), "{refused}");
+                        assert!(refused.contains("more than the 1048576 read here"));
+                    }
+                }
             }
         }
     }

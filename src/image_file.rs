@@ -412,6 +412,18 @@ pub fn read_pixels(path: &Path, header: &ImageHeader) -> Result<Pixels> {
                 cause,
             };
             if let Some(layout) = &header.exr_layout {
+                // tessera writes a chunk a row; a file of more, and more than a file of
+                // another program is read with, is not one it wrote, and its decoder would
+                // take some 72 bytes to place each (`exr_header::MAX_CHUNKS_READ`).
+                let most = u64::from(header.height).max(exr_header::MAX_CHUNKS_READ);
+                let chunks = exr_header::chunks_of(header.width, header.height, layout);
+                if let Some(chunks) = chunks.filter(|&chunks| chunks > most) {
+                    return Ok(Pixels::Other(format!(
+                        "{chunks} chunks (blocks of scan lines or tiles), more than the {most} \
+                         read of an image of {} rows (tessera writes a chunk a row)",
+                        header.height
+                    )));
+                }
                 let misplaced =
                     exr_header::misplaced_chunk(&mut file, header.width, header.height, layout)
                         .map_err(io)?;
@@ -501,6 +513,54 @@ mod tests {
         let e = read_pixels(&path, &header).unwrap_err().to_string();
         assert!(e.contains("changed while it was checked"), "{e}");
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// tessera writes a chunk a row; a file of another program may claim a chunk a pixel
+    /// (tiles of one pixel), each of which the `exr` crate takes some 72 bytes to place
+    /// before it decodes a pixel. Its pixels are not read: the file is not as tessera
+    /// writes it. This one is its header alone, of 1100x1000 tiles.
+    #[test]
+    fn an_exr_of_more_chunks_than_tessera_writes_is_not_read() {
+        let dir = std::env::temp_dir().join(format!("tessera-chunks-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut channels = Vec::new();
+        for name in [b"B", b"G", b"R"] {
+            channels.extend([&name[..], b"\0"].concat());
+            channels.extend([2, 0, 1, 1].iter().flat_map(|v: &i32| v.to_le_bytes()));
+        }
+        channels.push(0);
+        let window: Vec<u8> = [0, 0, 1099, 999]
+            .iter()
+            .flat_map(|v: &i32| v.to_le_bytes())
+            .collect();
+        let tiles = [&1u32.to_le_bytes()[..], &1u32.to_le_bytes(), &[0]].concat();
+        let mut file = vec![0x76, 0x2f, 0x31, 0x01, 2, 2, 0, 0];
+        for (name, kind, value) in [
+            ("channels", "chlist", channels),
+            ("compression", "compression", vec![0]),
+            ("dataWindow", "box2i", window.clone()),
+            ("displayWindow", "box2i", window),
+            ("tiles", "tiledesc", tiles),
+        ] {
+            file.extend([name.as_bytes(), b"\0", kind.as_bytes(), b"\0"].concat());
+            file.extend((value.len() as u32).to_le_bytes());
+            file.extend(value);
+        }
+        file.push(0);
+        let path = dir.join("tiles.exr");
+        std::fs::write(&path, &file).unwrap();
+        let header = read_header(&path).unwrap();
+        let pixels = read_pixels(&path, &header);
+        std::fs::remove_dir_all(&dir).unwrap();
+        match pixels {
+            Ok(Pixels::Other(why)) => assert!(
+                why.starts_with(
+                    "1100000 chunks (blocks of scan lines or tiles), more than the 1048576"
+                ),
+                "{why}"
+            ),
+            other => panic!("{other:?}"),
+        }
     }
 
     #[test]
