@@ -809,7 +809,13 @@ pub fn misplaced_chunk<R: Read + std::io::Seek>(
     if count > MAX_CHUNKS {
         return Ok(None);
     }
+    // The table is 8 bytes an entry: one the file is too short to hold is not read (nor
+    // room made for its entries, which a header of 2^24 rows and a file of a few hundred
+    // bytes once had reserve 128 MiB).
     let len = r.seek(SeekFrom::End(0))?;
+    if layout.header_len.saturating_add(8 * count) > len {
+        return Ok(None);
+    }
     r.seek(SeekFrom::Start(layout.header_len))?;
     let mut file = std::io::BufReader::new(&mut r);
     // Each entry as its place and its index in one number, sorted: the places in order.
@@ -1159,6 +1165,27 @@ mod tests {
         let (first, second) = file.split_at_mut(8);
         first.swap_with_slice(&mut second[..8]);
         file
+    }
+
+    /// A header may claim 2^24 rows of a file of a few hundred bytes: room was made for
+    /// the table's 2^24 entries (128 MiB) before its first was read, which ended `compare`
+    /// where memory is bounded (`ulimit -v 100000`). A table the file is too short to
+    /// hold is not read at all: its length is the one thing asked of the file.
+    #[test]
+    fn a_table_longer_than_the_file_is_not_read() {
+        let mut file = Counted {
+            inner: Cursor::new(vec![0; 16]),
+            calls: 0,
+        };
+        let layout = ExrLayout {
+            header_len: 0,
+            tiles: None,
+            compression: Some(0),
+            top: 0,
+        };
+        let said = misplaced_chunk(&mut file, 1, 1 << 24, &layout).unwrap();
+        assert_eq!(said, None);
+        assert_eq!(file.calls, 1);
     }
 
     /// A file of scan lines from another program may hold millions of chunks (a column of
