@@ -384,7 +384,7 @@ fn chunk_count(
     // of the side at level `level` (halved that many times, rounded, at least one).
     let levels = |size: u32| {
         if round_up {
-            size.next_power_of_two().trailing_zeros() + 1
+            u64::from(size).next_power_of_two().trailing_zeros() + 1
         } else {
             u32::BITS - size.leading_zeros()
         }
@@ -397,20 +397,24 @@ fn chunk_count(
             (size >> level).max(1)
         }
     };
-    let of_level =
-        |w: u64, h: u64| w.div_ceil(u64::from(tiles.width)) * h.div_ceil(u64::from(tiles.height));
+    // Counts that pass 2^64 (tiles of one pixel of a data window of 2^32 x 2^32 and its
+    // ripmap levels) are the most there are, not wrapped to a few.
+    let of_level = |w: u64, h: u64| {
+        w.div_ceil(u64::from(tiles.width))
+            .saturating_mul(h.div_ceil(u64::from(tiles.height)))
+    };
     match tiles.mode & 0xf {
         0 => Some(of_level(u64::from(width), u64::from(height))),
         1 => Some(
             (0..levels(width.max(height)))
                 .map(|l| of_level(side(width, l), side(height, l)))
-                .sum(),
+                .fold(0, u64::saturating_add),
         ),
         2 => Some(
             (0..levels(width))
                 .flat_map(|x| (0..levels(height)).map(move |y| (x, y)))
                 .map(|(x, y)| of_level(side(width, x), side(height, y)))
-                .sum(),
+                .fold(0, u64::saturating_add),
         ),
         _ => None,
     }
@@ -1087,6 +1091,24 @@ mod tests {
                     );
                 }
             }
+        }
+    }
+
+    /// The widest data window (2^32 - 1 pixels a side) of tiles of one pixel and their
+    /// ripmap levels has some 2^66 chunks: counted, they wrapped to fewer where overflow
+    /// is not checked (and the levels of a side over 2^31 rounded up overflowed a u32),
+    /// and ended a build where it is. They are the most a u64 holds.
+    #[test]
+    fn a_count_of_more_chunks_than_a_u64_holds_is_its_most() {
+        for mode in [0x02, 0x12, 0x01, 0x11] {
+            let tiles = Tiles {
+                width: 1,
+                height: 1,
+                mode,
+            };
+            let count = chunk_count(u32::MAX, u32::MAX, Some(0), Some(tiles));
+            let least = u64::from(u32::MAX) * u64::from(u32::MAX);
+            assert!(count.is_some_and(|c| c >= least), "{mode:x}: {count:?}");
         }
     }
 
