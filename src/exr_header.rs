@@ -1189,6 +1189,16 @@ mod tests {
         file
     }
 
+    /// The layout of an uncompressed file of scan lines whose header ends at byte 0.
+    fn uncompressed_scan_lines() -> ExrLayout {
+        ExrLayout {
+            header_len: 0,
+            tiles: None,
+            compression: Some(0),
+            top: 0,
+        }
+    }
+
     /// A header may claim 2^24 rows of a file of a few hundred bytes: room was made for
     /// the table's 2^24 entries (128 MiB) before its first was read, which ended `compare`
     /// where memory is bounded (`ulimit -v 100000`). A table the file is too short to
@@ -1199,12 +1209,7 @@ mod tests {
             inner: Cursor::new(vec![0; 16]),
             calls: 0,
         };
-        let layout = ExrLayout {
-            header_len: 0,
-            tiles: None,
-            compression: Some(0),
-            top: 0,
-        };
+        let layout = uncompressed_scan_lines();
         let said = misplaced_chunk(&mut file, 1, 1 << 24, &layout).unwrap();
         assert_eq!(said, None);
         assert_eq!(file.calls, 1);
@@ -1221,12 +1226,7 @@ mod tests {
             inner: Cursor::new(swapped_scan_lines(rows)),
             calls: 0,
         };
-        let layout = ExrLayout {
-            header_len: 0,
-            tiles: None,
-            compression: Some(0),
-            top: 0,
-        };
+        let layout = uncompressed_scan_lines();
         let said = misplaced_chunk(&mut file, 1, rows, &layout).unwrap();
         assert!(
             said.as_deref().is_some_and(|s| s.starts_with(

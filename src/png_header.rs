@@ -929,25 +929,28 @@ mod tests {
         assert_eq!(header_of(&[]), None);
     }
 
+    /// What a 4x2 PNG whose pixels (one IDAT chunk) are followed by the bytes `after`, then
+    /// its IEND, holds that changes how it is shown.
+    fn changes_with_after_the_pixels(after: &[u8]) -> Vec<String> {
+        let png = [
+            &PNG_SIGNATURE[..],
+            &chunk(b"IHDR", &[0, 0, 0, 4, 0, 0, 0, 2, 8, 2, 0, 0, 0]),
+            &chunk(b"IDAT", &[0x78, 0x9c, 1]),
+            after,
+            &chunk(b"IEND", &[]),
+        ]
+        .concat();
+        read(Cursor::new(&png), png.len() as u64)
+            .unwrap()
+            .display_changes
+    }
+
     /// A critical chunk after the pixels (a palette, or one libpng does not know) makes
     /// libpng refuse the file, where the decoder here stops at the last row: it was called
     /// identical. It is listed; an ancillary one there is not.
     #[test]
     fn a_critical_chunk_after_the_pixels_is_listed() {
-        let ihdr = chunk(b"IHDR", &[0, 0, 0, 4, 0, 0, 0, 2, 8, 2, 0, 0, 0]);
-        let changes_with = |after: &[u8]| {
-            let png = [
-                &PNG_SIGNATURE[..],
-                &ihdr,
-                &chunk(b"IDAT", &[0x78, 0x9c, 1]),
-                after,
-                &chunk(b"IEND", &[]),
-            ]
-            .concat();
-            read(Cursor::new(&png), png.len() as u64)
-                .unwrap()
-                .display_changes
-        };
+        let changes_with = changes_with_after_the_pixels;
         for kind in [b"PLTE", b"ABCD"] {
             let changes = changes_with(&chunk(kind, &[0; 3]));
             assert!(
@@ -966,21 +969,7 @@ mod tests {
     /// identical. It is listed, once for each; IDAT chunks of one run are not.
     #[test]
     fn an_idat_chunk_after_the_pixels_run_is_listed() {
-        let ihdr = chunk(b"IHDR", &[0, 0, 0, 4, 0, 0, 0, 2, 8, 2, 0, 0, 0]);
-        let idat = chunk(b"IDAT", &[0x78, 0x9c, 1]);
-        let changes_with = |after: &[u8]| {
-            let png = [
-                &PNG_SIGNATURE[..],
-                &ihdr,
-                &idat,
-                after,
-                &chunk(b"IEND", &[]),
-            ]
-            .concat();
-            read(Cursor::new(&png), png.len() as u64)
-                .unwrap()
-                .display_changes
-        };
+        let changes_with = changes_with_after_the_pixels;
         let mut damaged = chunk(b"IDAT", &[]);
         damaged[11] ^= 1;
         let text = chunk(b"tEXt", b"Comment\0x");
@@ -991,6 +980,7 @@ mod tests {
         );
         let changes = changes_with(&[&text[..], &damaged, &damaged].concat());
         assert_eq!(changes.len(), 2, "{changes:?}");
+        let idat = chunk(b"IDAT", &[0x78, 0x9c, 1]);
         assert!(changes_with(&[&idat[..], &text].concat()).is_empty());
     }
 
