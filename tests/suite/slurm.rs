@@ -700,15 +700,7 @@ fn local_cluster_removes_and_stops_only_a_directory_it_made() {
     // stand-in slurmd then fails).
     let empty = dir.join("empty");
     std::fs::create_dir(&empty).unwrap();
-    let o = local_cluster("start", &empty, Some(&with_stand_ins(&bin)));
-    assert!(
-        text(&o.stderr).contains("slurmd did not start"),
-        "{}",
-        text(&o.stderr)
-    );
-    assert!(empty.join(".tessera-local-cluster").is_file());
-    let o = local_cluster("stop", &empty, Some(&with_stand_ins(&bin)));
-    assert!(o.status.success(), "{}", text(&o.stderr));
+    start_takes_and_marks(&empty, &bin);
     for port in ["x", "0", "65535", "a[$(id)]", "1234567"] {
         let fresh = dir.join("fresh");
         let o = Command::new(root().join("deploy/slurm/local-cluster.sh"))
@@ -782,14 +774,20 @@ fn local_cluster_takes_a_directory_an_earlier_version_made() {
         );
     }
     // `start` takes it afresh, with the mark (the stand-in slurmd then fails).
-    let o = local_cluster("start", &earlier, Some(&with_stand_ins(&bin)));
+    start_takes_and_marks(&earlier, &bin);
+}
+
+/// `start` (as root) takes `cluster` as its own, marked from its start, before the stand-in
+/// slurmd in `bin` fails it; `stop` then ends what it started.
+fn start_takes_and_marks(cluster: &std::path::Path, bin: &std::path::Path) {
+    let o = local_cluster("start", cluster, Some(&with_stand_ins(bin)));
     assert!(
         text(&o.stderr).contains("slurmd did not start"),
         "{}",
         text(&o.stderr)
     );
-    assert!(earlier.join(".tessera-local-cluster").is_file());
-    let o = local_cluster("stop", &earlier, Some(&with_stand_ins(&bin)));
+    assert!(cluster.join(".tessera-local-cluster").is_file());
+    let o = local_cluster("stop", cluster, Some(&with_stand_ins(bin)));
     assert!(o.status.success(), "{}", text(&o.stderr));
 }
 
