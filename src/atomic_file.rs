@@ -60,15 +60,25 @@ fn without_temporary_name(e: std::io::Error, dir: &Path) -> std::io::Error {
     let cause = message
         .rsplit_once(" at path ")
         .map_or(&*message, |(cause, _)| cause);
-    let dir = if dir == Path::new(".") {
-        "the current directory".to_owned()
-    } else {
-        dir.display().to_string()
-    };
     std::io::Error::new(
         e.kind(),
-        format!("could not create a file in {dir}: {cause}"),
+        format!(
+            "could not create a file in {}: {cause}",
+            directory_named(dir)
+        ),
     )
+}
+
+/// How a message names the directory `dir`: the current one in words, with its full name
+/// where that can be found (a bare "." before a full stop reads as the parent).
+pub fn directory_named(dir: &Path) -> String {
+    if dir != Path::new(".") {
+        return dir.display().to_string();
+    }
+    match std::env::current_dir() {
+        Ok(full) => format!("the current directory ({})", full.display()),
+        Err(_) => "the current directory".to_owned(),
+    }
 }
 
 /// A new file in `path`'s directory with no name at all (`O_TMPFILE`), with the permissions
@@ -393,6 +403,18 @@ mod tests {
                 && !said.contains(".x.png"),
             "{said}"
         );
+    }
+
+    /// The current directory is named in words with its full name, as `render`'s check of
+    /// the output directory names it: a bare "." before a full stop reads as the parent.
+    #[test]
+    fn the_current_directory_is_named_in_words_and_in_full() {
+        let full = std::env::current_dir().unwrap();
+        assert_eq!(
+            directory_named(Path::new(".")),
+            format!("the current directory ({})", full.display())
+        );
+        assert_eq!(directory_named(Path::new("/tmp/x")), "/tmp/x");
     }
 
     #[test]

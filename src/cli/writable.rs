@@ -5,7 +5,7 @@
 use anyhow::{Result, anyhow};
 use std::io::ErrorKind;
 use std::path::{Path, PathBuf};
-use tessera::atomic_file::check_writable;
+use tessera::atomic_file::{check_writable, directory_named};
 use tessera::confinement;
 
 /// Checks that `path` can be written whole (`atomic_file::check_writable`), explaining a
@@ -38,12 +38,12 @@ pub fn check_output(path: &Path) -> Result<()> {
         },
         Some(kind @ (ErrorKind::PermissionDenied | ErrorKind::ReadOnlyFilesystem)) => {
             let what = if kind == ErrorKind::ReadOnlyFilesystem {
-                format!("{} is on a read-only file system", named(&dir))
+                format!("{} is on a read-only file system", directory_named(&dir))
             } else {
                 format!(
                     "permission denied: this user ({}) may not create files in {}",
                     user(),
-                    named(&dir)
+                    directory_named(&dir)
                 )
             };
             match &container {
@@ -92,18 +92,6 @@ fn directory_of(path: &Path) -> PathBuf {
     match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_owned(),
         _ => PathBuf::from("."),
-    }
-}
-
-/// How a message names the directory `dir`: the current one in words, with its full name
-/// where that can be found (a bare "." before a full stop reads as the parent).
-fn named(dir: &Path) -> String {
-    if dir != Path::new(".") {
-        return dir.display().to_string();
-    }
-    match std::env::current_dir() {
-        Ok(full) => format!("the current directory ({})", full.display()),
-        Err(_) => "the current directory".to_owned(),
     }
 }
 
