@@ -279,6 +279,9 @@ SchedulerType=sched/backfill
 # Start batch jobs at once rather than up to 3 s later: tests wait on many short jobs.
 SchedulerParameters=batch_sched_delay=0
 MpiDefault=none
+# Every daemon listens on the address its host line names (127.0.0.1), not on every address
+# of the machine, which is Slurm's default: the cluster is for this machine alone.
+CommunicationParameters=NoCtldInAddrAny,NoInAddrAny
 SwitchType=switch/none
 ReturnToService=2
 JobCompType=jobcomp/none

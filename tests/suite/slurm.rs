@@ -41,6 +41,54 @@ fn cluster_answers() -> bool {
     false
 }
 
+/// The daemons of a cluster `local-cluster.sh` made listen on the loopback address alone,
+/// not on every address of the machine (Slurm's default, which put slurmctld and slurmd on
+/// 0.0.0.0: open to the network, guarded by munge alone).
+#[test]
+fn the_local_cluster_s_daemons_listen_on_loopback_only() {
+    if !cluster_answers() {
+        return;
+    }
+    let conf = std::env::var("SLURM_CONF").unwrap_or_default();
+    let text = std::fs::read_to_string(&conf).unwrap_or_default();
+    if !text.starts_with("# Written by deploy/slurm/local-cluster.sh") {
+        skip(
+            "the local cluster's listening test",
+            &format!("SLURM_CONF ({conf}) is not a cluster local-cluster.sh made"),
+        );
+        return;
+    }
+    let setting = |name: &str| -> u16 {
+        text.lines()
+            .find_map(|l| l.strip_prefix(name)?.strip_prefix('='))
+            .and_then(|v| v.trim().parse().ok())
+            .unwrap_or_else(|| panic!("{conf} gives no {name}"))
+    };
+    for port in [setting("SlurmctldPort"), setting("SlurmdPort")] {
+        // /proc/net/tcp{,6}: "sl local_address rem_address st …", addresses in hex with
+        // the port after a colon; state 0A is LISTEN.
+        let mut addresses = Vec::new();
+        for table in ["/proc/net/tcp", "/proc/net/tcp6"] {
+            for line in std::fs::read_to_string(table).unwrap().lines().skip(1) {
+                let fields: Vec<&str> = line.split_whitespace().collect();
+                let Some((address, at)) = fields[1].rsplit_once(':') else {
+                    continue;
+                };
+                if fields[3] == "0A" && u16::from_str_radix(at, 16) == Ok(port) {
+                    addresses.push(address.to_owned());
+                }
+            }
+        }
+        assert!(!addresses.is_empty(), "nothing listens on port {port}");
+        // 127.0.0.1, as the kernel prints it: four bytes in the machine's order.
+        let loopback = format!("{:08X}", u32::from_ne_bytes([127, 0, 0, 1]));
+        assert!(
+            addresses.iter().all(|a| *a == loopback),
+            "port {port} listens on {addresses:?}, not 127.0.0.1 ({loopback}) alone"
+        );
+    }
+}
+
 /// The jobs one test submitted; cancelled when the test ends, however it ends.
 struct Jobs(Vec<String>);
 
