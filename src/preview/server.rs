@@ -72,9 +72,17 @@ const RUN_HEADER: &str = "x-tessera-run";
 const VIEWER_CSS: &str = include_str!("assets/viewer.css");
 const VIEWER_JS: &str = include_str!("assets/viewer.js");
 
-/// The address a listener is bound to is reachable from other machines.
+/// The address a listener is bound to is reachable from other machines: any but a loopback
+/// one, whichever way it is written (`[::ffff:127.0.0.1]`, an IPv4 loopback address mapped
+/// into IPv6, is loopback; `0.0.0.0`, `[::]` and `[::ffff:0.0.0.0]` are every address).
 pub fn is_public(addr: &SocketAddr) -> bool {
-    !addr.ip().is_loopback()
+    !is_loopback(addr.ip())
+}
+
+/// Whether `ip` is a loopback address, an IPv4 one mapped into IPv6 included (which
+/// `IpAddr::is_loopback` alone does not count).
+fn is_loopback(ip: std::net::IpAddr) -> bool {
+    ip.to_canonical().is_loopback()
 }
 
 /// What the server has done, for its owner and tests.
@@ -687,9 +695,7 @@ fn host_allowed(addr: SocketAddr, request: &Request<Incoming>) -> bool {
         .trim_start_matches('[')
         .trim_end_matches(']');
     name.eq_ignore_ascii_case("localhost")
-        || name
-            .parse::<std::net::IpAddr>()
-            .is_ok_and(|ip| ip.is_loopback())
+        || name.parse::<std::net::IpAddr>().is_ok_and(is_loopback)
 }
 
 /// The most row ranges a patch may have; a frame changed in more places is sent whole.

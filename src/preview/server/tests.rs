@@ -396,3 +396,62 @@ fn a_stranger_s_request_finished_after_the_stop_is_not_answered() {
     });
     assert_eq!(shared.stats.clients.load(Ordering::Relaxed), 0);
 }
+
+/// An IPv4 loopback address mapped into IPv6 (`--preview=[::ffff:127.0.0.1]:PORT`) is
+/// loopback: not warned about as public, and its Host check stays on; a Host naming a
+/// loopback address so spelled (as a browser writes `[::ffff:127.0.0.1]`) is answered.
+/// Every address of the machine (`0.0.0.0`, `[::]`, `[::ffff:0.0.0.0]`) is public.
+#[test]
+fn a_mapped_loopback_address_is_loopback() {
+    let addr = |s: &str| s.parse::<SocketAddr>().unwrap();
+    for loopback in ["127.0.0.1:8000", "127.0.0.2:8000", "[::1]:8000"] {
+        assert!(!is_public(&addr(loopback)), "{loopback}");
+    }
+    assert!(!is_public(&addr("[::ffff:127.0.0.1]:8000")));
+    for public in [
+        "0.0.0.0:8000",
+        "[::]:8000",
+        "[::ffff:0.0.0.0]:8000",
+        "[::ffff:10.1.2.3]:8000",
+        "10.1.2.3:8000",
+        "[fe80::1%2]:8000",
+        "[::127.0.0.1]:8000",
+    ] {
+        assert!(is_public(&addr(public)), "{public}");
+    }
+    let previewer = blank_previewer();
+    let ask = |on: &str, host: &str| {
+        let request = format!("GET /k3y/status HTTP/1.1\r\nHost: {host}\r\n\r\n");
+        let answer = answer_in_memory(
+            previewer.hub(),
+            addr(on),
+            KEY,
+            request.as_bytes(),
+            Duration::from_secs(5),
+        )
+        .unwrap();
+        String::from_utf8_lossy(&answer).into_owned()
+    };
+    let mapped = "[::ffff:127.0.0.1]:8000";
+    let foreign = ask(mapped, "rebound.example:8000");
+    assert!(foreign.starts_with("HTTP/1.1 421"), "{foreign}");
+    for host in [
+        "[::ffff:127.0.0.1]:8000",
+        "[::ffff:7f00:1]:8000",
+        "localhost:8000",
+    ] {
+        let own = ask(mapped, host);
+        assert!(own.starts_with("HTTP/1.1 200"), "{host}: {own}");
+        let on_v4 = ask("127.0.0.1:8000", host);
+        assert!(on_v4.starts_with("HTTP/1.1 200"), "{host}: {on_v4}");
+    }
+    for host in [
+        "0.0.0.0:8000",
+        "[::]:8000",
+        "[::ffff:10.1.2.3]:8000",
+        "[::1%25lo]:8000",
+    ] {
+        let other = ask(mapped, host);
+        assert!(other.starts_with("HTTP/1.1 421"), "{host}: {other}");
+    }
+}
