@@ -58,6 +58,21 @@ const DISPLAY_CHUNKS: [(&[u8; 4], &str); 14] = [
     ),
 ];
 
+/// A chunk of the type `kind` in words, with its article: "an iCCP chunk", "a tRNS chunk".
+/// A type is read as a word, as the project writes "an IDAT chunk": "an" where it begins
+/// with a vowel other than `u` (said "you"). Bytes that are not letters are escaped.
+fn a_chunk(kind: &[u8; 4]) -> String {
+    let article = if matches!(kind[0].to_ascii_lowercase(), b'a' | b'e' | b'i' | b'o') {
+        "an"
+    } else {
+        "a"
+    };
+    format!(
+        "{article} {} chunk",
+        String::from_utf8_lossy(kind).escape_debug()
+    )
+}
+
 /// Walks a PNG's chunks (`len` bytes in all) for its size, the recipe's iTXt chunk and the
 /// chunks that change how it is shown, skipping the others unread.
 pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
@@ -87,8 +102,8 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
         // The data and its CRC must lie inside the file: no length is trusted further.
         if length > (1 << 31) - 1 || at + 12 + length > len {
             return Err(format!(
-                "has a {} chunk at byte {at} claiming {length} bytes, past the file's end",
-                String::from_utf8_lossy(&kind).escape_debug()
+                "has {} at byte {at} claiming {length} bytes, past the file's end",
+                a_chunk(&kind)
             ));
         }
         // One IHDR chunk, first, of 13 bytes, as a PNG has: a second one would be another
@@ -96,8 +111,8 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
         let is_ihdr = &kind == b"IHDR";
         if chunks == 0 && !is_ihdr {
             return Err(format!(
-                "does not begin with its IHDR chunk (a {} chunk at byte 8), as a PNG must",
-                String::from_utf8_lossy(&kind).escape_debug()
+                "does not begin with its IHDR chunk ({} at byte 8), as a PNG must",
+                a_chunk(&kind)
             ));
         }
         if is_ihdr && chunks > 0 {
@@ -121,10 +136,7 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
             }
         }
         if let Some((_, how)) = DISPLAY_CHUNKS.iter().find(|(k, _)| **k == kind) {
-            let said = format!(
-                "a {} chunk, which tessera does not write: {how}",
-                String::from_utf8_lossy(&kind)
-            );
+            let said = format!("{}, which tessera does not write: {how}", a_chunk(&kind));
             if !display_changes.contains(&said) {
                 display_changes.push(said);
             }
@@ -137,9 +149,9 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
         let lower = kind.to_ascii_lowercase();
         if (&lower == b"exif" && &kind != b"eXIf") || &lower == b"zxif" {
             let said = format!(
-                "a {} chunk, which tessera does not write: EXIF data that exiftool reads as \
-                 eXIf's, which can turn or flip the picture",
-                String::from_utf8_lossy(&kind)
+                "{}, which tessera does not write: EXIF data that exiftool reads as eXIf's, \
+                 which can turn or flip the picture",
+                a_chunk(&kind)
             );
             if !display_changes.contains(&said) {
                 display_changes.push(said);
@@ -150,8 +162,8 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
         // the decoder here stops at the last row.
         if idat_seen && kind[0].is_ascii_uppercase() && !matches!(&kind, b"IDAT" | b"IEND") {
             display_changes.push(format!(
-                "a {} chunk after the pixels, a critical chunk where libpng refuses one",
-                String::from_utf8_lossy(&kind).escape_debug()
+                "{} after the pixels, a critical chunk where libpng refuses one",
+                a_chunk(&kind)
             ));
         }
         // An IDAT chunk after another that follows the pixels' chunks: the decoder here
@@ -216,9 +228,9 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
                 keyword.refuse_a_lookalike(&kind)?;
                 if keyword == Keyword::Recipe {
                     return Err(format!(
-                        "has a recipe in a {} chunk, where tessera writes none: readers of PNG \
-                         text may show it in place of the one checked",
-                        String::from_utf8_lossy(&kind)
+                        "has a recipe in {}, where tessera writes none: readers of PNG text \
+                         may show it in place of the one checked",
+                        a_chunk(&kind)
                     ));
                 }
                 skip(&mut r, length as i64 - n as i64 + 4)?;
@@ -1042,6 +1054,40 @@ mod tests {
             );
         }
         assert!(changes_with(b"exIg").is_empty());
+    }
+
+    /// A chunk named in a message takes the article its name is said with: "a exIf chunk"
+    /// and "a iCCP chunk" were written, where the project writes "an IDAT chunk".
+    #[test]
+    fn a_chunk_is_named_with_its_article() {
+        let ihdr = chunk(b"IHDR", &[0, 0, 0, 4, 0, 0, 0, 2, 8, 2, 0, 0, 0]);
+        let changes_with = |kind: &[u8; 4]| {
+            let png = [
+                &PNG_SIGNATURE[..],
+                &ihdr,
+                &chunk(kind, b"MM\0\x2a\0\0\0\x08"),
+                &chunk(b"IDAT", &[0x78, 0x9c, 1]),
+                &chunk(b"IEND", &[]),
+            ]
+            .concat();
+            read(Cursor::new(&png), png.len() as u64)
+                .unwrap()
+                .display_changes
+        };
+        for (kind, said) in [
+            (b"exIf", "an exIf chunk,"),
+            (b"eXIf", "an eXIf chunk,"),
+            (b"iCCP", "an iCCP chunk,"),
+            (b"acTL", "an acTL chunk,"),
+            (b"iDOT", "an iDOT chunk,"),
+            (b"tRNS", "a tRNS chunk,"),
+            (b"zxIf", "a zxIf chunk,"),
+        ] {
+            let changes = changes_with(kind);
+            assert!(changes[0].starts_with(said), "{changes:?}");
+        }
+        assert_eq!(a_chunk(b"uNKN"), "a uNKN chunk");
+        assert_eq!(a_chunk(b"O\x1b[m"), "an O\\u{1b}[m chunk");
     }
 
     /// A palette PNG whose pixels are interlaced: its rows come pass by pass, each of its
