@@ -255,11 +255,11 @@ fn channels(value: &[u8]) -> Result<Vec<(String, SampleType)>, String> {
 /// pixels take at most `most_decoded` bytes decoded (`Decoded`).
 pub fn check_bounds<R: Read>(r: R, len: u64, most_decoded: u64) -> Result<(), String> {
     let mut decoded = Decoded::default();
-    walk(r, len, &mut |name, kind, value| {
+    let header_len = walk(r, len, &mut |name, kind, value| {
         decoded.note(name, kind, &value);
         Ok(())
     })?;
-    decoded.check(most_decoded)
+    decoded.check(most_decoded, header_len, len)
 }
 
 /// What a header says of the bytes its pixels take decoded: the data window and the
@@ -290,10 +290,11 @@ impl Decoded {
         }
     }
 
-    /// Refuses pixels that take more than `most` bytes decoded, and more than
-    /// `MAX_CHUNKS_READ` chunks. A header without what sizes them, or of an empty data
-    /// window, is the decoder's to refuse.
-    fn check(&self, most: u64) -> Result<(), String> {
+    /// Refuses pixels that take more than `most` bytes decoded, more than
+    /// `MAX_CHUNKS_READ` chunks, and more chunks (or, uncompressed, more pixels) than the
+    /// `len`-byte file, whose header is `header_len` bytes, holds. A header without what
+    /// sizes them, or of an empty data window, is the decoder's to refuse.
+    fn check(&self, most: u64, header_len: u64, len: u64) -> Result<(), String> {
         let Some(data) = self.data else {
             return Ok(());
         };
@@ -301,23 +302,54 @@ impl Decoded {
         else {
             return Ok(());
         };
-        if let Some(chunks) = chunk_count(width, height, self.compression, self.tiles) {
+        let chunks = chunk_count(width, height, self.compression, self.tiles);
+        if let Some(chunks) = chunks {
             check_chunks(chunks, width, height, MAX_CHUNKS_READ)?;
         }
-        let Some(bytes) = self.bytes_per_pixel else {
-            return Ok(());
-        };
-        let decoded = u128::from(width) * u128::from(height) * u128::from(bytes);
-        if decoded > u128::from(most) {
+        let decoded = self.bytes_per_pixel.map(|bytes| {
+            (
+                bytes,
+                u128::from(width) * u128::from(height) * u128::from(bytes),
+            )
+        });
+        if let Some((bytes, decoded)) = decoded
+            && decoded > u128::from(most)
+        {
             return Err(format!(
                 "has pixels that take {decoded} bytes decoded (a data window of \
                  {width}x{height}, {bytes} bytes a pixel), more than the {most} an image's \
                  pixels may take here"
             ));
         }
+        // The decoder makes room for every pixel from the header alone, before it reads a
+        // chunk: a file of 313 bytes claiming 4096x4096 float RGB had 201 MB reserved, and
+        // ended tessera where that much could not be. The chunks the header claims must be
+        // in the file first, each at least `MIN_CHUNK_BYTES`, and without compression its
+        // pixels' bytes too.
+        let Some(chunks) = chunks else {
+            return Ok(());
+        };
+        let stored = match (self.compression, decoded) {
+            (Some(0), Some((_, decoded))) => u64::try_from(decoded).unwrap_or(u64::MAX),
+            _ => 0,
+        };
+        let least = header_len
+            .saturating_add(chunks.saturating_mul(MIN_CHUNK_BYTES))
+            .saturating_add(stored);
+        if least > len {
+            return Err(format!(
+                "is cut short: its header claims {chunks} chunks (blocks of scan lines or \
+                 tiles of a data window of {width}x{height}), which take at least {least} \
+                 bytes with the header, and the file has {len}"
+            ));
+        }
         Ok(())
     }
 }
+
+/// The fewest bytes a chunk takes in a file: its offset table entry (8 bytes) and, in the
+/// chunk, its first row or tile coordinates and its data's length (at least 8 more).
+const MIN_CHUNK_BYTES: u64 = 16;
 
 /// The most chunks (blocks of scan lines, or tiles of every level) of a file another
 /// program made that are read. The `exr` crate takes about 72 bytes to place each chunk
@@ -532,7 +564,7 @@ pub fn display_changes<R: Read + std::io::Seek>(
         changes.extend(display_change(name, kind, &value)?);
         Ok(())
     })?;
-    decoded.check(most_decoded)?;
+    decoded.check(most_decoded, header_len, len)?;
     changes.extend(lacking(&attributes));
     // The decoder measures the display window (what lies outside it cropped, what it
     // holds outside the data window black), where viewers built on OpenEXR (GIMP,
@@ -1135,7 +1167,8 @@ mod tests {
             (chunked(1024, 1024, 0, Some((1, 1, 1))), Some(1_398_101)),
         ] {
             let file = header_of(&attributes);
-            let len = file.len() as u64;
+            // A file long enough to hold its chunks, as the header is all that is read.
+            let len = 1 << 40;
             let bounds = check_bounds(&file[..], len, u64::MAX);
             let changes = display_changes(Cursor::new(&file), len, u64::MAX).map(drop);
             match chunks {

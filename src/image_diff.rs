@@ -1031,6 +1031,63 @@ mod tests {
         );
     }
 
+    /// The decoder makes room for every pixel a header claims before it reads a chunk: an
+    /// EXR of 313 bytes, a header of 4096x4096 float RGB in ZIP blocks and nothing after it,
+    /// had 201 MB reserved (`compare` ended on the failed allocation under `ulimit -v
+    /// 200000`). A header whose chunks the file cannot hold is refused before the decoder
+    /// sees it; with its offset table and chunks there, it is the decoder's to read.
+    #[test]
+    fn an_exr_whose_chunks_are_not_in_the_file_is_refused_before_decoding() {
+        let attribute = |name: &str, kind: &str, value: &[u8]| {
+            let mut a = [name.as_bytes(), b"\0", kind.as_bytes(), b"\0"].concat();
+            a.extend((value.len() as u32).to_le_bytes());
+            a.extend(value);
+            a
+        };
+        let window: Vec<u8> = [0i32, 0, 4095, 4095]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        let mut channels = Vec::new();
+        for name in [b"B", b"G", b"R"] {
+            channels.extend(name);
+            channels.push(0);
+            channels.extend([2i32, 0, 1, 1].iter().flat_map(|v| v.to_le_bytes()));
+        }
+        channels.push(0);
+        let mut file = vec![0x76, 0x2f, 0x31, 0x01, 2, 0, 0, 0];
+        for (name, kind, value) in [
+            ("channels", "chlist", channels),
+            ("compression", "compression", vec![3]),
+            ("dataWindow", "box2i", window.clone()),
+            ("displayWindow", "box2i", window),
+            ("lineOrder", "lineOrder", vec![0]),
+            ("pixelAspectRatio", "float", 1f32.to_le_bytes().to_vec()),
+            ("screenWindowCenter", "v2f", vec![0; 8]),
+            ("screenWindowWidth", "float", 1f32.to_le_bytes().to_vec()),
+        ] {
+            file.extend(attribute(name, kind, &value));
+        }
+        file.push(0);
+        let dir = std::env::temp_dir().join(format!("tessera-exr-short-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let short = dir.join("short.exr");
+        std::fs::write(&short, &file).unwrap();
+        let said = difference_of_files(&short, &short).map(|d| d.rmse);
+        std::fs::remove_dir_all(&dir).unwrap();
+        let e = said.unwrap_err().to_string();
+        assert!(
+            e.contains(&format!(
+                "is cut short: its header claims 256 chunks (blocks of scan lines or tiles of a \
+                 data window of 4096x4096), which take at least {} bytes with the header, and \
+                 the file has {}",
+                file.len() + 256 * 16,
+                file.len()
+            )),
+            "{e}"
+        );
+    }
+
     /// A NaN is measured as 0, so an EXR of NaN once compared identical with a black one,
     /// though viewers show NaN as they choose (some black, some a warning colour). Each NaN
     /// value is counted and listed.
