@@ -307,91 +307,31 @@ impl Recipe {
 
     /// The scene the recipe describes, parsed and checked as a scene file is (errors name
     /// `image` and the recipe's scene), with its settings checked against the recipe's, and
-    /// its image textures looked for in `dirs` and checked against the recipe's hashes.
+    /// its image textures looked for in `dirs` and checked against the recipe's hashes:
+    /// `checked`, then `Checked::scene`.
     pub fn scene(&self, image: &Path, dirs: &[PathBuf]) -> Result<Scene> {
-        // Before any texture file is looked for: a recipe that lies about its settings
-        // is refused as `info` refuses it.
-        self.check_settings(image)?;
-        let origin = self.origin(image);
-        let looked: Vec<String> = dirs.iter().map(|d| d.display().to_string()).collect();
-        // The textures the recipe names must be found, each the very file it was made with.
-        // A file named again, however spelt (`a.png`, `./a.png`), is read and hashed once:
-        // 256 names of one 48 MB file once read 12 GB.
-        let mut hashed: BTreeMap<PathBuf, String> = BTreeMap::new();
-        for t in &self.textures {
-            let name = terminal_safe(&t.name, 80);
-            let refuse = |message: String| Error::Image {
-                path: image.to_owned(),
-                message,
-            };
-            // As a scene names a texture: nothing but what lies in `dirs` is read.
-            if !crate::scene::is_plain_name(&t.name) {
-                return Err(refuse(format!(
-                    "its recipe names the texture file `{name}`, which is not a relative \
-                     name without `..`: refused"
-                )));
-            }
-            let found = crate::scene::open_texture(dirs, Path::new(&t.name))
-                .map_err(|why| refuse(format!("its scene's {}", terminal_safe(&why, 400))))?;
-            let Some((file, found)) = found else {
-                return Err(Error::Image {
-                    path: image.to_owned(),
-                    message: format!(
-                        "its scene's texture file `{name}` is not found (looked in {}); put it \
-                         next to the image or pass --textures DIR",
-                        looked.join(", ")
-                    ),
-                });
-            };
-            let io = |cause| Error::Io {
-                path: found.clone(),
-                cause,
-            };
-            let key = found.canonicalize().map_err(io)?;
-            let hash = match hashed.get(&key) {
-                Some(hash) => hash.clone(),
-                None => {
-                    let bytes = crate::scene::read_texture(file, &found).map_err(|why| {
-                        refuse(format!("its scene's {}", terminal_safe(&why, 400)))
-                    })?;
-                    let hash = format!("xxh3-128:{:032x}", xxhash_rust::xxh3::xxh3_128(&bytes));
-                    hashed.insert(key, hash.clone());
-                    hash
-                }
-            };
-            if hash != t.hash {
-                return Err(Error::Image {
-                    path: image.to_owned(),
-                    message: format!(
-                        "its scene's texture `{name}` found at {} is not the file the image \
-                         was made with (its hash is {hash}, the recipe's {})",
-                        found.display(),
-                        terminal_safe(&t.hash, 60)
-                    ),
-                });
-            }
-        }
-        let scene = (self.source().parse(&origin, dirs)).map_err(|e| overrides_fault(image, e))?;
-        if textures_of(&scene) != self.textures {
-            return Err(Error::Image {
-                path: image.to_owned(),
-                message: "its recipe's texture files are not those its scene reads".to_owned(),
-            });
-        }
-        self.agrees(image, Effective::of(&scene))?;
-        Ok(scene)
+        self.checked(image)?.scene(dirs)
     }
 
-    /// Checks the recipe's settings (`image`) against what its scene text and overrides
-    /// give, parsed and checked as a scene file is, with nothing else built and no texture
-    /// file read: a recipe whose scene is not a scene, or gives other settings than it
-    /// claims, is refused, naming each setting that differs. `info` and `reproduce` both
-    /// check it, so `info` shows no claim that `reproduce` would refuse.
-    pub fn check_settings(&self, image: &Path) -> Result<()> {
+    /// The recipe's scene text parsed, once, as a scene file is, and the settings it gives
+    /// with the recipe's overrides checked against the recipe's (`image`), with nothing else
+    /// built and no texture file read: a recipe whose scene is not a scene, or gives other
+    /// settings than it claims, is refused, naming each setting that differs. `info` and
+    /// `reproduce` both check it, so `info` shows no claim that `reproduce` would refuse;
+    /// the scene is then built from the same parse.
+    pub fn checked(&self, image: &Path) -> Result<Checked<'_>> {
         let origin = self.origin(image);
-        let settings = Scene::settings_of(&self.scene.text, &origin, &self.overrides.into())
+        let described =
+            Scene::describe(&self.scene.text, &origin).map_err(|e| overrides_fault(image, e))?;
+        let settings = described
+            .settings(&self.overrides.into())
             .map_err(|e| overrides_fault(image, e))?;
-        self.agrees(image, Effective::of_settings(&settings))
+        self.agrees(image, Effective::of_settings(&settings))?;
+        Ok(Checked {
+            recipe: self,
+            described,
+            image: image.to_owned(),
+        })
     }
 
     /// Refuses the recipe where `given`, the settings its scene and overrides give, are not
@@ -466,6 +406,90 @@ impl Recipe {
     }
 }
 
+/// A recipe whose scene text is parsed and gives the settings it claims (`Recipe::checked`):
+/// what its scene is built from, textures found, without parsing the text again.
+pub struct Checked<'a> {
+    recipe: &'a Recipe,
+    described: crate::scene::Described<'a>,
+    image: PathBuf,
+}
+
+impl Checked<'_> {
+    /// The scene, built from the parse its settings were checked on, with its image
+    /// textures looked for in `dirs`, each the very file the recipe's hash names. Its
+    /// settings are those checked: one parse and one function give both.
+    pub fn scene(&self, dirs: &[PathBuf]) -> Result<Scene> {
+        let (recipe, image) = (self.recipe, self.image.as_path());
+        let looked: Vec<String> = dirs.iter().map(|d| d.display().to_string()).collect();
+        // The textures the recipe names must be found, each the very file it was made with.
+        // A file named again, however spelt (`a.png`, `./a.png`), is read and hashed once:
+        // 256 names of one 48 MB file once read 12 GB.
+        let mut hashed: BTreeMap<PathBuf, String> = BTreeMap::new();
+        for t in &recipe.textures {
+            let name = terminal_safe(&t.name, 80);
+            let refuse = |message: String| Error::Image {
+                path: image.to_owned(),
+                message,
+            };
+            // As a scene names a texture: nothing but what lies in `dirs` is read.
+            if !crate::scene::is_plain_name(&t.name) {
+                return Err(refuse(format!(
+                    "its recipe names the texture file `{name}`, which is not a relative \
+                     name without `..`: refused"
+                )));
+            }
+            let found = crate::scene::open_texture(dirs, Path::new(&t.name))
+                .map_err(|why| refuse(format!("its scene's {}", terminal_safe(&why, 400))))?;
+            let Some((file, found)) = found else {
+                return Err(Error::Image {
+                    path: image.to_owned(),
+                    message: format!(
+                        "its scene's texture file `{name}` is not found (looked in {}); put it \
+                         next to the image or pass --textures DIR",
+                        looked.join(", ")
+                    ),
+                });
+            };
+            let io = |cause| Error::Io {
+                path: found.clone(),
+                cause,
+            };
+            let key = found.canonicalize().map_err(io)?;
+            let hash = match hashed.get(&key) {
+                Some(hash) => hash.clone(),
+                None => {
+                    let bytes = crate::scene::read_texture(file, &found).map_err(|why| {
+                        refuse(format!("its scene's {}", terminal_safe(&why, 400)))
+                    })?;
+                    let hash = format!("xxh3-128:{:032x}", xxhash_rust::xxh3::xxh3_128(&bytes));
+                    hashed.insert(key, hash.clone());
+                    hash
+                }
+            };
+            if hash != t.hash {
+                return Err(Error::Image {
+                    path: image.to_owned(),
+                    message: format!(
+                        "its scene's texture `{name}` found at {} is not the file the image \
+                         was made with (its hash is {hash}, the recipe's {})",
+                        found.display(),
+                        terminal_safe(&t.hash, 60)
+                    ),
+                });
+            }
+        }
+        let source = TextureSource::Dirs(dirs.to_vec());
+        let scene = (self.described.build(&recipe.overrides.into(), &source))
+            .map_err(|e| overrides_fault(image, e))?;
+        if textures_of(&scene) != recipe.textures {
+            return Err(Error::Image {
+                path: image.to_owned(),
+                message: "its recipe's texture files are not those its scene reads".to_owned(),
+            });
+        }
+        Ok(scene)
+    }
+}
 /// An error of the recipe's scene, where an override out of range is the recipe's fault,
 /// named as such.
 fn overrides_fault(image: &Path, e: Error) -> Error {
@@ -549,6 +573,55 @@ mod tests {
         assert!(Recipe::parse(&deep, Path::new("x.png")).is_err());
         let hash = json.replace("xxh3-128:", "md5:");
         assert!(Recipe::parse(&hash, Path::new("x.png")).is_err());
+    }
+
+    /// `Recipe::scene` parsed the scene text twice, once to check the settings and again to
+    /// build, and checked the built scene's settings again (a check that could no longer
+    /// fail). It builds from the parse its settings were checked on; every refusal is still
+    /// made: settings it does not give, an override out of range, a scene that does not
+    /// build, texture files that are not its scene's.
+    #[test]
+    fn the_scene_is_built_from_one_parse_with_every_refusal() {
+        let dirs = texture_dirs(None, Path::new("x.png"));
+        let refused = |r: &Recipe| r.scene(Path::new("x.png"), &dirs).unwrap_err().to_string();
+        let checked = recipe();
+        let c = checked.checked(Path::new("x.png")).unwrap();
+        assert_eq!(c.scene(&dirs).unwrap().settings.seed, checked.image.seed);
+
+        let mut r = recipe();
+        r.image.samples_per_pixel = 5;
+        let e = refused(&r);
+        assert!(e.contains("samples_per_pixel 5, the scene gives 2"), "{e}");
+
+        let mut r = recipe();
+        r.overrides.samples_per_pixel = Some(0);
+        let e = refused(&r);
+        assert!(e.contains("its recipe's override `spp` is refused"), "{e}");
+
+        let mut r = recipe();
+        r.scene
+            .text
+            .push_str("[[spheres]]\ncenter = [0, 0, -1]\nradius = 0.5\nmaterial = \"none\"\n");
+        let e = refused(&r);
+        assert!(e.contains("none"), "{e}");
+
+        let mut r = recipe();
+        r.textures.push(RecipeTexture {
+            name: "a.png".to_owned(),
+            hash: format!("xxh3-128:{:032x}", xxhash_rust::xxh3::xxh3_128(b"")),
+        });
+        let dir = std::env::temp_dir().join(format!("tessera-recipe-tex-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("a.png"), b"").unwrap();
+        let e = r
+            .scene(Path::new("x.png"), std::slice::from_ref(&dir))
+            .unwrap_err()
+            .to_string();
+        std::fs::remove_dir_all(&dir).unwrap();
+        assert!(
+            e.contains("texture files are not those its scene reads"),
+            "{e}"
+        );
     }
 
     #[test]

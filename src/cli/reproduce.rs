@@ -66,7 +66,7 @@ pub fn info(args: InfoArgs) -> Result<ExitCode> {
     // What `reproduce` refuses before rendering, `info` does not print as true: a recipe
     // whose settings are not what its own scene gives (exit 2, as reproduce), whatever the
     // form. Its textures are not looked for: the image may be shown where they are not.
-    recipe.check_settings(path)?;
+    recipe.checked(path)?;
     if args.json {
         out(&format!("{}\n", recipe.to_json()))?;
         return Ok(ExitCode::SUCCESS);

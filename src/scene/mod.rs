@@ -210,15 +210,50 @@ impl Scene {
         overrides: &Overrides,
         source: &TextureSource,
     ) -> Result<Scene> {
-        build::build(&describe(text, path)?, text, path, overrides, source)
+        Self::describe(text, path)?.build(overrides, source)
     }
 
     /// The settings scene text gives with `overrides` (size, crop, sampling, depth, seed,
     /// gamma), checked as `parse` checks them, without building the rest or reading a
-    /// texture file: what a recipe's settings are checked against where its textures may
-    /// not be at hand (`tessera info`).
+    /// texture file.
     pub fn settings_of(text: &str, path: &Path, overrides: &Overrides) -> Result<RenderSettings> {
-        build::settings(&describe(text, path)?, text, path, overrides)
+        Self::describe(text, path)?.settings(overrides)
+    }
+
+    /// Scene text parsed, within the bounds on its values and tokens, into its description,
+    /// from which its settings are read and the scene is built without parsing the text
+    /// again; `path` names the source in errors.
+    pub fn describe<'a>(text: &'a str, path: &Path) -> Result<Described<'a>> {
+        Ok(Described {
+            desc: describe(text, path)?,
+            text,
+            path: path.to_owned(),
+        })
+    }
+}
+
+/// Scene text parsed once (`Scene::describe`): what a recipe's settings are checked against
+/// where its textures may not be at hand (`tessera info`), and then what its scene is built
+/// from. A scene file of 2^20 values takes some seconds and 500 MB to parse: it is parsed
+/// once however many times it is looked at.
+pub struct Described<'a> {
+    desc: desc::SceneDesc,
+    text: &'a str,
+    path: std::path::PathBuf,
+}
+
+impl Described<'_> {
+    /// The settings the text gives with `overrides` (size, crop, sampling, depth, seed,
+    /// gamma), checked as `Scene::parse` checks them, with nothing else built and no texture
+    /// file read.
+    pub fn settings(&self, overrides: &Overrides) -> Result<RenderSettings> {
+        build::settings(&self.desc, self.text, &self.path, overrides)
+    }
+
+    /// The scene, built and checked as `Scene::parse` builds it, with image textures read
+    /// from `source`; its settings are `settings`' with the same `overrides`.
+    pub fn build(&self, overrides: &Overrides, source: &TextureSource) -> Result<Scene> {
+        build::build(&self.desc, self.text, &self.path, overrides, source)
     }
 }
 

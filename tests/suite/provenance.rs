@@ -326,7 +326,7 @@ fn an_edited_or_stripped_image_is_never_called_identical() {
 
 /// `info` printed whatever settings a recipe claimed, where `reproduce` refused them as not
 /// what its own scene gives: a stranger's image claiming 500 samples and seed 9 of a scene of
-/// 4 and seed 1 was shown as such. Both now run one check (`Recipe::check_settings`) and
+/// 4 and seed 1 was shown as such. Both now run one check (`Recipe::checked`) and
 /// refuse it alike, naming each setting that differs; no texture file is needed for it.
 #[test]
 fn info_refuses_a_recipe_whose_settings_its_scene_does_not_give() {
