@@ -753,46 +753,47 @@ fn reproduce<'py>(
     let d = PyDict::new(py);
     d.set_item("image", image.display().to_string())?;
     d.set_item("sums", &recipe.sums)?;
-    let unrendered = verify::differs_unrendered(&image, &header, &recipe);
-    let (differs, work) = match unrendered {
-        Some(differs) => (Some(differs), work),
-        None => {
-            let dirs = recipe::texture_dirs(textures.as_deref(), &image);
-            let image = image.clone();
-            interruptible(py, None, move |stop, _| {
-                let mut scene = recipe.scene(&image, &dirs).map_err(Failed::Tessera)?;
-                let yardstick =
-                    Workload::named("quick").map_err(|e| Failed::Other(format!("{e:#}")))?;
-                let judged = verify::render_judged(
-                    work,
-                    &mut scene,
-                    &yardstick.scene,
-                    &image,
-                    "any_cost=True",
-                    any_cost,
-                    options.threads,
-                    stop,
-                    |_| {},
-                    |scene| render_whole(scene, &options, stop, None),
-                )
-                .map_err(|not| match not {
-                    verify::NotStarted::Refused(refusal) => Failed::Other(refusal),
-                    verify::NotStarted::Setting(e) => Failed::Tessera(e),
-                })?;
-                let (film, _) = judged.done.map_err(|failed| match failed {
-                    Failed::Interrupted if judged.over_budget.is_some() => {
-                        Failed::Other(judged.over_budget.clone().unwrap_or_default())
-                    }
-                    failed => failed,
-                })?;
-                let work = judged.work;
-                let g = scene.settings.gamma;
-                let differs = verify::differs_rendered(&image, &header, &recipe, &film, g)
-                    .map_err(Failed::Tessera)?;
-                Ok((differs, work))
-            })?
-        }
-    };
+    let dirs = recipe::texture_dirs(textures.as_deref(), &image);
+    let worker_image = image.clone();
+    // On the worker's stack, as a scene is parsed: the recipe's scene and settings, then the
+    // image against the recipe, in the order and by the function the command line's
+    // `reproduce` and `info` take.
+    let (differs, work) = interruptible(py, None, move |stop, _| {
+        let image = worker_image;
+        let checked = match verify::unrendered(&image, &header, &recipe).map_err(Failed::Tessera)? {
+            verify::Unrendered::Differs(differs) => return Ok((Some(differs), work)),
+            verify::Unrendered::Render(checked) => checked,
+        };
+        let mut scene = checked.scene(&dirs).map_err(Failed::Tessera)?;
+        let yardstick = Workload::named("quick").map_err(|e| Failed::Other(format!("{e:#}")))?;
+        let judged = verify::render_judged(
+            work,
+            &mut scene,
+            &yardstick.scene,
+            &image,
+            "any_cost=True",
+            any_cost,
+            options.threads,
+            stop,
+            |_| {},
+            |scene| render_whole(scene, &options, stop, None),
+        )
+        .map_err(|not| match not {
+            verify::NotStarted::Refused(refusal) => Failed::Other(refusal),
+            verify::NotStarted::Setting(e) => Failed::Tessera(e),
+        })?;
+        let (film, _) = judged.done.map_err(|failed| match failed {
+            Failed::Interrupted if judged.over_budget.is_some() => {
+                Failed::Other(judged.over_budget.clone().unwrap_or_default())
+            }
+            failed => failed,
+        })?;
+        let work = judged.work;
+        let g = scene.settings.gamma;
+        let differs = verify::differs_rendered(&image, &header, &recipe, &film, g)
+            .map_err(Failed::Tessera)?;
+        Ok((differs, work))
+    })?;
     d.set_item("work", work.to_string())?;
     match differs {
         None => {

@@ -114,6 +114,27 @@ def test_reproduce_stops_a_render_past_its_time_budget(tmp_path, monkeypatch):
         tessera.reproduce(tmp_path / "shells.png")
 
 
+def test_reproduce_checks_the_recipe_before_the_image_as_the_cli_and_info_do(cli, tmp_path):
+    # A recipe whose settings its scene does not give, on an image of another size than it
+    # claims: Python's reproduce said `differs` (the image first) where the command line
+    # refused the recipe; both take one check in one order now, and refuse it.
+    small = tessera.render("scenes/cover.toml", width=40, spp=1)
+    other = tessera.render("scenes/cover.toml", width=41, spp=1)
+    recipe = json.loads(json.dumps(small.recipe))
+    recipe["image"]["seed"] = 9
+    (tmp_path / "both.png").write_bytes(_png_with_recipe(other.png(), recipe))
+    with pytest.raises(tessera.TesseraError, match="seed 9, the scene gives"):
+        tessera.reproduce(tmp_path / "both.png")
+    for args in (("info", tmp_path / "both.png"), ("reproduce", tmp_path / "both.png", "-q")):
+        said = cli(*args, check=False)
+        assert said.returncode == 2 and "seed 9, the scene gives" in said.stderr, said
+    # Its own recipe on the image of another size: `differs` from each, without a render.
+    (tmp_path / "cropped.png").write_bytes(_png_with_recipe(other.png(), small.recipe))
+    verdict = tessera.reproduce(tmp_path / "cropped.png")
+    assert verdict["verdict"] == "differs", verdict
+    assert "x" in verdict["summary"] and "its recipe makes 40x" in verdict["summary"], verdict
+
+
 def test_reproduce_refuses_what_has_no_recipe(cli, tmp_path):
     cli("render", "scenes/cover.toml", "--width", 16, "--spp", 1, "--no-provenance", "-q",
         "-o", tmp_path / "bare.png")

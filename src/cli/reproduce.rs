@@ -13,7 +13,7 @@ use tessera::recipe::{self, Recipe, describe};
 use tessera::record::workload::Workload;
 use tessera::render::{self, RenderOptions};
 use tessera::text::{path_safe, terminal_safe, terminal_safe_lines};
-use tessera::verify;
+use tessera::verify::{self, Unrendered};
 
 /// `tessera info` as typed.
 #[derive(clap::Args)]
@@ -182,14 +182,19 @@ pub fn run(args: Args) -> Result<ExitCode> {
     {
         bail!("{refusal}");
     }
-    let dirs = recipe::texture_dirs(args.textures.as_deref(), image);
-    let mut scene = recipe.scene(image, &dirs)?;
-    let window = recipe.window();
     let differs = ExitCode::from(output::NEGATIVE);
-    if let Some(d) = verify::differs_unrendered(image, &header, &recipe) {
-        out(&differs_text(&d.summary, &d.details))?;
-        return Ok(differs);
-    }
+    // The recipe's scene and settings, then the image against the recipe, as `info` and the
+    // Python package check them: one function, one order.
+    let checked = match verify::unrendered(image, &header, &recipe)? {
+        Unrendered::Differs(d) => {
+            out(&differs_text(&d.summary, &d.details))?;
+            return Ok(differs);
+        }
+        Unrendered::Render(checked) => checked,
+    };
+    let dirs = recipe::texture_dirs(args.textures.as_deref(), image);
+    let mut scene = checked.scene(&dirs)?;
+    let window = recipe.window();
     let s = &scene.settings;
     let total = u64::from(window.width) * u64::from(window.height) * u64::from(s.samples_per_pixel);
     let stop = AtomicBool::new(false);

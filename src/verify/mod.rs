@@ -41,10 +41,37 @@ pub struct Differs {
     pub details: Vec<String>,
 }
 
+/// What is known of an image against its recipe before anything is rendered.
+pub enum Unrendered<'a> {
+    /// It is not what its recipe makes, whatever a render gives: `differs`.
+    Differs(Differs),
+    /// Its recipe checked and its scene parsed: a render decides.
+    Render(Box<recipe::Checked<'a>>),
+}
+
+/// The checks of an image against its recipe that need no render, in the one order that
+/// `tessera info`, `tessera reproduce` and the Python package's `reproduce` take, so that
+/// none says `differs` where another refuses: the recipe's scene parsed and its settings
+/// checked against the recipe's (an error where they are not its scene's: the recipe is not
+/// to be trusted, whatever the image), then the image against the recipe (another size, or
+/// what changes how it is shown: `differs`). Its textures are looked for only to render
+/// (`recipe::Checked::scene`).
+pub fn unrendered<'a>(
+    image: &Path,
+    header: &ImageHeader,
+    recipe: &'a Recipe,
+) -> Result<Unrendered<'a>> {
+    let checked = recipe.checked(image)?;
+    Ok(match differs_unrendered(image, header, recipe) {
+        Some(differs) => Unrendered::Differs(differs),
+        None => Unrendered::Render(Box::new(checked)),
+    })
+}
+
 /// How an image differs from what its recipe makes, seen before anything is rendered:
 /// another size, or what tessera does not write and what changes how a viewer shows it.
 /// None, and the render decides.
-pub fn differs_unrendered(image: &Path, header: &ImageHeader, recipe: &Recipe) -> Option<Differs> {
+fn differs_unrendered(image: &Path, header: &ImageHeader, recipe: &Recipe) -> Option<Differs> {
     let window = recipe.window();
     if (header.width, header.height) != (window.width, window.height) {
         return Some(Differs {

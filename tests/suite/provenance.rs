@@ -385,6 +385,48 @@ fn info_refuses_a_recipe_whose_settings_its_scene_does_not_give() {
     assert!(out_text(&o).contains("settings   96x64, 4 spp, depth 50, seed 1, gamma 2"));
 }
 
+/// A recipe whose settings its scene does not give, on an image of another size than it
+/// claims: Python's `reproduce` checked the image first and said `differs`, the command line
+/// checked the recipe first and refused it. One function (`verify::unrendered`) checks both
+/// for `info`, `reproduce` and Python, in one order, the recipe first: an error from each.
+#[test]
+fn a_lying_recipe_on_an_image_of_another_size_is_refused_by_each() {
+    let dir = temp_dir("provenance-lying-cropped");
+    let image = small_cover(&dir, "cover.png");
+    let recipe_text = png_recipe_text(&image).unwrap();
+    let (w, h, pixels) = png_pixels(&image);
+    let cropped = (
+        w,
+        h - 1,
+        pixels[..3 * w as usize * (h as usize - 1)].to_vec(),
+    );
+    let written: serde_json::Value = serde_json::from_str(&recipe_text).unwrap();
+    let mut lying = written.clone();
+    lying["image"]["seed"] = serde_json::Value::from(9);
+    write_png(
+        &dir.join("both.png"),
+        &cropped,
+        &[(recipe::KEY, &lying.to_string(), true)],
+    );
+    for args in [
+        &["info", "both.png"][..],
+        &["info", "--json", "both.png"],
+        &["reproduce", "both.png", "-q"],
+    ] {
+        let o = run(args, &dir);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", out_text(&o));
+        assert!(
+            stderr(&o).contains("seed 9, the scene gives 1"),
+            "{args:?}: {}",
+            stderr(&o)
+        );
+    }
+    let header = tessera::image_file::read_header(&dir.join("both.png")).unwrap();
+    let recipe = Recipe::parse(header.recipe.as_deref().unwrap(), Path::new("both.png")).unwrap();
+    let checked = tessera::verify::unrendered(Path::new("both.png"), &header, &recipe);
+    assert!(checked.is_err());
+}
+
 /// Runs `info` and `reproduce` on a PNG whose recipe chunk holds `text` (compressed or
 /// not), expecting a refusal naming `expected`.
 fn assert_refused(dir: &Path, name: &str, text: &str, compressed: bool, expected: &str) {
