@@ -317,8 +317,8 @@ impl Recipe {
     /// with the recipe's overrides checked against the recipe's (`image`), with nothing else
     /// built and no texture file read: a recipe whose scene is not a scene, or gives other
     /// settings than it claims, is refused, naming each setting that differs. `info` and
-    /// `reproduce` both check it, so `info` shows no claim that `reproduce` would refuse;
-    /// the scene is then built from the same parse.
+    /// `reproduce` both check it (`verify::unrendered`), so `info` shows no claim that
+    /// `reproduce` would refuse; the scene is then built from the same parse.
     pub fn checked(&self, image: &Path) -> Result<Checked<'_>> {
         let origin = self.origin(image);
         let described =

@@ -133,6 +133,8 @@ def test_reproduce_checks_the_recipe_before_the_image_as_the_cli_and_info_do(cli
     verdict = tessera.reproduce(tmp_path / "cropped.png")
     assert verdict["verdict"] == "differs", verdict
     assert "x" in verdict["summary"] and "its recipe makes 40x" in verdict["summary"], verdict
+    info = json.loads(cli("info", "--json", tmp_path / "cropped.png").stdout)
+    assert info["differs"]["summary"] == verdict["summary"]
 
 
 def test_reproduce_refuses_what_has_no_recipe(cli, tmp_path):

@@ -12,7 +12,7 @@ use tessera::image_file::ImageHeader;
 use tessera::recipe::{self, Recipe, describe};
 use tessera::record::workload::Workload;
 use tessera::render::{self, RenderOptions};
-use tessera::text::{path_safe, terminal_safe, terminal_safe_lines};
+use tessera::text::{ascii_json, path_safe, terminal_safe, terminal_safe_lines};
 use tessera::verify::{self, Unrendered};
 
 /// `tessera info` as typed.
@@ -65,10 +65,28 @@ pub fn info(args: InfoArgs) -> Result<ExitCode> {
     let (header, recipe) = recipe_of(path)?;
     // What `reproduce` refuses before rendering, `info` does not print as true: a recipe
     // whose settings are not what its own scene gives (exit 2, as reproduce), whatever the
-    // form. Its textures are not looked for: the image may be shown where they are not.
-    recipe.checked(path)?;
+    // form. And where `reproduce` says `differs` without rendering (another size, what
+    // changes how the image is shown), `info` says so too, from the same check. Its
+    // textures are not looked for: the image may be shown where they are not.
+    let differs = match verify::unrendered(path, &header, &recipe)? {
+        Unrendered::Differs(differs) => Some(differs),
+        Unrendered::Render(_) => None,
+    };
     if args.json {
-        out(&format!("{}\n", recipe.to_json()))?;
+        // The recipe as tessera wrote it; where the image is not what it makes, with a
+        // field `differs` (its summary and details), which no recipe has.
+        let mut json = recipe.to_json();
+        if let Some(d) = &differs
+            && json.ends_with('}')
+        {
+            let field = serde_json::json!({"summary": d.summary, "details": d.details});
+            json.pop();
+            json.push_str(&format!(
+                ",\"differs\":{}}}",
+                ascii_json(&field.to_string())
+            ));
+        }
+        out(&format!("{json}\n"))?;
         return Ok(ExitCode::SUCCESS);
     }
     let o = &recipe.overrides;
@@ -121,10 +139,19 @@ pub fn info(args: InfoArgs) -> Result<ExitCode> {
             terminal_safe(&texture.hash, 64)
         ));
     }
-    t.push_str(&format!(
-        "  check      tessera reproduce {}\n",
-        path_safe(path)
-    ));
+    match &differs {
+        // What `reproduce` says of it without rendering.
+        Some(d) => {
+            t.push_str(&format!("  differs    {}\n", d.summary));
+            for line in &d.details {
+                t.push_str(&format!("             {line}\n"));
+            }
+        }
+        None => t.push_str(&format!(
+            "  check      tessera reproduce {}\n",
+            path_safe(path)
+        )),
+    }
     t.push_str(&format!(
         "--- {} ---\n",
         terminal_safe(&recipe.scene.name, 80)

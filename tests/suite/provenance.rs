@@ -385,6 +385,52 @@ fn info_refuses_a_recipe_whose_settings_its_scene_does_not_give() {
     assert!(out_text(&o).contains("settings   96x64, 4 spp, depth 50, seed 1, gamma 2"));
 }
 
+/// `reproduce` says `differs` without rendering where an image is of another size than its
+/// recipe makes (or holds what changes how it is shown), and `info` printed such an image's
+/// recipe as any other's, with no word of it. It says so now, in a line and in a field
+/// `differs` of its JSON, from the check `reproduce` makes (`verify::unrendered`).
+#[test]
+fn info_says_differs_where_reproduce_says_it_without_rendering() {
+    let dir = temp_dir("provenance-info-differs");
+    let image = small_cover(&dir, "cover.png");
+    let recipe_text = png_recipe_text(&image).unwrap();
+    let (w, h, pixels) = png_pixels(&image);
+    let cropped = (
+        w,
+        h - 1,
+        pixels[..3 * w as usize * (h as usize - 1)].to_vec(),
+    );
+    write_png(
+        &dir.join("cropped.png"),
+        &cropped,
+        &[(recipe::KEY, &recipe_text, true)],
+    );
+    let said = "cropped.png is 96x63, its recipe makes 96x64";
+    let o = run(&["info", "cropped.png"], &dir);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let info = out_text(&o);
+    assert!(info.contains(&format!("\n  differs    {said}\n")), "{info}");
+    assert!(!info.contains("check      tessera reproduce"), "{info}");
+    let o = run(&["info", "--json", "cropped.png"], &dir);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(json["differs"]["summary"], said);
+    assert_eq!(json["differs"]["details"], serde_json::json!([]));
+    let written: serde_json::Value = serde_json::from_str(&recipe_text).unwrap();
+    assert_eq!(json["sums"], written["sums"]);
+    let o = reproduce(&dir.join("cropped.png"), &dir);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let text = out_text(&o);
+    assert!(
+        text.starts_with("differs: ") && text.ends_with(&format!("/{said}\n")),
+        "{text}"
+    );
+    // The image whole: no `differs`, and the JSON is the recipe as written.
+    let o = run(&["info", "--json", "cover.png"], &dir);
+    let parsed = Recipe::parse(out_text(&o).trim(), Path::new("x")).unwrap();
+    assert_eq!(parsed.sums, written["sums"].as_str().unwrap());
+}
+
 /// A recipe whose settings its scene does not give, on an image of another size than it
 /// claims: Python's `reproduce` checked the image first and said `differs`, the command line
 /// checked the recipe first and refused it. One function (`verify::unrendered`) checks both
