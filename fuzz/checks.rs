@@ -509,7 +509,9 @@ fn imported(accepted: &BenchResult) -> Result<(), String> {
     if runs.len() != 1 {
         return Err(format!("one result added, {} runs listed", runs.len()));
     }
-    let kept = (db.results_json()).map_err(|e| format!("results unread: {e:#}"))?;
+    let kept: Vec<String> = (db.result_ids())
+        .and_then(|ids| ids.iter().map(|&id| db.result_json(id)).collect())
+        .map_err(|e| format!("results unread: {e:#}"))?;
     let written = serde_json::to_string(accepted).map_err(|e| e.to_string())?;
     if kept != [written] {
         return Err(format!("the database gives back {kept:?}"));

@@ -2079,3 +2079,73 @@ fn a_database_whose_text_no_import_takes_is_refused_naming_the_run_and_column() 
         }
     }
 }
+
+/// `results ARGS` on `db` with its address space capped at `mib` MiB (`ulimit -v`): a
+/// command that reads what a database holds before it checks its length runs out there,
+/// where a large machine would only slow down.
+fn results_capped(dir: &Path, db: &Path, args: &[&str], mib: u64) -> Output {
+    let quoted: Vec<String> = args.iter().map(|a| format!("'{a}'")).collect();
+    Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -v {}; exec '{}' results {}",
+            mib << 10,
+            env!("CARGO_BIN_EXE_tessera"),
+            quoted.join(" ")
+        ))
+        .env("TESSERA_DB", db)
+        .current_dir(dir)
+        .output()
+        .unwrap()
+}
+
+/// A database whose one result held 300 MB of text: `results export` read every result
+/// whole, and built the export whole, before it checked any, and refused it as larger than
+/// 1024 KiB after 1.77 GB and 11 s. A result's length is read first, from its record, and
+/// one longer than any import keeps is refused unread, naming the run; the export is
+/// written a result at a time, after every result is checked, so a bad result after good
+/// ones still writes nothing. Here 40 MB, in 128 MiB of address space: "out of memory"
+/// before.
+#[test]
+fn a_result_longer_than_any_import_keeps_is_refused_unread() {
+    let dir = temp_dir("results-long-result");
+    let (db, _) = database_of_one_run(&dir);
+    let conn = rusqlite::Connection::open(&db).unwrap();
+    conn.execute("UPDATE runs SET result = hex(zeroblob(20000000))", [])
+        .unwrap();
+    drop(conn);
+    let o = results_capped(&dir, &db, &["export", "--jsonl"], 128);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("r.db: run 1: result is 40000000 bytes, more than any result tessera keeps"),
+        "{err}"
+    );
+    assert!(o.stdout.is_empty());
+
+    // A good result, then one that is not JSON: nothing is written.
+    let two = dir.join("two.db");
+    let v = json(&root().join("fuzz/corpus/result/quick-scaling.json"));
+    write_json(&dir.join("q.json"), &v);
+    let o = results(&dir, &two, &["import", "quick.json", "q.json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = results(&dir, &two, &["export", "--jsonl"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(stdout(&o).lines().count(), 2);
+    let conn = rusqlite::Connection::open(&two).unwrap();
+    conn.execute(
+        "UPDATE runs SET result = '{not json' WHERE id =
+         (SELECT id FROM runs ORDER BY started_unix_s DESC, id DESC LIMIT 1)",
+        [],
+    )
+    .unwrap();
+    drop(conn);
+    let o = results(&dir, &two, &["export", "--jsonl"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("result 2 (oldest first) is not one line of JSON"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(o.stdout.is_empty(), "{}", stdout(&o));
+}

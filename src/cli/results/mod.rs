@@ -555,39 +555,48 @@ fn report(path: &Path, output: &Path, workload: Option<&str>, all: bool) -> Resu
 
 /// `results export --jsonl`: every result, oldest first. A database tessera did not write may
 /// hold a result that is not JSON, JSON over several lines, or JSON that is no result, which
-/// would make lines that are not results: it is refused, and nothing is written.
+/// would make lines that are not results: it is refused, and nothing is written. Every
+/// result is checked before any is written, and then each is read again and written as it
+/// comes, in the same read of the database: memory follows one result (at most
+/// `MAX_FILE` bytes), not the export, whatever the number of runs.
 fn export(path: &Path) -> Result<()> {
     let db = ResultsDb::open_to_read(path)?;
-    let mut text = String::new();
-    for (n, json) in db.results_json()?.iter().enumerate() {
-        let not = if json.contains(['\n', '\r']) {
-            Some("it spans lines".to_owned())
-        } else {
-            serde_json::from_str::<serde::de::IgnoredAny>(json)
-                .err()
-                .map(|e| format!("not JSON: {e}"))
-        };
-        if let Some(not) = not {
-            bail!(
-                "{}: result {} (oldest first) is not one line of JSON ({not}); tessera writes \
-                 none such: nothing exported",
-                path.display(),
-                n + 1
-            );
+    db.as_one_read(|db| {
+        let ids = db.result_ids()?;
+        for (n, &id) in ids.iter().enumerate() {
+            let json = db.result_json(id)?;
+            let not = if json.contains(['\n', '\r']) {
+                Some("it spans lines".to_owned())
+            } else {
+                serde_json::from_str::<serde::de::IgnoredAny>(&json)
+                    .err()
+                    .map(|e| format!("not JSON: {e}"))
+            };
+            if let Some(not) = not {
+                bail!(
+                    "{}: result {} (oldest first) is not one line of JSON ({not}); tessera \
+                     writes none such: nothing exported",
+                    path.display(),
+                    n + 1
+                );
+            }
+            // A line of JSON that no import takes would make an export that does not import.
+            if let Err(why) = BenchResult::parse(json.as_bytes(), "it") {
+                bail!(
+                    "{}: result {} (oldest first) is not a result an import takes ({why:#}); \
+                     tessera writes none such: nothing exported",
+                    path.display(),
+                    n + 1
+                );
+            }
         }
-        // A line of JSON that no import takes would make an export that does not import.
-        if let Err(why) = BenchResult::parse(json.as_bytes(), "it") {
-            bail!(
-                "{}: result {} (oldest first) is not a result an import takes ({why:#}); \
-                 tessera writes none such: nothing exported",
-                path.display(),
-                n + 1
-            );
+        for id in ids {
+            let mut line = tessera::text::ascii_json(&db.result_json(id)?);
+            line.push('\n');
+            out(&line)?;
         }
-        text.push_str(&tessera::text::ascii_json(json));
-        text.push('\n');
-    }
-    out(&text)
+        Ok(())
+    })
 }
 
 /// The runs `what` names, and whether it names one run: `run:N` or a number (one run),

@@ -12,7 +12,9 @@
 
 mod file;
 
-use super::result::{BenchResult, MAX_SAMPLES_PER_SEC, MAX_TEXT, MAX_THREADS, MIN_SAMPLES_PER_SEC};
+use super::result::{
+    BenchResult, MAX_FILE, MAX_SAMPLES_PER_SEC, MAX_TEXT, MAX_THREADS, MIN_SAMPLES_PER_SEC,
+};
 use anyhow::{Context, Result, anyhow, bail};
 use file::{
     cannot_open_wal_files, create, immutable_there, open_immutable, recognise,
@@ -73,6 +75,13 @@ const MIGRATIONS: &[&str] = &[
     // 3: tessera's application_id (APPLICATION_ID, "TSRA"), which says whose the file is.
     "PRAGMA application_id = 1414746689;",
 ];
+
+/// The most bytes a run's stored result may hold to be read at all. An import keeps a result
+/// of at most `MAX_FILE` bytes of UTF-8 (`BenchResult::parse`), which is at most twice as
+/// many in UTF-16, the other encoding an SQLite database may have; a longer one is refused
+/// by its length alone, before its text is read. One within it is read and then held to
+/// `MAX_FILE` as an import holds it.
+const MAX_RESULT_BYTES: i64 = 2 * MAX_FILE as i64;
 
 /// The schema version this build makes and reads.
 pub const SCHEMA_VERSION: i64 = MIGRATIONS.len() as i64;
@@ -609,25 +618,54 @@ impl ResultsDb {
         Ok(n as usize)
     }
 
-    /// Run `id`'s result JSON, as it was recorded.
+    /// Run `id`'s result JSON, as it was recorded. Its length is read first, from the
+    /// record, without its text: one of more than `MAX_RESULT_BYTES` is refused unread. A
+    /// database of 300 MB in one result made `results export` take 1.77 GB and 11 s before
+    /// it refused the result as larger than 1024 KiB.
     pub fn result_json(&self, id: i64) -> Result<String> {
-        let mut stmt = self.conn.prepare("SELECT result FROM runs WHERE id = ?1")?;
-        let json = stmt.query_row([id], |r| r.get(0));
-        json.map_err(|e| self.unreadable(Some(id), &stmt, e))
+        // `octet_length` of a column reads the length the record gives, not the text.
+        let mut stmt = self.conn.prepare(
+            "SELECT octet_length(result),
+                    CASE WHEN octet_length(result) <= ?2 THEN result END AS result
+             FROM runs WHERE id = ?1",
+        )?;
+        let read = stmt.query_row(params![id, MAX_RESULT_BYTES], |r| {
+            Ok((r.get::<_, Option<i64>>(0)?, r.get::<_, Option<String>>(1)?))
+        });
+        match read.map_err(|e| self.unreadable(Some(id), &stmt, e))? {
+            (_, Some(json)) => Ok(json),
+            (bytes, None) => bail!(self.unsound(
+                id,
+                format!(
+                    "result is {} bytes, more than any result tessera keeps ({} KiB)",
+                    bytes.unwrap_or(0),
+                    MAX_FILE >> 10
+                )
+            )),
+        }
     }
 
-    /// Every run's result JSON, oldest first.
-    pub fn results_json(&self) -> Result<Vec<String>> {
+    /// Every run's id, its result's oldest first: `result_json` reads each, one at a time,
+    /// so that memory follows one result, not the database.
+    pub fn result_ids(&self) -> Result<Vec<i64>> {
         let mut stmt = self
             .conn
-            .prepare("SELECT result, id FROM runs ORDER BY started_unix_s, id")?;
-        let reading = std::cell::Cell::new(None);
-        let rows = stmt.query_map([], |r| {
-            reading.set(r.get(1).ok());
-            r.get(0)
-        })?;
-        (rows.collect::<rusqlite::Result<Vec<_>>>())
-            .map_err(|e| self.unreadable(reading.get(), &stmt, e))
+            .prepare("SELECT id FROM runs ORDER BY started_unix_s, id")?;
+        let rows = stmt.query_map([], |r| r.get(0))?;
+        (rows.collect::<rusqlite::Result<Vec<i64>>>()).map_err(|e| self.unreadable(None, &stmt, e))
+    }
+
+    /// Runs `read` in one read transaction: every query it makes sees the database as it was
+    /// at the first, whatever another process writes meanwhile (an export that checks every
+    /// result before it writes any, and then writes them, writes the results it checked).
+    pub fn as_one_read<R>(&self, read: impl FnOnce(&Self) -> Result<R>) -> Result<R> {
+        let started = Instant::now();
+        let snapshot = (self.conn.unchecked_transaction())
+            .map_err(|e| self.error(e, "could not read it", started))?;
+        let done = read(self);
+        // Nothing was written: the transaction ends with a rollback.
+        drop(snapshot);
+        done
     }
 }
 
