@@ -2149,3 +2149,39 @@ fn a_result_longer_than_any_import_keeps_is_refused_unread() {
     );
     assert!(o.stdout.is_empty(), "{}", stdout(&o));
 }
+
+/// A run's text column of 300 MB (a CPU model, a machine id) took 1.2 GB, four times its
+/// length, before `list` or `rank` refused it as longer than 256 characters: the text, its
+/// copy, and for `--machine` SQLite's `lower` of it. Each text's length is read first, from
+/// its record, and one longer than any import takes is refused unread, whatever the filter.
+/// Here 40 MB, in 128 MiB of address space: "out of memory" before.
+#[test]
+fn a_run_s_text_longer_than_any_import_takes_is_refused_unread() {
+    let dir = temp_dir("results-long-text-unread");
+    let (db, _) = database_of_one_run(&dir);
+    for column in ["cpu_model", "machine_id", "workload"] {
+        let long = dir.join(format!("{column}.db"));
+        std::fs::copy(&db, &long).unwrap();
+        let conn = rusqlite::Connection::open(&long).unwrap();
+        let sql = format!("UPDATE runs SET {column} = hex(zeroblob(20000000))");
+        conn.execute(&sql, []).unwrap();
+        drop(conn);
+        for args in [
+            &["list"][..],
+            &["list", "--machine", "epyc"],
+            &["list", "--workload", "quick"],
+            &["rank"],
+            &["history"],
+        ] {
+            let o = results_capped(&dir, &long, args, 128);
+            let err = stderr(&o);
+            assert_eq!(o.status.code(), Some(2), "{column} {args:?}: {err}");
+            assert!(
+                err.contains(&format!(
+                    "{column}.db: run 1: {column} is longer than 256 characters"
+                )),
+                "{column} {args:?}: {err}"
+            );
+        }
+    }
+}

@@ -83,6 +83,23 @@ const MIGRATIONS: &[&str] = &[
 /// `MAX_FILE` as an import holds it.
 const MAX_RESULT_BYTES: i64 = 2 * MAX_FILE as i64;
 
+/// The text columns of a run that `runs` reads, each of at most `MAX_TEXT` characters as an
+/// import takes them.
+const RUN_TEXTS: [&str; 8] = [
+    "machine_id",
+    "cpu_model",
+    "version",
+    "commit_id",
+    "simd",
+    "workload",
+    "workload_id",
+    "validation",
+];
+
+/// The most bytes a run's text column may hold to be read: `MAX_TEXT` characters are at most
+/// four bytes each, in UTF-8 as in UTF-16. A longer one is refused by its length alone.
+const MAX_TEXT_BYTES: i64 = 4 * MAX_TEXT as i64;
+
 /// The schema version this build makes and reads.
 pub const SCHEMA_VERSION: i64 = MIGRATIONS.len() as i64;
 
@@ -432,17 +449,38 @@ impl ResultsDb {
     pub fn runs(&self, filter: &Filter) -> Result<Vec<Run>> {
         // Schema 1 (read where it could not be updated) knows nothing of busy machines.
         let busy = if self.schema >= 2 { "busy" } else { "0" };
+        // Each text column's length is read from its record (`octet_length`, which reads no
+        // text) before its text: one longer than `MAX_TEXT_BYTES` is read as '' and named
+        // in `too_long`, and such a run passes every filter unread, to be refused. A
+        // machine id of 300 MB took 1.2 GB (the text, SQLite's copy and `lower` of it for
+        // `--machine`) before it was refused as longer than 256 characters.
+        let text = |column: &str| {
+            format!("CASE WHEN octet_length({column}) > ?6 THEN '' ELSE {column} END AS {column}")
+        };
+        let too_long = (RUN_TEXTS.iter())
+            .map(|column| format!("WHEN octet_length({column}) > ?6 THEN '{column}'"))
+            .collect::<Vec<_>>()
+            .join(" ");
         let mut stmt = self.conn.prepare(&format!(
-            "SELECT id, started_unix_s, machine_id, cpu_model, logical_cpus, version, commit_id,
-                    simd, workload, workload_id, threads, sps_median, sps_min, sps_max, validation,
-                    {busy}
+            "SELECT id, started_unix_s, {machine_id}, {cpu_model}, logical_cpus, {version},
+                    {commit_id}, {simd}, {workload}, {workload_id}, threads, sps_median,
+                    sps_min, sps_max, {validation}, {busy}, CASE {too_long} END
              FROM runs
-             WHERE (?1 IS NULL OR workload = ?1)
+             WHERE CASE WHEN (CASE {too_long} END) IS NOT NULL THEN 1 ELSE
+                   (?1 IS NULL OR workload = ?1)
                AND (?2 IS NULL OR machine_id LIKE ?2 || '%' ESCAPE '\\'
                     OR instr(lower(cpu_model), lower(?3)) > 0)
-               AND (?4 IS NULL OR commit_id LIKE ?4 || '%' ESCAPE '\\')
+               AND (?4 IS NULL OR commit_id LIKE ?4 || '%' ESCAPE '\\') END
              ORDER BY started_unix_s DESC, id DESC
-             LIMIT ?5"
+             LIMIT ?5",
+            machine_id = text("machine_id"),
+            cpu_model = text("cpu_model"),
+            version = text("version"),
+            commit_id = text("commit_id"),
+            simd = text("simd"),
+            workload = text("workload"),
+            workload_id = text("workload_id"),
+            validation = text("validation"),
         ))?;
         let like = |s: &Option<String>| {
             s.as_ref().map(|s| {
@@ -460,11 +498,12 @@ impl ResultsDb {
                 like(&filter.machine),
                 filter.machine,
                 like(&filter.commit),
-                limit
+                limit,
+                MAX_TEXT_BYTES
             ],
             |r| {
                 reading.set(r.get(0).ok());
-                Ok(Run {
+                let run = Run {
                     id: r.get(0)?,
                     started_unix_s: r.get(1)?,
                     machine_id: r.get(2)?,
@@ -479,12 +518,14 @@ impl ResultsDb {
                     sps: [r.get(11)?, r.get(12)?, r.get(13)?],
                     validation: r.get(14)?,
                     busy: r.get(15)?,
-                })
+                };
+                Ok((run, r.get::<_, Option<String>>(16)?))
             },
         )?;
-        let runs = (rows.collect::<rusqlite::Result<Vec<Run>>>())
+        let read = (rows.collect::<rusqlite::Result<Vec<(Run, Option<String>)>>>())
             .map_err(|e| self.unreadable(reading.get(), &stmt, e))?;
-        for run in &runs {
+        let mut runs = Vec::with_capacity(read.len());
+        for (run, too_long) in read {
             self.sound(run.id, "", run.threads, run.sps)?;
             if !(1..=MAX_THREADS as i64).contains(&run.logical_cpus) {
                 bail!(self.unsound(
@@ -509,13 +550,16 @@ impl ResultsDb {
                 ("validation", Some(&run.validation)),
             ];
             for (name, text) in texts {
-                if text.is_some_and(|t| t.chars().count() > MAX_TEXT) {
+                if too_long.as_deref() == Some(name)
+                    || text.is_some_and(|t| t.chars().count() > MAX_TEXT)
+                {
                     bail!(self.unsound(
                         run.id,
                         format!("{name} is longer than {MAX_TEXT} characters")
                     ));
                 }
             }
+            runs.push(run);
         }
         Ok(runs)
     }
