@@ -147,6 +147,16 @@ pub struct Validation {
     pub images: Vec<String>,
 }
 
+/// Whether `unix_s` is a time a run took place: from 2020-01-01 to a day from now. tessera
+/// did not exist before, and clocks drift.
+pub fn is_run_time(unix_s: u64) -> bool {
+    const EARLIEST: u64 = 1_577_836_800;
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(u64::MAX, |d| d.as_secs());
+    (EARLIEST..=now.saturating_add(86_400)).contains(&unix_s)
+}
+
 impl BenchResult {
     /// Reads a result file, refusing anything that is not a sound result of a schema this
     /// build reads.
@@ -463,12 +473,8 @@ impl BenchResult {
                 v.status.escape_debug()
             ));
         }
-        // 2020-01-01 to a day from now: tessera did not exist before, and clocks drift.
-        let now = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map_or(u64::MAX, |d| d.as_secs());
         let started = self.method.started_unix_s;
-        if !(1_577_836_800..=now.saturating_add(86_400)).contains(&started) {
+        if !is_run_time(started) {
             return Err(format!(
                 "method.started_unix_s {started} is not a time a run took place"
             ));

@@ -449,6 +449,23 @@ fn a_database_whose_numbers_no_import_takes_is_refused() {
             "UPDATE runs SET sps_median = 5e-324, sps_min = 5e-324, sps_max = 5e-324",
             "sps_median is 5e-324",
         ),
+        // A run dated in the year 292277026596 was the newest of every later one (`latest`,
+        // the workload shown first), and a busy flag of -7 read as busy.
+        (
+            "far-future",
+            "UPDATE runs SET started_unix_s = 9223372036854775807",
+            "started_unix_s is 9223372036854775807, not a time a run took place",
+        ),
+        (
+            "before-tessera",
+            "UPDATE runs SET started_unix_s = -1",
+            "started_unix_s is -1, not a time a run took place",
+        ),
+        (
+            "busy-not-0-or-1",
+            "UPDATE runs SET busy = -7",
+            "busy is -7, not 0 or 1",
+        ),
     ] {
         let db = dir.join(format!("{name}.db"));
         let o = results(&dir, &db, &["import", "q.json"]);

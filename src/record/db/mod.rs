@@ -14,6 +14,7 @@ mod file;
 
 use super::result::{
     BenchResult, MAX_FILE, MAX_SAMPLES_PER_SEC, MAX_TEXT, MAX_THREADS, MIN_SAMPLES_PER_SEC,
+    is_run_time,
 };
 use anyhow::{Context, Result, anyhow, bail};
 use file::{
@@ -517,15 +518,15 @@ impl ResultsDb {
                     threads: r.get(10)?,
                     sps: [r.get(11)?, r.get(12)?, r.get(13)?],
                     validation: r.get(14)?,
-                    busy: r.get(15)?,
+                    busy: r.get::<_, i64>(15)? != 0,
                 };
-                Ok((run, r.get::<_, Option<String>>(16)?))
+                Ok((run, r.get::<_, i64>(15)?, r.get::<_, Option<String>>(16)?))
             },
         )?;
-        let read = (rows.collect::<rusqlite::Result<Vec<(Run, Option<String>)>>>())
+        let read = (rows.collect::<rusqlite::Result<Vec<(Run, i64, Option<String>)>>>())
             .map_err(|e| self.unreadable(reading.get(), &stmt, e))?;
         let mut runs = Vec::with_capacity(read.len());
-        for (run, too_long) in read {
+        for (run, busy, too_long) in read {
             self.sound(run.id, "", run.threads, run.sps)?;
             if !(1..=MAX_THREADS as i64).contains(&run.logical_cpus) {
                 bail!(self.unsound(
@@ -535,6 +536,22 @@ impl ResultsDb {
                         run.logical_cpus
                     )
                 ));
+            }
+            // A run's time orders the runs (`latest`, the workload `rank` shows first, a
+            // history's commits), and a run dated 292277026596 stayed the newest of every
+            // later one; the busy flag is 0 or 1, and -7 was read as busy.
+            if !u64::try_from(run.started_unix_s).is_ok_and(is_run_time) {
+                bail!(self.unsound(
+                    run.id,
+                    format!(
+                        "started_unix_s is {}, not a time a run took place (2020 to a day \
+                         from now)",
+                        run.started_unix_s
+                    )
+                ));
+            }
+            if !(0..=1).contains(&busy) {
+                bail!(self.unsound(run.id, format!("busy is {busy}, not 0 or 1")));
             }
             // Each text an import takes is at most `MAX_TEXT` characters; one of 50,001
             // (a machine id) failed `history` with SQLite's "LIKE or GLOB pattern too
