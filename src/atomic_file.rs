@@ -87,10 +87,12 @@ pub fn directory_named(dir: &Path) -> String {
 /// outlived a process ended then: SIGTERM, Ctrl-C or a second Ctrl-C during the seconds a
 /// large image takes to write left a hidden `.NAME.XXXXXX.tmp` of hundreds of megabytes
 /// beside the output, one more at each stop. A file with no name goes with the process.
+/// It is opened to read too, so that it can be copied to a named file where it cannot be
+/// named itself once written (`copied_beside`).
 fn unnamed_beside(path: &Path) -> Option<std::fs::File> {
     use rustix::fs::{CWD, Mode, OFlags, openat};
     let open = || {
-        let flags = OFlags::TMPFILE | OFlags::WRONLY | OFlags::CLOEXEC;
+        let flags = OFlags::TMPFILE | OFlags::RDWR | OFlags::CLOEXEC;
         openat(CWD, directory_of(path), flags, Mode::from(0o666)).map(std::fs::File::from)
     };
     // Another such file is named and removed first: once written, a file that cannot be
@@ -122,6 +124,25 @@ fn name_beside(path: &Path, file: &std::fs::File) -> std::io::Result<tempfile::T
         .map_err(|e| without_temporary_name(e, &dir))?;
     Ok(named.into_temp_path())
 }
+
+/// `file`, made by `unnamed_beside(path)` and written whole, copied to a new temporary file
+/// beside `path` (`temporary_beside`) and synced: the second way to a name where the link
+/// (`name_beside`) fails once the file is written. The link once was the only way: where it
+/// failed (the directory moved to another file system while the file was written, "Invalid
+/// cross-device link", or a link count or quota reached), the finished image went with the
+/// unnamed file, a render of minutes lost for a failure a new file survives.
+fn copied_beside(path: &Path, file: &mut std::fs::File) -> std::io::Result<tempfile::TempPath> {
+    use std::io::Seek;
+    file.seek(std::io::SeekFrom::Start(0))?;
+    let mut copy = temporary_beside(path)?;
+    std::io::copy(file, copy.as_file_mut())?;
+    copy.as_file().sync_all()?;
+    Ok(copy.into_temp_path())
+}
+
+/// How a file made by `unnamed_beside` is given its temporary name: `name_beside`, but for
+/// tests that make the link fail.
+type Link = fn(&Path, &std::fs::File) -> std::io::Result<tempfile::TempPath>;
 
 /// Refuses a path no file can be renamed to, before anything is written: one that ends in
 /// `/` or `/.` (a directory's form: `Path::file_name` reads `x.png/` as `x.png`, and the
@@ -280,7 +301,7 @@ pub fn write_atomically_with(
     path: &Path,
     write: &mut dyn FnMut(&mut dyn Write) -> std::io::Result<()>,
 ) -> Result<()> {
-    write_whole(path, write, false)
+    write_whole(path, write, false, name_beside)
 }
 
 /// `write_atomically_with` of a result that took work to make (a render's image or part):
@@ -293,15 +314,17 @@ pub fn write_result_atomically_with(
     path: &Path,
     write: &mut dyn FnMut(&mut dyn Write) -> std::io::Result<()>,
 ) -> Result<()> {
-    write_whole(path, write, true)
+    write_whole(path, write, true, name_beside)
 }
 
 /// `write_atomically_with`, keeping the finished temporary file where the rename fails if
-/// `keep`.
+/// `keep`; a file written with no name is named by `link` (`name_beside`), or else copied to
+/// a named one (`copied_beside`).
 fn write_whole(
     path: &Path,
     write: &mut dyn FnMut(&mut dyn Write) -> std::io::Result<()>,
     keep: bool,
+    link: Link,
 ) -> Result<()> {
     let io = |cause| Error::Io {
         path: path.to_owned(),
@@ -333,13 +356,21 @@ fn write_whole(
     let mut out = std::io::BufWriter::with_capacity(1 << 16, file);
     // On any error from here on, dropping the temporary file (or its name) removes it.
     write(&mut out).map_err(io)?;
-    let file = out
+    let mut file = out
         .into_inner()
         .map_err(|e| io(std::io::IntoInnerError::into_error(e)))?;
     file.sync_all().map_err(io)?;
     let tmp = match named {
         Some(name) => name,
-        None => name_beside(path, &file).map_err(io)?,
+        None => match link(path, &file) {
+            Ok(name) => name,
+            Err(unlinked) => copied_beside(path, &mut file).map_err(|e| {
+                io(std::io::Error::new(
+                    e.kind(),
+                    format!("{e}; the finished file could not be named either: {unlinked}"),
+                ))
+            })?,
+        },
     };
     let (why, tmp) = match refused {
         Some(why) => (why, tmp),
@@ -564,6 +595,7 @@ mod tests {
                     out.write_all(b" and the rest")
                 },
                 keep,
+                name_beside,
             )
             .unwrap();
             assert_eq!(seen, ["out.png"], "while written");
@@ -576,6 +608,30 @@ mod tests {
             let umask = status.lines().find_map(|l| l.strip_prefix("Umask:"));
             let umask = u32::from_str_radix(umask.unwrap().trim(), 8).unwrap();
             assert_eq!(mode, 0o666 & !umask, "the umask's permissions");
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// Where the file written with no name cannot be named once whole (the link fails:
+    /// "Invalid cross-device link" where the directory moved to another file system, a link
+    /// count or quota reached), it is copied to a named file and put in place. The work once
+    /// went with the unnamed file: `strace -e inject=linkat:error=EXDEV:when=2 tessera render
+    /// … -o out.png` ended in exit 2 and no file.
+    #[test]
+    fn a_written_file_that_cannot_be_linked_is_copied_into_place() {
+        let dir = std::env::temp_dir().join(format!("tessera-unlinked-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("out.png");
+        let fail: Link = |_, _| Err(std::io::Error::from_raw_os_error(libc::EXDEV));
+        for keep in [false, true] {
+            write_whole(&p, &mut |out| out.write_all(b"finished"), keep, fail).unwrap();
+            assert_eq!(std::fs::read(&p).unwrap(), b"finished");
+            assert_eq!(
+                std::fs::read_dir(&dir).unwrap().count(),
+                1,
+                "no temporary left"
+            );
+            std::fs::remove_file(&p).unwrap();
         }
         std::fs::remove_dir_all(&dir).unwrap();
     }
