@@ -260,6 +260,19 @@ fn refuse_unreplaceable(path: &Path) -> std::io::Result<()> {
     )))
 }
 
+/// What is wrong with the output `path`, a directory: the name itself, or a symbolic link to
+/// one. A link said only "is a directory", which the name (`out.png`, a link) is not.
+fn a_directory(path: &Path) -> String {
+    match std::fs::read_link(path) {
+        Ok(target) => format!(
+            "is a symbolic link to a directory ({}), not a file name; name a file in that \
+             directory, or another name",
+            crate::text::path_safe(&target)
+        ),
+        Err(_) => "is a directory, not a file name".to_owned(),
+    }
+}
+
 /// Checks, before any work is spent on it, that `write_atomically` can write `path`: its
 /// directory exists and takes a new file, and `path` is not a directory (nor another user's
 /// pipe, nor a socket, nor a file this user may not replace).
@@ -271,7 +284,7 @@ pub fn check_writable(path: &Path) -> Result<()> {
     if path.is_dir() {
         return Err(io(std::io::Error::new(
             std::io::ErrorKind::IsADirectory,
-            "is a directory, not a file name",
+            a_directory(path),
         )));
     }
     if is_special(path) {
@@ -633,6 +646,28 @@ mod tests {
             );
             std::fs::remove_file(&p).unwrap();
         }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// An output named by a symbolic link to a directory is refused as that, not as "a
+    /// directory": `ln -s real.png link.png; tessera render -o link.png` said "link.png: is a
+    /// directory, not a file name".
+    #[test]
+    fn a_link_to_a_directory_at_the_output_is_said_to_be_one() {
+        let dir = std::env::temp_dir().join(format!("tessera-dirlink-{}", std::process::id()));
+        std::fs::create_dir_all(dir.join("real.png")).unwrap();
+        std::os::unix::fs::symlink("real.png", dir.join("link.png")).unwrap();
+        let said = check_writable(&dir.join("link.png"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            said.contains("is a symbolic link to a directory (real.png)"),
+            "{said}"
+        );
+        let said = check_writable(&dir.join("real.png"))
+            .unwrap_err()
+            .to_string();
+        assert!(said.contains(": is a directory, not a file name"), "{said}");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }
