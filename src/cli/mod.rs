@@ -67,6 +67,12 @@ struct NoResults {
 /// Runs the command line: parses it, runs the command and turns its outcome into the exit
 /// status (0 done, 1 a negative verdict, 2 an error, 130 interrupted).
 pub fn main() -> ExitCode {
+    if let Err(e) = file_size_limit_is_an_error() {
+        output::note(format_args!(
+            "tessera: warning: a file past the file size limit (ulimit -f) will end tessera \
+             with no word of which file: {e}"
+        ));
+    }
     let command = match parse() {
         Ok(command) => command,
         Err(code) => return code,
@@ -87,6 +93,18 @@ pub fn main() -> ExitCode {
         )),
     };
     output::exit_code(outcome)
+}
+
+/// Makes a write past the file size limit (`ulimit -f`, a quota of a batch system) fail
+/// with "File too large", an error said and handled as a full disk is: the old file at the
+/// output kept, exit 2 with the file named. By default the kernel's SIGXFSZ ended the
+/// process at the first such write, with no word from tessera (the shell's "File size limit
+/// exceeded", exit 153), from `render`, `merge` and `bench --out` alike. A signal that is
+/// handled, as this one now is (by setting a flag nobody reads), makes the write return the
+/// error instead.
+fn file_size_limit_is_an_error() -> std::io::Result<()> {
+    let ignored = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    signal_hook::flag::register(signal_hook::consts::SIGXFSZ, ignored).map(drop)
 }
 
 /// The command line parsed, or the exit code of the help, version or usage error printed.

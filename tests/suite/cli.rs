@@ -4,7 +4,7 @@
 
 use crate::common::*;
 use std::path::Path;
-use std::process::{Output, Stdio};
+use std::process::{Command, Output, Stdio};
 
 #[test]
 fn thread_counts_give_identical_files_in_every_format() {
@@ -422,6 +422,44 @@ fn output_that_cannot_be_written_is_an_error_not_a_crash() {
         std::fs::read(dir.join("b.png")).unwrap(),
         std::fs::read(dir.join("a.png")).unwrap()
     );
+}
+
+/// A write past the file size limit (`ulimit -f`) is an error said as a full disk's is, the
+/// old file at the output left as it was: the kernel's SIGXFSZ once ended tessera there with
+/// no word of its own ("File size limit exceeded", exit 153 in the shell).
+#[test]
+fn an_output_past_the_file_size_limit_is_an_error_not_a_killed_process() {
+    let dir = dir_with_scene("file-size-limit", GOOD);
+    ok(&["render", "scene.toml", "-o", "a.png", "-q"], &dir);
+    let old = std::fs::read(dir.join("a.png")).unwrap();
+    for args in [
+        &["render", "scene.toml", "-o", "a.png", "-q"][..],
+        &[
+            "render",
+            "scene.toml",
+            "--shard",
+            "0/1",
+            "-o",
+            "a.part",
+            "-q",
+        ],
+    ] {
+        let o = Command::new("sh")
+            .args(["-c", "ulimit -f 0 && exec \"$0\" \"$@\""])
+            .arg(env!("CARGO_BIN_EXE_tessera"))
+            .args(args)
+            .current_dir(&dir)
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {o:?}");
+        assert!(
+            stderr(&o).contains("File too large"),
+            "{args:?}: {}",
+            stderr(&o)
+        );
+    }
+    assert_eq!(std::fs::read(dir.join("a.png")).unwrap(), old);
+    assert!(!dir.join("a.part").exists());
 }
 
 /// An output in the current directory, where it cannot be written, is refused naming that
