@@ -172,9 +172,18 @@ impl Part {
     /// samples than `job` asks for (which may be more than the part has: progressive
     /// rendering).
     pub fn resume(self, scene: &Scene, job: Job, path: &Path) -> Result<JobState> {
-        self.check_scene(scene, path)?;
+        self.check_resumes(scene, job, path)?;
         let mut state = self.state;
-        let had = state.job;
+        state.extend_to(job.samples.end);
+        Ok(state)
+    }
+
+    /// Refuses this part, a checkpoint's header, as the state to go on rendering `job` of
+    /// `scene` from (`resume`); the header alone says, so a checkpoint of another render is
+    /// refused before its sums are read (`Part::load_checkpoint`).
+    pub fn check_resumes(&self, scene: &Scene, job: Job, path: &Path) -> Result<()> {
+        self.check_scene(scene, path)?;
+        let had = self.state.job;
         let describe = |j: Job| {
             let r = j.region;
             format!(
@@ -201,8 +210,7 @@ impl Part {
                 ),
             ));
         }
-        state.extend_to(job.samples.end);
-        Ok(state)
+        Ok(())
     }
 }
 

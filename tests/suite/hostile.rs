@@ -2112,6 +2112,43 @@ fn a_part_of_no_samples_or_more_than_its_image_has_is_refused() {
     assert!(o.status.success(), "{}", stderr(&o));
 }
 
+/// A checkpoint's header is checked against the render before its sums are read: a header
+/// may claim an image of up to 2^28 pixels (6 GiB of sums) on a sparse file of a few KiB, and
+/// one of another render was read whole first, then refused (a sparse 1.6 GB checkpoint
+/// claiming 8192x8192 pixels, given to a 32x18 render: 9 s and 1.5 GB of memory). Here the
+/// sums of a checkpoint of a render 24 pixels wide are corrupt: a render 32 wide is refused
+/// for its size, which the header says, not for its sums, which only reading them finds.
+#[test]
+fn a_checkpoint_of_another_render_is_refused_before_its_sums_are_read() {
+    let dir = temp_dir("hostile-checkpoint-header-first");
+    let cover = cover();
+    let render = |width: &str| {
+        let args = ["--spp", "2", "--checkpoint", "ck.part", "-o", "out.png"];
+        run(
+            &[&["render", &cover, "-q", "--width", width][..], &args].concat(),
+            &dir,
+        )
+    };
+    let o = render("24");
+    assert!(o.status.success(), "{}", stderr(&o));
+    let ck = dir.join("ck.part");
+    let mut bytes = std::fs::read(&ck).unwrap();
+    // The last sum's last byte: the checksum after it no longer holds.
+    let last = bytes.len() - 9;
+    bytes[last] ^= 0xff;
+    std::fs::write(&ck, &bytes).unwrap();
+    refused(
+        &render("32"),
+        "ck.part: was rendered with a different image size",
+        "a checkpoint of another size, its sums corrupt",
+    );
+    assert_eq!(
+        std::fs::read(&ck).unwrap(),
+        bytes,
+        "the checkpoint was changed"
+    );
+}
+
 /// A render takes a checkpoint's finished tiles as they are, so whoever wrote the file chose
 /// those pixels. In a directory others may write to (`/tmp`), another user could leave a
 /// checkpoint of the same scene, with sums of their choosing, under the name a render uses:

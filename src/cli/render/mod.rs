@@ -401,7 +401,7 @@ fn about(
 /// The state saved in checkpoint `path` (a file of this user's), checked against this render
 /// and extended to `job`.
 fn resume(scene: &Scene, path: &Path, job: Job, quiet: bool) -> Result<JobState> {
-    let state = Part::load_own(path)?.resume(scene, job, path)?;
+    let state = Part::load_checkpoint(path, scene, job)?;
     if !quiet {
         note(format_args!(
             "tessera: resuming from {} ({:.1}% done)",
