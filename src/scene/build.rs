@@ -118,7 +118,8 @@ pub(super) fn build(
 
     if let Some(random) = &desc.random_spheres {
         let random = random.get_ref();
-        let generator = cover::RandomSpheres::from_desc(random, settings.seed, &ck)?;
+        let generator =
+            cover::RandomSpheres::from_desc(random, settings.seed, camera.shutter, &ck)?;
         // Where the generated spheres go among the listed ones.
         let listed = desc.spheres.len();
         let at = match &random.after_spheres {

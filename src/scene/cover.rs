@@ -3,7 +3,7 @@
 //! as the book's own program draws them, sphere for sphere (`draws`). *The Next Week* bounces
 //! its diffuse spheres: each moves up between times 0 and 1.
 
-use super::check::Checker;
+use super::check::{Checker, MAX_LENGTH};
 use super::desc::RandomSpheresDesc;
 use super::draws::{DrawSettings, Draws};
 use crate::error::Result;
@@ -34,8 +34,14 @@ pub struct GeneratedSpheres {
 }
 
 impl RandomSpheres {
-    /// The generator `d` describes; its seed defaults to `image_seed`.
-    pub(super) fn from_desc(d: &RandomSpheresDesc, image_seed: u64, ck: &Checker) -> Result<Self> {
+    /// The generator `d` describes, for rays taken within `shutter`; its seed defaults to
+    /// `image_seed`.
+    pub(super) fn from_desc(
+        d: &RandomSpheresDesc,
+        image_seed: u64,
+        shutter: (f32, f32),
+        ck: &Checker,
+    ) -> Result<Self> {
         let draws = DrawSettings::check(
             ck,
             "random_spheres",
@@ -78,13 +84,36 @@ impl RandomSpheres {
             .iter()
             .map(|p| ck.point(p, "random_spheres.keep_clear"))
             .collect::<Result<_>>()?;
+        let radius = ck.radius(&d.radius, "random_spheres.radius", true)?;
         let diffuse_bounce = match &d.diffuse_bounce {
             None => None,
-            Some(b) => Some(ck.range(b, "random_spheres.diffuse_bounce")?),
+            Some(b) => {
+                let (low, high) = ck.range(b, "random_spheres.diffuse_bounce")?;
+                // A sphere rises `rise` from time 0 to 1, and keeps moving so outside: where
+                // the shutter opens and closes its centre must lie within `MAX_LENGTH`, or its
+                // squares overflow and it silently vanishes.
+                let reach = [shutter.0, shutter.1]
+                    .iter()
+                    .flat_map(|&t| [low, high].map(|rise| f64::from(radius) + f64::from(t) * rise))
+                    .fold(0.0, |m: f64, y| m.max(y.abs()));
+                if reach > f64::from(MAX_LENGTH) {
+                    return Err(ck.error(
+                        b.span(),
+                        "random_spheres.diffuse_bounce",
+                        format!(
+                            "moves a sphere's centre to {reach:e} from the ground within the \
+                             shutter [{}, {}]: coordinates must lie within ±{MAX_LENGTH:e} \
+                             (beyond, f32 arithmetic overflows and the sphere would vanish)",
+                            shutter.0, shutter.1
+                        ),
+                    ));
+                }
+                Some((low, high))
+            }
         };
         Ok(Self {
             grid: grid as i32,
-            radius: ck.radius(&d.radius, "random_spheres.radius", true)?,
+            radius,
             keep_clear,
             clearance: ck.length(
                 &d.clearance,

@@ -4,7 +4,7 @@
 //! applied to the primitive itself, so a placed box is six quads like any other).
 
 use super::Primitives;
-use super::check::Checker;
+use super::check::{Checker, MAX_LENGTH};
 use super::desc::{
     self, AxisDesc, BoundaryBoxDesc, BoundarySphereDesc, Exactly, RandomBoxesDesc, SphereCloudDesc,
     Vec3Desc,
@@ -325,7 +325,7 @@ impl Ball<'_> {
         let center = ck.point(self.center, &format!("{field}.center"))?;
         let radius = ck.radius(self.radius, &format!("{field}.radius"), false)?;
         let moved = |c: Vec3| vec3(place.point(f64s(c)));
-        let Some(center2) = self.center2 else {
+        let Some(center2_desc) = self.center2 else {
             if let Some(t) = self.move_times {
                 return Err(ck.error(
                     t.span(),
@@ -335,24 +335,53 @@ impl Ball<'_> {
             }
             return Ok(Shape::Still(Sphere::new(moved(center), radius, material)));
         };
-        let center2 = ck.point(center2, &format!("{field}.center2"))?;
+        let center2 = ck.point(center2_desc, &format!("{field}.center2"))?;
         let (time0, time1) = match self.move_times {
             None => (0.0, 1.0),
             Some(t) => {
                 let (a, b) = ck.range(t, &format!("{field}.move_times"))?;
-                if a == b {
+                // As f32 holds them, as the sphere does: `[0, 1e-50]` is one time there, and
+                // the sphere would stand still where the file asks it to move.
+                if a as f32 == b as f32 {
                     return Err(ck.error(
                         t.span(),
                         &format!("{field}.move_times"),
-                        "the two times must differ",
+                        "the two times must differ (as 32-bit floats hold them)",
                     ));
                 }
                 (a as f32, b as f32)
             }
         };
+        let (start, end) = (moved(center), moved(center2));
+        // Where the moved centre lies when the shutter opens and closes (the farthest any ray
+        // meets it): beyond `MAX_LENGTH` its squares overflow and the sphere silently
+        // vanishes, as it would for a far centre written out.
+        let times = [time0, time1].map(f64::from);
+        let (from, to) = (f64s(start), f64s(end));
+        for (when, at) in [("opens", shutter.0), ("closes", shutter.1)] {
+            let s = (f64::from(at) - times[0]) / (times[1] - times[0]);
+            let reach = (0..3)
+                .map(|k| (from[k] + s * (to[k] - from[k])).abs())
+                .fold(0.0, f64::max);
+            if reach > f64::from(MAX_LENGTH) {
+                let (key, span) = match self.move_times {
+                    Some(t) => ("move_times", t.span()),
+                    None => ("center2", center2_desc.span()),
+                };
+                return Err(ck.error(
+                    span,
+                    &format!("{field}.{key}"),
+                    format!(
+                        "moves the centre to {reach:e} from the origin when the shutter {when} \
+                         (time {at}): coordinates must lie within ±{MAX_LENGTH:e} (beyond, f32 \
+                         arithmetic overflows and the sphere would vanish)"
+                    ),
+                ));
+            }
+        }
         Ok(Shape::Moving(MovingSphere::new(
-            (moved(center), time0),
-            (moved(center2), time1),
+            (start, time0),
+            (end, time1),
             radius,
             material,
             shutter,

@@ -436,3 +436,94 @@ fn a_bad_random_spheres_generator_is_rejected_with_its_line() {
         &["random_spheres.after_spheres"],
     );
 }
+
+/// A moving sphere keeps moving outside its two times: where the shutter opens or closes, a
+/// centre taken past the coordinates' bound squares to infinity and the sphere silently
+/// vanished from the image (`move_times = [0, 1e-30]` under a shutter of [0, 1] rendered
+/// nothing, exit 0). It is refused at the key that moves it so far, as a far centre is.
+#[test]
+fn a_moving_sphere_the_shutter_takes_past_the_bound_is_refused() {
+    const CAMERA: &str = "[camera]\nlookfrom = [0.0, 0.0, 1.0]\nlookat = [0.0, 0.0, -1.0]\n\
+                          vfov_deg = 90.0\n";
+    let moving = |sphere: &str, shutter: &str| {
+        format!(
+            "{}\n{CAMERA}shutter = {shutter}\n",
+            GOOD.replace("radius = 0.5", &format!("radius = 0.5\n{sphere}"))
+        )
+    };
+    assert_rejected(
+        "moving-fast",
+        &moving(
+            "center2 = [1.0, 0.0, -1.0]\nmove_times = [0.0, 1e-30]",
+            "[0.0, 1.0]",
+        ),
+        &[
+            "scene.toml:15:",
+            "spheres[0].move_times",
+            "when the shutter closes",
+            "within ±1e18",
+        ],
+    );
+    assert_rejected(
+        "moving-late",
+        &moving("center2 = [0.0, 10.0, -1.0]", "[0.0, 1e18]"),
+        &[
+            "scene.toml:14:",
+            "spheres[0].center2",
+            "when the shutter closes",
+        ],
+    );
+    assert_rejected(
+        "medium-moving-early",
+        &format!(
+            "{GOOD}\n[materials.fog]\ntype = \"isotropic\"\nalbedo = [1.0, 1.0, 1.0]\n\
+             [[media]]\ndensity = 1.0\nmaterial = \"fog\"\nsphere = {{ center = [0.0, 0.0, 0.0], \
+             radius = 1.0, center2 = [0.0, 1.0, 0.0], move_times = [0.5, 0.5000001] }}\n\
+             {CAMERA}shutter = [-1e18, 0.0]\n"
+        ),
+        &["media[0].sphere.move_times", "when the shutter opens"],
+    );
+    // Two times that 32-bit floats hold as one would make a sphere stand still.
+    assert_rejected(
+        "moving-one-time",
+        &moving(
+            "center2 = [1.0, 0.0, -1.0]\nmove_times = [0.0, 1e-50]",
+            "[0.0, 1.0]",
+        ),
+        &["spheres[0].move_times", "the two times must differ"],
+    );
+    // The book's bouncing spheres under a shutter that takes them past the bound.
+    assert_rejected(
+        "bounce-late",
+        &format!(
+            "{GOOD}\n[random_spheres]\ngrid = 1\ndiffuse_bounce = [0.0, 1e18]\n\n\
+             {CAMERA}shutter = [0.0, 10.0]\n"
+        ),
+        &[
+            "scene.toml:18:",
+            "random_spheres.diffuse_bounce",
+            "within ±1e18",
+        ],
+    );
+    // Within the bound, both render.
+    for (name, text) in [
+        (
+            "moving-within",
+            moving(
+                "center2 = [1.0, 0.0, -1.0]\nmove_times = [0.0, 1e-12]",
+                "[0.0, 1e-6]",
+            ),
+        ),
+        (
+            "bounce-within",
+            format!(
+                "{GOOD}\n[random_spheres]\ngrid = 1\ndiffuse_bounce = [0.0, 1e17]\n\n\
+                 {CAMERA}shutter = [0.0, 1.0]\n"
+            ),
+        ),
+    ] {
+        let dir = dir_with_scene(name, text);
+        let o = run(&["render", "scene.toml", "-o", "out.png", "-q"], &dir);
+        assert!(o.status.success(), "{name}: {}", stderr(&o));
+    }
+}
