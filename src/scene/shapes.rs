@@ -236,6 +236,22 @@ pub(super) fn primitives(
         prims.quads.extend(quads);
         check_quads(ck, &prims, b.max.span(), &field)?;
     }
+    // Every generator's boxes are weighed before any is drawn, as the clouds' spheres are: a
+    // second generator of 100,000 boxes was refused only once its 600,000 quads were built.
+    let mut weighed = held(&prims);
+    for (i, g) in d.random_boxes.iter().enumerate() {
+        let count = &g.get_ref().count;
+        let [nx, nz] = count.get_ref().0;
+        // A count out of its range is refused by `random_boxes`, which says the range.
+        let boxes = if count_ok(nx, nz) { nx * nz } else { 0 };
+        weighed = weighed.saturating_add(6 * boxes as usize);
+        check_held(
+            ck,
+            weighed,
+            count.span(),
+            &format!("random_boxes[{i}].count"),
+        )?;
+    }
     for (i, g) in d.random_boxes.iter().enumerate() {
         let field = format!("random_boxes[{i}]");
         let quads = random_boxes(ck, &field, g, material, file_seed)?;
@@ -463,6 +479,11 @@ fn rect(
     placed_quad(place, corner, u, v, material).ok_or_else(|| too_thin(ck, span, field))
 }
 
+/// Whether `[nx, nz]` is a box generator's count: each from 1 to 1000, at most 100,000 boxes.
+fn count_ok(nx: i64, nz: i64) -> bool {
+    (1..=1000).contains(&nx) && (1..=1000).contains(&nz) && nx * nz <= 100_000
+}
+
 /// The final scene's ground: a grid of boxes whose tops are drawn at random.
 fn random_boxes(
     ck: &Checker,
@@ -475,7 +496,7 @@ fn random_boxes(
     let id = material(&d.material, &format!("{field}.material"))?;
     let corner = ck.point(&d.corner, &format!("{field}.corner"))?;
     let [nx, nz] = d.count.get_ref().0;
-    if !(1..=1000).contains(&nx) || !(1..=1000).contains(&nz) || nx * nz > 100_000 {
+    if !count_ok(nx, nz) {
         return Err(ck.error(
             d.count.span(),
             &format!("{field}.count"),
