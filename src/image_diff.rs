@@ -218,6 +218,20 @@ impl RgbImage {
                                         end marker after its last scan"
                                 .to_owned());
                         }
+                        // The decoder fills what the scans lack, as large as the frame
+                        // claims: too little coded data for its blocks is refused undecoded.
+                        // A frame of more pixels than are compared is refused below, by its
+                        // size.
+                        let frame = segments
+                            .frame
+                            .as_ref()
+                            .or(after.frame.as_ref())
+                            .filter(|f| {
+                                u64::from(f.width) * u64::from(f.height) <= MAX_COMPARED_PIXELS
+                            });
+                        if let Some(why) = frame.and_then(|f| f.too_short(after.coded_bytes)) {
+                            return Err(why);
+                        }
                         if after.scans > 1 {
                             changes.extend(late_adobe_change(&segments, &after.late_adobe));
                         }
@@ -408,6 +422,8 @@ struct JpegSegments {
     components: Option<u8>,
     /// The names (one byte each) of its frame's first three components.
     names: Option<[u8; 3]>,
+    /// Its first frame header of a kind the decoder reads, if it comes before the first scan.
+    frame: Option<crate::jpeg_end::Frame>,
 }
 
 /// The segments of the JPEG `r` is at the start of, up to its first scan (or its first
@@ -478,6 +494,22 @@ fn jpeg_segments<R: std::io::Read + Seek>(
                     }
                     _ => {}
                 }
+                continue;
+            }
+            // The frame header the decoder reads (the first; it refuses a second), whole: the
+            // sampling factors of each component say how many blocks it claims.
+            0xc0..=0xc2 if seen.frame.is_none() => {
+                let mut body = head.to_vec();
+                let more = u64::try_from(rest).unwrap_or(0) - n as u64;
+                r.by_ref().take(more).read_to_end(&mut body)?;
+                if body.len() as u64 != more + n as u64 {
+                    return Err(std::io::ErrorKind::UnexpectedEof.into());
+                }
+                if n >= 6 {
+                    seen.components = Some(head[5]);
+                    seen.names = (n >= 13).then(|| [head[6], head[9], head[12]]);
+                }
+                seen.frame = crate::jpeg_end::Frame::parse(byte[0], &body);
                 continue;
             }
             0xe2 if head.starts_with(b"ICC_PROFILE\0") && n >= 14 => seen.icc += 1,

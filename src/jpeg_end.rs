@@ -1,6 +1,9 @@
 //! Whether a JPEG file ends: its end-of-image marker after its last scan, which the JPEG
-//! decoder does not ask for (it fills what a file cut short lacks with grey), and the Adobe
-//! segments between its scans, which the decoder reads and libjpeg reads past.
+//! decoder does not ask for (it fills what a file cut short lacks with grey), the Adobe
+//! segments between its scans, which the decoder reads and libjpeg reads past, and whether
+//! its scans hold enough coded data for the blocks its frame header claims (the decoder
+//! fills what they lack too: a file of 214 bytes claiming 4096x4096 pixels once decoded,
+//! taking 448 MB).
 
 use std::collections::BTreeSet;
 
@@ -17,16 +20,103 @@ pub struct AfterScan {
     /// Its scans (FF DA) before its first end marker: the decoder converts the colours of a
     /// file of one scan as it reads that scan, of more at their end.
     pub scans: usize,
+    /// The bytes of coded data of its scans before its first end marker: those outside
+    /// segments, an FF stuffed as FF 00 counted once, markers (restarts) and fill bytes not.
+    pub coded_bytes: u64,
+    /// Its first frame header before its first scan, where the walk starts before it (the
+    /// decoder refuses a second one).
+    pub frame: Option<Frame>,
 }
 
-/// Whether the JPEG `r` is at the start of (or, `scanned`, just past its first start of
-/// scan) has an end-of-image marker (FF D9) after its last start of scan (FF DA), read
-/// through once: as `compare` and `scene::textures` ask of a JPEG.
-pub fn ends<R: std::io::Read>(
-    r: &mut std::io::BufReader<R>,
-    scanned: bool,
-) -> std::io::Result<bool> {
-    after_scan(r, scanned).map(|after| after.ends)
+/// The fewest bits of coded data a block of 8x8 samples of one component takes in a
+/// sequential (baseline or extended) JPEG of Huffman coding: a code for its DC difference and
+/// an end-of-block code (or a code for its 63rd coefficient), and no Huffman code is shorter
+/// than one bit. An encoder's flat picture, its tables optimized, takes exactly this.
+pub const MIN_SEQUENTIAL_BITS_PER_BLOCK: u64 = 2;
+
+/// The fewest bits a block of one component takes over all the scans of a progressive JPEG:
+/// its first DC scan codes each block's DC difference in a Huffman code of one bit at least
+/// (its AC scans may code a run of 32,767 empty blocks in one code).
+pub const MIN_PROGRESSIVE_BITS_PER_BLOCK: u64 = 1;
+
+/// A JPEG's frame header (SOF0, SOF1 or SOF2, the ones the decoder reads): the size it
+/// claims and its components' sampling factors.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Frame {
+    pub progressive: bool,
+    pub width: u16,
+    pub height: u16,
+    /// Each component's horizontal and vertical sampling factors.
+    pub sampling: Vec<(u8, u8)>,
+}
+
+/// The most bytes of a frame header's segment that are read: its 6 bytes and 255
+/// components of 3.
+pub const MAX_FRAME_BYTES: usize = 6 + 3 * 255;
+
+impl Frame {
+    /// The frame header of the segment of marker `marker` whose bytes past its length are
+    /// `body`: `None` for another marker, or a header cut short (the decoder's to refuse).
+    pub fn parse(marker: u8, body: &[u8]) -> Option<Frame> {
+        if !(0xc0..=0xc2).contains(&marker) {
+            return None;
+        }
+        let count = usize::from(*body.get(5)?);
+        let sampling = body
+            .get(6..6 + 3 * count)?
+            .chunks_exact(3)
+            .map(|c| (c[1] >> 4, c[1] & 0x0f))
+            .collect();
+        Some(Frame {
+            progressive: marker == 0xc2,
+            height: u16::from_be_bytes([body[1], body[2]]),
+            width: u16::from_be_bytes([body[3], body[4]]),
+            sampling,
+        })
+    }
+
+    /// The blocks of 8x8 samples of all its components: each component's samples are its
+    /// share (its factors over the largest) of the pixels, rounded up, in blocks rounded up.
+    pub fn blocks(&self) -> u64 {
+        let most = |f: fn(&(u8, u8)) -> u8| {
+            u64::from(self.sampling.iter().map(f).max().unwrap_or(1).max(1))
+        };
+        let (h_most, v_most) = (most(|s| s.0), most(|s| s.1));
+        let (w, h) = (u64::from(self.width), u64::from(self.height));
+        self.sampling
+            .iter()
+            .map(|&(hs, vs)| {
+                let cols = (w * u64::from(hs)).div_ceil(h_most).div_ceil(8);
+                let rows = (h * u64::from(vs)).div_ceil(v_most).div_ceil(8);
+                cols * rows
+            })
+            .sum()
+    }
+
+    /// Why `coded_bytes` of coded data cannot hold the blocks it claims, said in words, if
+    /// they cannot: fewer than `MIN_SEQUENTIAL_BITS_PER_BLOCK` (or, progressive,
+    /// `MIN_PROGRESSIVE_BITS_PER_BLOCK`) a block. The decoder fills what the scans lack
+    /// (with grey), as large as the header claims, rather than failing.
+    pub fn too_short(&self, coded_bytes: u64) -> Option<String> {
+        let (bits, kind) = if self.progressive {
+            (MIN_PROGRESSIVE_BITS_PER_BLOCK, "progressive")
+        } else {
+            (MIN_SEQUENTIAL_BITS_PER_BLOCK, "sequential")
+        };
+        let blocks = self.blocks();
+        let least = (blocks * bits).div_ceil(8);
+        (coded_bytes < least).then(|| {
+            format!(
+                "claims {}x{} pixels in {} component(s), {blocks} blocks of 8x8, but its scans \
+                 hold {coded_bytes} bytes of coded data, fewer than the {least} any {kind} \
+                 JPEG of that size takes ({bits} bit(s) a block at least): its pixels are not \
+                 decoded (a truncated or made-up file?)",
+                self.width,
+                self.height,
+                self.sampling.len()
+            )
+        })
+    }
 }
 
 /// What the JPEG `r` is at the start of (or, `scanned`, just past its first start of scan)
@@ -52,6 +142,9 @@ pub fn after_scan<R: std::io::Read>(
     // segment after the first scan, as they come in (its colour transform is the 12th).
     let mut marker = 0u8;
     let mut adobe: Option<([u8; 12], usize)> = None;
+    // The bytes of a frame header before the first scan, as they come in, and the bytes
+    // of its segment left to come.
+    let mut frame: Option<(Vec<u8>, usize)> = None;
     loop {
         let buf = r.fill_buf()?;
         if buf.is_empty() {
@@ -61,6 +154,16 @@ pub fn after_scan<R: std::io::Read>(
         for &b in buf {
             if skip > 0 {
                 skip -= 1;
+                if let Some((body, left)) = &mut frame {
+                    if body.len() < MAX_FRAME_BYTES {
+                        body.push(b);
+                    }
+                    *left -= 1;
+                    if *left == 0 {
+                        after.frame = Frame::parse(marker, body);
+                        frame = None;
+                    }
+                }
                 if let Some((head, n)) = &mut adobe {
                     head[*n] = b;
                     *n += 1;
@@ -81,9 +184,16 @@ pub fn after_scan<R: std::io::Read>(
                         length = None;
                         adobe = (marker == 0xee && scanned && !past_end && skip >= 12)
                             .then_some(([0; 12], 0));
+                        let first_frame = !scanned && after.frame.is_none();
+                        frame = (first_frame && (0xc0..=0xc2).contains(&marker) && skip > 0)
+                            .then(|| (Vec::new(), skip));
                     }
                 }
                 continue;
+            }
+            // Coded data: a byte other than FF, or an FF stuffed as FF 00.
+            if scanned && !past_end && matches!((after_ff, b), (false, 0..=0xfe) | (true, 0)) {
+                after.coded_bytes += 1;
             }
             match (after_ff, b) {
                 // Fill bytes, stuffed data, restarts, TEM and the start of the image.
@@ -107,5 +217,97 @@ pub fn after_scan<R: std::io::Read>(
         }
         let n = buf.len();
         r.consume(n);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A baseline JPEG of `width`x`height` pixels and `components` components (the first
+    /// sampled `sampling`, the others 1x1), whose one scan holds `coded` bytes of data: one
+    /// Huffman code of one bit in each table, so that each block takes two bits.
+    fn thin_jpeg(width: u16, height: u16, components: u8, sampling: u8, coded: &[u8]) -> Vec<u8> {
+        let segment = |marker: u8, body: &[u8]| {
+            let length = (body.len() as u16 + 2).to_be_bytes();
+            [&[0xff, marker][..], &length, body].concat()
+        };
+        let mut frame = vec![8];
+        frame.extend(height.to_be_bytes());
+        frame.extend(width.to_be_bytes());
+        frame.push(components);
+        let mut scan = vec![components];
+        for c in 1..=components {
+            frame.extend([c, if c == 1 { sampling } else { 0x11 }, 0]);
+            scan.extend([c, 0]);
+        }
+        scan.extend([0, 63, 0]);
+        let one_code = |class: u8| [&[class, 1][..], &[0; 15], &[0]].concat();
+        [
+            &[0xff, 0xd8][..],
+            &segment(0xdb, &[&[0][..], &[1; 64]].concat()),
+            &segment(0xc0, &frame),
+            &segment(0xc4, &one_code(0x00)),
+            &segment(0xc4, &one_code(0x10)),
+            &segment(0xda, &scan),
+            coded,
+            &[0xff, 0xd9],
+        ]
+        .concat()
+    }
+
+    fn after(bytes: &[u8]) -> AfterScan {
+        after_scan(&mut std::io::BufReader::new(bytes), false).unwrap()
+    }
+
+    /// A JPEG of 214 bytes claiming 4096x4096 pixels, its scan of 64 bytes, was decoded
+    /// whole (the decoder filled the rest with grey: 448 MB and 0.77 s for `compare`). Its
+    /// frame's blocks and its coded bytes are read on the way to its end, and it is refused
+    /// by them; a flat picture of as many bytes as its blocks take at least is not.
+    #[test]
+    fn coded_data_too_short_for_the_frame_s_blocks_is_refused() {
+        let thin = thin_jpeg(4096, 4096, 3, 0x11, &[0; 64]);
+        assert_eq!(thin.len(), 214);
+        let a = after(&thin);
+        assert!(a.ends);
+        assert_eq!(a.coded_bytes, 64);
+        let frame = a.frame.unwrap();
+        assert_eq!(frame.blocks(), 3 * 512 * 512);
+        let why = frame.too_short(a.coded_bytes).unwrap();
+        assert!(
+            why.starts_with(
+                "claims 4096x4096 pixels in 3 component(s), 786432 blocks of 8x8, but its \
+                 scans hold 64 bytes of coded data, fewer than the 196608"
+            ),
+            "{why}"
+        );
+        // Two bits a block, exactly: a flat picture as an optimizing encoder makes it.
+        let flat = thin_jpeg(4096, 4096, 3, 0x11, &vec![0; 196_608]);
+        let a = after(&flat);
+        assert_eq!(a.frame.unwrap().too_short(a.coded_bytes), None);
+        // 4:2:0 of 17x9 pixels: 3x2 blocks of luma, 2x1 of each chroma; sizes rounded up.
+        let a = after(&thin_jpeg(17, 9, 3, 0x22, &[0; 2]));
+        assert_eq!(a.frame.as_ref().unwrap().blocks(), 6 + 2 + 2);
+        assert!(a.frame.unwrap().too_short(2).is_some());
+        // An FF stuffed as FF 00 is one byte of data; restarts and the fill bytes before one
+        // are none.
+        let a = after(&thin_jpeg(
+            8,
+            8,
+            1,
+            0x11,
+            &[0xff, 0, 0xff, 0xd0, 0xff, 0xff, 0xd1, 7],
+        ));
+        assert_eq!(a.coded_bytes, 2);
+        // A progressive frame takes one bit a block at least.
+        let mut progressive = Frame::parse(0xc2, &[8, 0, 64, 0, 64, 1, 1, 0x11, 0]).unwrap();
+        assert_eq!(progressive.blocks(), 64);
+        assert_eq!(progressive.too_short(8), None);
+        assert!(progressive.too_short(7).is_some());
+        progressive.progressive = false;
+        assert!(progressive.too_short(8).is_some());
+        // A frame the decoder does not read, or cut short, is none.
+        assert_eq!(Frame::parse(0xc3, &[8, 0, 64, 0, 64, 1, 1, 0x11, 0]), None);
+        assert_eq!(Frame::parse(0xc0, &[8, 0, 64, 0, 64, 2, 1, 0x11, 0]), None);
     }
 }

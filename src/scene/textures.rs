@@ -242,11 +242,11 @@ pub fn decode(bytes: &[u8], pixels_left: u64) -> Result<ImageTexture, String> {
     let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()
         .map_err(|e| e.to_string())?;
+    // A JPEG's frame header and coded data, checked against each other once its size is.
+    let mut jpeg = None;
     match reader.format() {
         None => return Err("is not an image tessera reads (PNG, JPEG, PPM or EXR)".into()),
-        Some(image::ImageFormat::Jpeg) if !jpeg_ends(bytes) => {
-            return Err("is a JPEG that ends before its image does (a truncated file?)".into());
-        }
+        Some(image::ImageFormat::Jpeg) => jpeg = Some(jpeg_after_scan(bytes)?),
         // The PNG decoder keeps every text chunk before the pixels, whatever their count.
         Some(image::ImageFormat::Png) => {
             crate::png_header::read(std::io::Cursor::new(bytes), bytes.len() as u64)?;
@@ -283,6 +283,10 @@ pub fn decode(bytes: &[u8], pixels_left: u64) -> Result<ImageTexture, String> {
              files leave of the {MAX_SCENE_TEXTURE_PIXELS} all of them may have"
         ));
     }
+    // The decoder fills what the scans lack, as large as the frame claims.
+    if let Some(why) = jpeg.and_then(|a| a.frame.and_then(|f| f.too_short(a.coded_bytes))) {
+        return Err(format!("is a JPEG that {why}"));
+    }
     let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()
         .map_err(|e| e.to_string())?;
@@ -300,14 +304,18 @@ pub fn decode(bytes: &[u8], pixels_left: u64) -> Result<ImageTexture, String> {
         .ok_or_else(|| "the decoded image has no pixels".to_owned())
 }
 
-/// Whether a JPEG's last scan is followed by its end-of-image marker (FF D9). The JPEG
-/// decoder fills what a truncated file lacks with grey rather than failing, so a cut-off
-/// texture would render as a grey band. Read as `compare` reads a JPEG: the segments
-/// between scans (a comment, a table) are skipped by their length, so an FF D9 within one
-/// (a progressive file cut within a comment before its last scans) ends nothing.
-fn jpeg_ends(bytes: &[u8]) -> bool {
+/// What a JPEG holds from its first scan on (`jpeg_end::after_scan`), once its last scan
+/// is found followed by its end-of-image marker (FF D9): the JPEG decoder fills what a
+/// truncated file lacks with grey rather than failing, so a cut-off texture would render
+/// as a grey band. Read as `compare` reads a JPEG: the segments between scans (a comment, a
+/// table) are skipped by their length, so an FF D9 within one (a progressive file cut
+/// within a comment before its last scans) ends nothing.
+fn jpeg_after_scan(bytes: &[u8]) -> Result<crate::jpeg_end::AfterScan, String> {
     let mut r = std::io::BufReader::new(std::io::Cursor::new(bytes));
-    crate::jpeg_end::ends(&mut r, false).unwrap_or(false)
+    match crate::jpeg_end::after_scan(&mut r, false) {
+        Ok(after) if after.ends => Ok(after),
+        _ => Err("is a JPEG that ends before its image does (a truncated file?)".into()),
+    }
 }
 
 #[cfg(test)]

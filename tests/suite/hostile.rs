@@ -577,6 +577,68 @@ fn compare_refuses_a_file_longer_than_its_images_take_and_a_pnm_header_without_e
     }
 }
 
+/// A baseline JPEG of `side`x`side` pixels in three components whose one scan holds
+/// `coded` bytes of data (each table one code of one bit: two bits a block).
+fn thin_jpeg(side: u16, coded: usize) -> Vec<u8> {
+    let segment = |marker: u8, body: &[u8]| {
+        let length = (body.len() as u16 + 2).to_be_bytes();
+        [&[0xff, marker][..], &length, body].concat()
+    };
+    let side = side.to_be_bytes();
+    let frame = [
+        &[8][..],
+        &side,
+        &side,
+        &[3, 1, 0x11, 0, 2, 0x11, 0, 3, 0x11, 0],
+    ]
+    .concat();
+    let one_code = |class: u8| [&[class, 1][..], &[0; 15], &[0]].concat();
+    [
+        &[0xff, 0xd8][..],
+        &segment(0xdb, &[&[0][..], &[1; 64]].concat()),
+        &segment(0xc0, &frame),
+        &segment(0xc4, &one_code(0x00)),
+        &segment(0xc4, &one_code(0x10)),
+        &segment(0xda, &[3, 1, 0, 2, 0, 3, 0, 0, 63, 0]),
+        &vec![0; coded],
+        &[0xff, 0xd9],
+    ]
+    .concat()
+}
+
+/// The JPEG decoder fills what a scan lacks rather than failing: a JPEG of 214 bytes whose
+/// frame claims 4096x4096 pixels and whose scan holds 64 bytes was compared `identical` with
+/// itself (448 MB, 0.77 s; under 256 MiB of address space, a panic of the colour conversion's
+/// allocation, exit 101), and rendered as a texture of grey. Coded data fewer than two bits a
+/// block is refused from the file's bytes, before anything of its size is allocated; the
+/// same frame with that many bytes (a flat picture) is read.
+#[test]
+fn a_jpeg_of_less_coded_data_than_its_frame_s_blocks_take_is_refused_undecoded() {
+    let dir = temp_dir("hostile-jpeg-thin");
+    std::fs::write(dir.join("thin.jpg"), thin_jpeg(4096, 64)).unwrap();
+    let o = run_capped(&["compare", "thin.jpg", "thin.jpg"], &dir, 256);
+    refused(
+        &o,
+        "thin.jpg: claims 4096x4096 pixels in 3 component(s), 786432 blocks of 8x8, but its \
+         scans hold 64 bytes of coded data, fewer than the 196608",
+        "compare",
+    );
+    std::fs::write(dir.join("thin.toml"), textured_scene("thin.jpg")).unwrap();
+    let o = run_capped(&["render", "thin.toml", "-o", "out.png"], &dir, 1024);
+    refused(
+        &o,
+        "thin.jpg: is a JPEG that claims 4096x4096 pixels",
+        "texture",
+    );
+    assert!(!dir.join("out.png").exists());
+    std::fs::write(dir.join("flat.jpg"), thin_jpeg(64, 3 * 64 / 4)).unwrap();
+    let o = run(&["compare", "flat.jpg", "flat.jpg"], &dir);
+    assert!(o.status.success(), "{}", stderr(&o));
+    std::fs::write(dir.join("flat.toml"), textured_scene("flat.jpg")).unwrap();
+    let o = run(&["render", "flat.toml", "-q", "-o", "out.png"], &dir);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
 #[test]
 fn a_png_whose_chunks_change_its_display_differs_naming_the_chunk() {
     let dir = temp_dir("hostile-png-display");
