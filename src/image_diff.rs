@@ -192,6 +192,11 @@ impl RgbImage {
                     crate::pnm_header::check_bounds(&mut file).and_then(|()| {
                         file.seek(std::io::SeekFrom::Start(0))
                             .map_err(|e| format!("could not be read: {e}"))?;
+                        // The decoder makes room for every sample its header claims before
+                        // it reads one: a file too short for them is refused first.
+                        crate::pnm_header::check_length(&mut file, len)?;
+                        file.seek(std::io::SeekFrom::Start(0))
+                            .map_err(|e| format!("could not be read: {e}"))?;
                         Ok(crate::pnm_header::sample_past_maxval(&mut file)
                             .into_iter()
                             .collect())

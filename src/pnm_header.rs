@@ -28,6 +28,52 @@ pub fn check_bounds(reader: impl BufRead) -> Result<(), String> {
     }
 }
 
+/// The fewest bytes a sample written as text takes: a digit and a separator (the last
+/// sample's may be the file's end). A bitmap's (P1) digits need none between them.
+pub const MIN_TEXT_SAMPLE_BYTES: u64 = 2;
+
+/// Checks that the `len`-byte PNM file `reader` is at the start of (its header already
+/// checked by `check_bounds`) is long enough for the samples its header claims, before the
+/// decoder makes room for them all: a binary raster's bytes exactly, a text raster's
+/// `MIN_TEXT_SAMPLE_BYTES` a sample. A file of 317 bytes whose header says `P6 4096 4096
+/// 255` once had 50 MB reserved for it (and ended tessera where that allocation failed).
+pub fn check_length<R: BufRead + std::io::Seek>(mut reader: R, len: u64) -> Result<(), String> {
+    use image::ImageDecoder;
+    use image::codecs::pnm::{PnmDecoder, PnmSubtype, SampleEncoding};
+    let decoder = PnmDecoder::new(&mut reader)
+        .map_err(|e| format!("is not a PNM file tessera reads: {e}"))?;
+    let (width, height) = decoder.dimensions();
+    let color = decoder.color_type();
+    // What the decoder fills: each sample of one or two bytes.
+    let total = u128::from(decoder.total_bytes());
+    let samples = total / u128::from(color.bytes_per_pixel() / color.channel_count());
+    let subtype = decoder.subtype();
+    drop(decoder);
+    let raster = match (subtype, subtype.sample_encoding()) {
+        // Rows of bits, each row rounded up to a whole byte.
+        (PnmSubtype::Bitmap(_), SampleEncoding::Binary) => {
+            u128::from(width.div_ceil(8)) * u128::from(height)
+        }
+        (_, SampleEncoding::Binary) => total,
+        (PnmSubtype::Bitmap(_), SampleEncoding::Ascii) => samples,
+        (_, SampleEncoding::Ascii) => {
+            (samples * u128::from(MIN_TEXT_SAMPLE_BYTES)).saturating_sub(1)
+        }
+    };
+    let header = reader
+        .stream_position()
+        .map_err(|e| format!("could not be read: {e}"))?;
+    let least = u128::from(header) + raster;
+    if u128::from(len) < least {
+        return Err(format!(
+            "ends before its image does (a truncated file?): it is {len} bytes long, and its \
+             header of {header} bytes claims {width}x{height} pixels, whose samples take \
+             {raster} bytes at least"
+        ));
+    }
+    Ok(())
+}
+
 /// The first sample past its maxval of the PNM file `reader` is at the start of (its header
 /// already checked by `check_bounds`), said in words: the decoder scales such a sample to
 /// the brightest value, where Netpbm refuses the file ("exceeds maxval") and other readers
@@ -173,6 +219,42 @@ mod tests {
             b"P3\n1 1\n100\n1 2 3 200\n",
         ] {
             assert_eq!(past(within), None, "{}", String::from_utf8_lossy(within));
+        }
+    }
+
+    /// A PPM of 317 bytes whose header says `P6 4096 4096 255` had 50 MB reserved for its
+    /// samples before it was found short (and ended tessera where the allocation failed):
+    /// its length is checked against its header first, a binary raster's bytes exactly, a
+    /// text raster's two bytes a sample (a bitmap's one), 16-bit samples two bytes each.
+    #[test]
+    fn a_file_shorter_than_its_header_s_samples_is_refused_before_they_are_read() {
+        let check = |bytes: &[u8]| check_length(Cursor::new(bytes), bytes.len() as u64);
+        let short = [&b"P6\n4096 4096\n255\n"[..], &[0; 300]].concat();
+        assert_eq!(short.len(), 317);
+        let e = check(&short).unwrap_err();
+        assert!(
+            e.starts_with(
+                "ends before its image does (a truncated file?): it is 317 bytes long, and its \
+                 header of 17 bytes claims 4096x4096 pixels, whose samples take 50331648 bytes"
+            ),
+            "{e}"
+        );
+        for (whole, cut) in [
+            (&b"P6\n2 1\n255\n\x01\x02\x03\x04\x05\x06"[..], 1),
+            (b"P5\n1 1\n1000\n\x03\xe8", 1),
+            (b"P3\n2 1\n255\n1 2 3 4 5 6", 2),
+            (b"P1\n2 2\n1001", 1),
+            (b"P4\n9 2\n\x00\x00\x00\x00", 1),
+            (
+                b"P7\nWIDTH 1\nHEIGHT 1\nDEPTH 4\nMAXVAL 65535\nTUPLTYPE RGB_ALPHA\nENDHDR\n\
+                  \x00\x01\x00\x02\x00\x03\x00\x04",
+                1,
+            ),
+        ] {
+            let shown = String::from_utf8_lossy(whole);
+            assert_eq!(check(whole), Ok(()), "{shown}");
+            let e = check(&whole[..whole.len() - cut]).unwrap_err();
+            assert!(e.starts_with("ends before its image does"), "{shown}: {e}");
         }
     }
 

@@ -242,8 +242,10 @@ pub fn decode(bytes: &[u8], pixels_left: u64) -> Result<ImageTexture, String> {
     let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()
         .map_err(|e| e.to_string())?;
-    // A JPEG's frame header and coded data, checked against each other once its size is.
+    // A JPEG's frame header and coded data, checked against each other once its size is,
+    // as a PNM's header and length are.
     let mut jpeg = None;
+    let mut pnm = false;
     match reader.format() {
         None => return Err("is not an image tessera reads (PNG, JPEG, PPM or EXR)".into()),
         Some(image::ImageFormat::Jpeg) => jpeg = Some(jpeg_after_scan(bytes)?),
@@ -260,6 +262,7 @@ pub fn decode(bytes: &[u8], pixels_left: u64) -> Result<ImageTexture, String> {
         // The PNM decoder keeps each line of a PAM header, whatever its length.
         Some(image::ImageFormat::Pnm) => {
             crate::pnm_header::check_bounds(std::io::Cursor::new(bytes))?;
+            pnm = true;
         }
         Some(_) => {}
     }
@@ -286,6 +289,10 @@ pub fn decode(bytes: &[u8], pixels_left: u64) -> Result<ImageTexture, String> {
     // The decoder fills what the scans lack, as large as the frame claims.
     if let Some(why) = jpeg.and_then(|a| a.frame.and_then(|f| f.too_short(a.coded_bytes))) {
         return Err(format!("is a JPEG that {why}"));
+    }
+    // The decoder makes room for every sample a PNM's header claims before it reads one.
+    if pnm {
+        crate::pnm_header::check_length(std::io::Cursor::new(bytes), bytes.len() as u64)?;
     }
     let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()

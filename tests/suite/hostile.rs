@@ -639,6 +639,37 @@ fn a_jpeg_of_less_coded_data_than_its_frame_s_blocks_take_is_refused_undecoded()
     assert!(o.status.success(), "{}", stderr(&o));
 }
 
+/// A PPM of 317 bytes whose header says `P6 4096 4096 255`, and a plain one of as many, had
+/// 50 MB (100 MB) reserved for their samples before they were found short: under 40 MiB of
+/// address space tessera ended on the failed allocation (exit 134). Each is refused by its
+/// length against its header, before anything of its size is allocated; as a texture too.
+#[test]
+fn a_pnm_shorter_than_its_header_s_samples_is_refused_before_they_are_allocated() {
+    let dir = temp_dir("hostile-pnm-short");
+    for (name, magic, fill) in [("short.ppm", "P6", 0u8), ("plain.ppm", "P3", b' ')] {
+        let bytes = [
+            format!("{magic}\n4096 4096\n255\n").as_bytes(),
+            &[fill; 300],
+        ]
+        .concat();
+        std::fs::write(dir.join(name), bytes).unwrap();
+        let o = run_capped(&["compare", name, name], &dir, 40);
+        refused(
+            &o,
+            &format!(
+                "{name}: ends before its image does (a truncated file?): it is 317 bytes long, \
+                 and its header of 17 bytes claims 4096x4096 pixels"
+            ),
+            name,
+        );
+        let scene = format!("{name}.toml");
+        std::fs::write(dir.join(&scene), textured_scene(name)).unwrap();
+        let o = run_capped(&["render", &scene, "-o", "out.png"], &dir, 1024);
+        refused(&o, &format!("{name}: ends before its image does"), &scene);
+        assert!(!dir.join("out.png").exists());
+    }
+}
+
 #[test]
 fn a_png_whose_chunks_change_its_display_differs_naming_the_chunk() {
     let dir = temp_dir("hostile-png-display");
