@@ -48,7 +48,17 @@ pub fn check_length<R: BufRead + std::io::Seek>(mut reader: R, len: u64) -> Resu
     let total = u128::from(decoder.total_bytes());
     let samples = total / u128::from(color.bytes_per_pixel() / color.channel_count());
     let subtype = decoder.subtype();
-    drop(decoder);
+    let (_, header) = decoder.into_inner();
+    // A PAM of DEPTH 0 has no channels, and Netpbm refuses it; the decoder reads it as
+    // 16-bit grey (two bytes a pixel, scaled by 65535 over its maxval), so `compare` gave
+    // it a number against a grey image with nothing said.
+    if header.as_arbitrary().is_some_and(|pam| pam.depth == 0) {
+        return Err(
+            "is a PAM of DEPTH 0, a pixel of no channels, which Netpbm refuses and tessera \
+             does not read"
+                .to_owned(),
+        );
+    }
     let raster = match (subtype, subtype.sample_encoding()) {
         // Rows of bits, each row rounded up to a whole byte.
         (PnmSubtype::Bitmap(_), SampleEncoding::Binary) => {
@@ -226,6 +236,22 @@ mod tests {
     /// samples before it was found short (and ended tessera where the allocation failed):
     /// its length is checked against its header first, a binary raster's bytes exactly, a
     /// text raster's two bytes a sample (a bitmap's one), 16-bit samples two bytes each.
+    /// A PAM of DEPTH 0 (no channels: Netpbm refuses it) was read by the decoder as 16-bit
+    /// grey, and `compare` of it against a grey PGM gave 1.14 dB with nothing listed.
+    #[test]
+    fn a_pam_of_no_channels_is_refused() {
+        let pam = b"P7\nWIDTH 2\nHEIGHT 1\nDEPTH 0\nMAXVAL 255\nTUPLTYPE GRAYSCALE\nENDHDR\n\
+                    \x10\x20\x30\x40";
+        let e = check_length(Cursor::new(&pam[..]), pam.len() as u64).unwrap_err();
+        assert!(e.contains("DEPTH 0"), "{e}");
+        let one = b"P7\nWIDTH 2\nHEIGHT 1\nDEPTH 1\nMAXVAL 255\nTUPLTYPE GRAYSCALE\nENDHDR\n\
+                    \x10\x20";
+        assert_eq!(
+            check_length(Cursor::new(&one[..]), one.len() as u64),
+            Ok(())
+        );
+    }
+
     #[test]
     fn a_file_shorter_than_its_header_s_samples_is_refused_before_they_are_read() {
         let check = |bytes: &[u8]| check_length(Cursor::new(bytes), bytes.len() as u64);
