@@ -999,22 +999,17 @@ mod tests {
         assert!(listed("exr-z", ("rgb.exr", &rgb), ("b.exr", &exr(&["Z"]))).is_empty());
     }
 
-    /// The `exr` crate inflates every block of an EXR's data window, whatever the display
-    /// window the decoder is asked for: a file of 3 MiB of ZIP blocks of zeros whose data
-    /// window was 2^24 x 16 pixels and display window one pixel asked for 6 GiB and ended
-    /// tessera on the failed allocation. Pixels that take more decoded than the longest
-    /// file compare reads are refused before the decoder sees the file; here a data window
-    /// of 2^21 x 16 float RGB, 384 MiB, from a file of a few hundred KiB.
-    #[test]
-    fn an_exr_whose_data_window_inflates_past_the_bound_is_refused() {
-        let (width, lines) = (1u32 << 21, 16u32);
+    /// The header of a scan-line EXR of float B, G, R in ZIP blocks of 16 lines, with a data
+    /// window of `data` and a display window of `display` (width, height) pixels: no chunk,
+    /// no offset table.
+    fn float_rgb_zip_header(data: (u32, u32), display: (u32, u32)) -> Vec<u8> {
         let attribute = |name: &str, kind: &str, value: &[u8]| {
             let mut a = [name.as_bytes(), b"\0", kind.as_bytes(), b"\0"].concat();
             a.extend((value.len() as u32).to_le_bytes());
             a.extend(value);
             a
         };
-        let window = |x: u32, y: u32| -> Vec<u8> {
+        let window = |(x, y): (u32, u32)| -> Vec<u8> {
             [0, 0, x as i32 - 1, y as i32 - 1]
                 .iter()
                 .flat_map(|v: &i32| v.to_le_bytes())
@@ -1031,8 +1026,8 @@ mod tests {
         for (name, kind, value) in [
             ("channels", "chlist", channels),
             ("compression", "compression", vec![3]),
-            ("dataWindow", "box2i", window(width, lines)),
-            ("displayWindow", "box2i", window(1, 1)),
+            ("dataWindow", "box2i", window(data)),
+            ("displayWindow", "box2i", window(display)),
             ("lineOrder", "lineOrder", vec![0]),
             ("pixelAspectRatio", "float", 1f32.to_le_bytes().to_vec()),
             ("screenWindowCenter", "v2f", vec![0; 8]),
@@ -1041,6 +1036,19 @@ mod tests {
             file.extend(attribute(name, kind, &value));
         }
         file.push(0);
+        file
+    }
+
+    /// The `exr` crate inflates every block of an EXR's data window, whatever the display
+    /// window the decoder is asked for: a file of 3 MiB of ZIP blocks of zeros whose data
+    /// window was 2^24 x 16 pixels and display window one pixel asked for 6 GiB and ended
+    /// tessera on the failed allocation. Pixels that take more decoded than the longest
+    /// file compare reads are refused before the decoder sees the file; here a data window
+    /// of 2^21 x 16 float RGB, 384 MiB, from a file of a few hundred KiB.
+    #[test]
+    fn an_exr_whose_data_window_inflates_past_the_bound_is_refused() {
+        let (width, lines) = (1u32 << 21, 16u32);
+        let mut file = float_rgb_zip_header((width, lines), (1, 1));
         // One block of 16 lines of zeros, as ZIP compresses them.
         let mut zip = fdeflate::Compressor::new(Vec::new()).unwrap();
         let zeros = vec![0u8; 1 << 20];
@@ -1075,37 +1083,7 @@ mod tests {
     /// sees it; with its offset table and chunks there, it is the decoder's to read.
     #[test]
     fn an_exr_whose_chunks_are_not_in_the_file_is_refused_before_decoding() {
-        let attribute = |name: &str, kind: &str, value: &[u8]| {
-            let mut a = [name.as_bytes(), b"\0", kind.as_bytes(), b"\0"].concat();
-            a.extend((value.len() as u32).to_le_bytes());
-            a.extend(value);
-            a
-        };
-        let window: Vec<u8> = [0i32, 0, 4095, 4095]
-            .iter()
-            .flat_map(|v| v.to_le_bytes())
-            .collect();
-        let mut channels = Vec::new();
-        for name in [b"B", b"G", b"R"] {
-            channels.extend(name);
-            channels.push(0);
-            channels.extend([2i32, 0, 1, 1].iter().flat_map(|v| v.to_le_bytes()));
-        }
-        channels.push(0);
-        let mut file = vec![0x76, 0x2f, 0x31, 0x01, 2, 0, 0, 0];
-        for (name, kind, value) in [
-            ("channels", "chlist", channels),
-            ("compression", "compression", vec![3]),
-            ("dataWindow", "box2i", window.clone()),
-            ("displayWindow", "box2i", window),
-            ("lineOrder", "lineOrder", vec![0]),
-            ("pixelAspectRatio", "float", 1f32.to_le_bytes().to_vec()),
-            ("screenWindowCenter", "v2f", vec![0; 8]),
-            ("screenWindowWidth", "float", 1f32.to_le_bytes().to_vec()),
-        ] {
-            file.extend(attribute(name, kind, &value));
-        }
-        file.push(0);
+        let file = float_rgb_zip_header((4096, 4096), (4096, 4096));
         let dir = std::env::temp_dir().join(format!("tessera-exr-short-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let short = dir.join("short.exr");
