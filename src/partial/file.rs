@@ -323,18 +323,13 @@ impl Part {
         PartReader::open(path)?.read_part()
     }
 
-    /// A checkpoint to resume from: `load`, refusing a file another user owns
-    /// (`PartReader::open_own`).
-    pub fn load_own(path: &Path) -> Result<Part> {
-        PartReader::open_own(path)?.read_part()
-    }
-
-    /// The state to go on rendering `job` of `scene` from, the checkpoint at `path`
-    /// (`load_own`, then `resume`). Its header is checked against the render before its sums
-    /// are read: a checkpoint's header may claim any image up to `scene::MAX_PIXELS` (6 GiB
-    /// of sums, a sparse file of a few KiB on disk), and one of another render was read whole
-    /// first and refused only after. A 1.6 GB sparse checkpoint claiming 8192x8192 pixels, given
-    /// to a 32x18 render, took 9 s and 1.5 GB of memory before it was refused.
+    /// The state to go on rendering `job` of `scene` from, the checkpoint at `path` (a file
+    /// of this user's, `PartReader::open_own`; then `resume`). Its header is checked against
+    /// the render before its sums are read: a checkpoint's header may claim any image up to
+    /// `scene::MAX_PIXELS` (6 GiB of sums, a sparse file of a few KiB on disk), and one of
+    /// another render was read whole first and refused only after. A 1.6 GB sparse
+    /// checkpoint claiming 8192x8192 pixels, given to a 32x18 render, took 9 s and 1.5 GB of
+    /// memory before it was refused.
     pub fn load_checkpoint(path: &Path, scene: &Scene, job: Job) -> Result<JobState> {
         let reader = PartReader::open_own(path)?;
         reader.header().check_resumes(scene, job, path)?;

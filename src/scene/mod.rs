@@ -213,13 +213,6 @@ impl Scene {
         Self::describe(text, path)?.build(overrides, source)
     }
 
-    /// The settings scene text gives with `overrides` (size, crop, sampling, depth, seed,
-    /// gamma), checked as `parse` checks them, without building the rest or reading a
-    /// texture file.
-    pub fn settings_of(text: &str, path: &Path, overrides: &Overrides) -> Result<RenderSettings> {
-        Self::describe(text, path)?.settings(overrides)
-    }
-
     /// Scene text parsed, within the bounds on its values and tokens, into its description,
     /// from which its settings are read and the scene is built without parsing the text
     /// again; `path` names the source in errors.
