@@ -85,6 +85,32 @@ fn is_loopback(ip: std::net::IpAddr) -> bool {
     ip.to_canonical().is_loopback()
 }
 
+/// The URL of the page of a server listening on `addr` under `key`, as a browser takes it.
+/// On every address (`0.0.0.0`, `[::]`) it names loopback, this machine's own way in:
+/// browsers refuse to open the unspecified address, and the warning names the address
+/// others reach. An IPv6 zone is written `%25`, the percent sign escaped, as a URL's host
+/// spells it (RFC 6874); `SocketAddr` writes a bare `%`, which makes no URL.
+fn page_url(addr: SocketAddr, key: &str) -> String {
+    let port = addr.port();
+    let host = match addr {
+        SocketAddr::V4(v4) if v4.ip().is_unspecified() => "127.0.0.1".to_owned(),
+        SocketAddr::V4(v4) => v4.ip().to_string(),
+        // Every IPv4 address, taken on an IPv6 socket: reached through IPv4's loopback.
+        SocketAddr::V6(v6)
+            if v6
+                .ip()
+                .to_ipv4_mapped()
+                .is_some_and(|v4| v4.is_unspecified()) =>
+        {
+            "127.0.0.1".to_owned()
+        }
+        SocketAddr::V6(v6) if v6.ip().is_unspecified() => "[::1]".to_owned(),
+        SocketAddr::V6(v6) if v6.scope_id() != 0 => format!("[{}%25{}]", v6.ip(), v6.scope_id()),
+        SocketAddr::V6(v6) => format!("[{}]", v6.ip()),
+    };
+    format!("http://{host}:{port}/{key}/")
+}
+
 /// What the server has done, for its owner and tests.
 #[derive(Default)]
 pub struct ServerStats {
@@ -183,7 +209,7 @@ impl Server {
 
     /// The viewer's page: its address and key, the one URL under which it answers.
     pub fn url(&self) -> String {
-        format!("http://{}/{}/", self.addr, self.key)
+        page_url(self.addr, &self.key)
     }
 
     /// The key every path it serves begins with.

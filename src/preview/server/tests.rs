@@ -455,3 +455,28 @@ fn a_mapped_loopback_address_is_loopback() {
         assert!(other.starts_with("HTTP/1.1 421"), "{host}: {other}");
     }
 }
+
+/// The printed URL is one a browser opens: on every address it names loopback (browsers
+/// refuse `0.0.0.0`), and an IPv6 zone is escaped as `%25` (a bare `%4` is no URL).
+#[test]
+fn the_page_s_url_is_one_a_browser_opens() {
+    let url = |s: &str| page_url(s.parse().unwrap(), KEY);
+    assert_eq!(url("127.0.0.1:8000"), "http://127.0.0.1:8000/k3y/");
+    assert_eq!(url("10.1.2.3:8000"), "http://10.1.2.3:8000/k3y/");
+    assert_eq!(url("0.0.0.0:8000"), "http://127.0.0.1:8000/k3y/");
+    assert_eq!(url("[::]:8000"), "http://[::1]:8000/k3y/");
+    assert_eq!(url("[::ffff:0.0.0.0]:8000"), "http://127.0.0.1:8000/k3y/");
+    assert_eq!(url("[::1]:8000"), "http://[::1]:8000/k3y/");
+    assert_eq!(
+        url("[::ffff:127.0.0.1]:8000"),
+        "http://[::ffff:127.0.0.1]:8000/k3y/"
+    );
+    assert_eq!(url("[fe80::1%4]:8000"), "http://[fe80::1%254]:8000/k3y/");
+    for written in ["0.0.0.0:8000", "[fe80::1%4]:8000", "[::]:8000"] {
+        let url = url(written);
+        assert!(
+            url.parse::<hyper::http::Uri>().is_ok(),
+            "{written}: {url} is not a URL"
+        );
+    }
+}
