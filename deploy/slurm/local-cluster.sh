@@ -328,19 +328,22 @@ start() {
     --seed-file="$dir/munge/munged.seed" ||
     fail "munged did not start; see $dir/log/munged.log"
   write_config
+  # Each daemon holds its own port before anything talks to it: slurmd starts only once
+  # slurmctld listens, or it registers (root's credentials) with whoever took slurmctld's
+  # port between the check above and slurmctld's start.
   slurmctld -f "$conf" || fail "slurmctld did not start; see $dir/log/slurmctld.log"
-  slurmd -f "$conf" || fail "slurmd did not start; see $dir/log/slurmd.log"
-  # Before any of Slurm's commands asks the port: each daemon holds its own.
   held_by "$dir/slurmctld.pid" "$port" slurmctld
+  slurmd -f "$conf" || fail "slurmd did not start; see $dir/log/slurmd.log"
   held_by "$dir/slurmd.pid" $((port + 1)) slurmd
-  local waited=0
-  until [ "$(sinfo -h -o %t 2>/dev/null)" = idle ]; do
-    if [ $waited -ge 60 ]; then
+  # 30 s by the clock: each sinfo may wait out Slurm's message timeout (10 s) on a daemon
+  # that does not answer, so 60 tries of it took minutes; each try is cut at 5 s.
+  local deadline=$((SECONDS + 30))
+  until [ "$(timeout 5 sinfo -h -o %t 2>/dev/null)" = idle ]; do
+    if [ $SECONDS -ge $deadline ]; then
       tail -n 20 "$dir"/log/*.log >&2 || true
       fail "the node did not become idle within 30 s"
     fi
     sleep 0.5
-    waited=$((waited + 1))
   done
   trap - EXIT INT TERM
   say "running in $dir: $(sinfo -h -N -o '%N, %c CPUs, %m MB')"

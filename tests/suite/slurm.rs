@@ -840,7 +840,8 @@ fn start_takes_and_marks(cluster: &std::path::Path, bin: &std::path::Path) {
 }
 
 /// `deploy/slurm/local-cluster.sh COMMAND` on the cluster directory `cluster`, with `path`
-/// as its PATH where given (stand-ins for Slurm's programs), on a port no test cluster uses.
+/// as its PATH where given (stand-ins for Slurm's programs), on a port free now whose next
+/// one is free too (the stand-in slurmctld listens on it, beside other tests' stand-ins).
 fn local_cluster(
     command: &str,
     cluster: &std::path::Path,
@@ -850,7 +851,7 @@ fn local_cluster(
     script
         .arg(command)
         .env("TESSERA_SLURM_DIR", cluster)
-        .env("TESSERA_SLURM_PORT", "16997");
+        .env("TESSERA_SLURM_PORT", free_ports().1.to_string());
     if let Some(path) = path {
         script.env("PATH", path);
     }
@@ -865,9 +866,23 @@ fn with_stand_ins(bin: &std::path::Path) -> std::ffi::OsString {
     path
 }
 
+/// A port free now whose next one is free too, and a listener holding it.
+fn free_ports() -> (std::net::TcpListener, u16) {
+    loop {
+        let l = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        let port = l.local_addr().unwrap().port();
+        if port < 65535 && std::net::TcpListener::bind(("127.0.0.1", port + 1)).is_ok() {
+            return (l, port);
+        }
+    }
+}
+
 /// A stand-in for each Slurm and munge program `local-cluster.sh start` runs, in `bin`:
-/// `munged` and `slurmctld` leave a `sleep` running under their pid files, as the daemons do;
-/// `slurmd -C` prints a node line and `slurmd` itself fails, as when its port is taken.
+/// `munged` leaves a `sleep` running under its pid file, as the daemon does, and
+/// `slurmctld` a Python that listens on slurm.conf's port (`start` waits for that before it
+/// starts slurmd); `slurmd -C` prints a node line and `slurmd` itself fails, as when its
+/// port is taken. Each bears its daemon's name (`/proc/PID/comm`), as local-cluster.sh asks
+/// of a process its pid files name.
 fn stand_in_cluster_programs(bin: &std::path::Path) {
     use std::os::unix::fs::PermissionsExt;
     std::fs::create_dir_all(bin).unwrap();
@@ -877,23 +892,50 @@ fn stand_in_cluster_programs(bin: &std::path::Path) {
              echo $! >\"{pid_file}\"\necho $! >>\"$(dirname \"$0\")/started\"\n"
         )
     };
-    // The sleep each leaves running bears the daemon's name (`/proc/PID/comm`), as
-    // local-cluster.sh asks of a process its pid files name.
-    let sleep = std::env::split_paths(&std::env::var_os("PATH").unwrap_or_default())
-        .map(|d| d.join("sleep"))
-        .find(|p| p.is_file())
-        .expect("sleep on the PATH");
-    std::fs::create_dir_all(bin.join("daemons")).unwrap();
+    let on_path = |program: &str| {
+        std::env::split_paths(&std::env::var_os("PATH").unwrap_or_default())
+            .map(|d| d.join(program))
+            .find(|p| p.is_file())
+            .unwrap_or_else(|| panic!("{program} on the PATH"))
+    };
+    let sleep = on_path("sleep");
+    std::fs::create_dir_all(bin.join("daemons/listening")).unwrap();
     for name in ["munged", "slurmctld", "slurmd"] {
         let _ = std::fs::remove_file(bin.join("daemons").join(name));
         std::os::unix::fs::symlink(&sleep, bin.join("daemons").join(name)).unwrap();
     }
+    let listening = bin.join("daemons/listening/slurmctld");
+    let _ = std::fs::remove_file(&listening);
+    // Python itself, not a launcher on the PATH (pyenv's shim), which would run the program
+    // the link is named after.
+    let python = Command::new("python3")
+        .args(["-c", "import sys; print(sys.executable)"])
+        .output()
+        .expect("python3 on the PATH");
+    let python = text(&python.stdout).trim().to_owned();
+    std::os::unix::fs::symlink(python, &listening).unwrap();
+    // It writes its pid file once it listens, as slurmctld does once it has started.
+    let listen = "import os, socket, sys, time\n\
+                  s = socket.socket()\n\
+                  s.bind(('127.0.0.1', int(sys.argv[1])))\n\
+                  s.listen()\n\
+                  for f, mode in ((sys.argv[2], 'w'), (sys.argv[3], 'a')):\n    \
+                  open(f, mode).write(f'{os.getpid()}\\n')\n\
+                  time.sleep(600)";
     for (name, script) in [
         (
             "munged",
             daemon("$(printf '%s\\n' \"$@\" | sed -n 's/^--pid-file=//p')"),
         ),
-        ("slurmctld", daemon("$(dirname \"$2\")/slurmctld.pid")),
+        (
+            "slurmctld",
+            format!(
+                "#!/bin/sh\nport=$(sed -n 's/^SlurmctldPort=//p' \"$2\")\n\
+                 \"$(dirname \"$0\")/daemons/listening/slurmctld\" -c \"{listen}\" \"$port\" \
+                 \"$(dirname \"$2\")/slurmctld.pid\" \"$(dirname \"$0\")/started\" \
+                 </dev/null >/dev/null 2>&1 &\n"
+            ),
+        ),
         (
             "slurmd",
             "#!/bin/sh\n[ \"$1\" = -C ] && echo 'NodeName=n CPUs=1' && exit 0\nexit 1\n".into(),
@@ -1067,8 +1109,10 @@ fn local_cluster_start_removes_nothing_through_a_parent_made_after_its_check() {
 /// registrations, sent to it) for minutes before saying "the node did not become idle within
 /// 30 s"; a listener that answered "idle" had `start` say the cluster ran. A port taken before
 /// anything starts is refused, and one taken after that check, before slurmctld binds it, is
-/// found before any of Slurm's commands asks it. No Slurm needed: stand-ins play the daemons,
-/// whose `sinfo` answers "idle" and notes that it was asked, and this test holds the port.
+/// found before any of Slurm's commands asks it, and before slurmd starts (which registered
+/// with that listener when it was started beside slurmctld). No Slurm needed: stand-ins play
+/// the daemons, whose `sinfo` answers "idle" and notes that it was asked, and this test
+/// holds the port.
 #[test]
 fn local_cluster_start_refuses_a_port_another_process_holds() {
     use std::os::unix::fs::{MetadataExt, PermissionsExt};
@@ -1092,7 +1136,13 @@ fn local_cluster_start_refuses_a_port_another_process_holds() {
                 for i in $(seq 1 100); do [ -e \"$d/../taken\" ] && exit 0; sleep 0.1; done\n";
     for (name, script) in [
         ("slurmctld", daemon("$(dirname \"$2\")/slurmctld.pid", wait)),
-        ("slurmd", daemon("$(dirname \"$2\")/slurmd.pid", "")),
+        (
+            "slurmd",
+            daemon(
+                "$(dirname \"$2\")/slurmd.pid",
+                "touch \"$(dirname \"$2\")/../slurmd-ran\"\n",
+            ),
+        ),
         (
             "sinfo",
             "#!/bin/sh\necho asked >>\"$(dirname \"$SLURM_CONF\")/../asked\"\necho idle\n".into(),
@@ -1103,13 +1153,7 @@ fn local_cluster_start_refuses_a_port_another_process_holds() {
         std::fs::set_permissions(bin.join(name), std::fs::Permissions::from_mode(0o755)).unwrap();
     }
     // A port whose next one is free too, held as another user's daemon would hold it.
-    let (listener, port) = loop {
-        let l = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
-        let port = l.local_addr().unwrap().port();
-        if port < 65535 && std::net::TcpListener::bind(("127.0.0.1", port + 1)).is_ok() {
-            break (l, port);
-        }
-    };
+    let (listener, port) = free_ports();
     let cluster = dir.join("cluster");
     let start = || {
         Command::new(root().join("deploy/slurm/local-cluster.sh"))
@@ -1166,6 +1210,12 @@ fn local_cluster_start_refuses_a_port_another_process_holds() {
     assert!(
         said.contains(&format!("port {port} is held by another process")),
         "taken after: {said}"
+    );
+    // slurmd starts only once slurmctld holds its port: started beside a squatter, it
+    // registered with it, sending root's credentials.
+    assert!(
+        !dir.join("slurmd-ran").exists(),
+        "slurmd started while another process held slurmctld's port"
     );
     assert!(o.stdout.is_empty(), "taken after: {}", text(&o.stdout));
     assert!(!dir.join("asked").exists(), "sinfo asked the port's holder");
