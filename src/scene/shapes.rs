@@ -98,6 +98,49 @@ impl Placement {
     }
 }
 
+/// Refuses a primitive whose `points` (a sphere's centre, a box's or a quad's corners), once
+/// placed, lie beyond `±MAX_LENGTH`: the bound is on where a primitive ends up, as for a
+/// moving sphere, and rotating a point within it by 45° and moving it by the most a
+/// translation may took a sphere's centre to 2.4e18.
+fn check_placed(
+    ck: &Checker,
+    place: &Placement,
+    points: &[[f64; 3]],
+    span: Range<usize>,
+    field: &str,
+) -> Result<()> {
+    let reach = points
+        .iter()
+        .flat_map(|&p| place.point(p))
+        .fold(0.0, |m: f64, c| m.max(c.abs()));
+    if reach > f64::from(MAX_LENGTH) {
+        return Err(ck.error(
+            span,
+            field,
+            format!(
+                "is placed (rotate_y_deg, then translate) {reach:e} from the origin: \
+                 coordinates must lie within ±{MAX_LENGTH:e} where the primitive ends up \
+                 (beyond, f32 arithmetic overflows)"
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The eight corners of the box from `lo` to `hi`.
+fn corners(lo: Vec3, hi: Vec3) -> [[f64; 3]; 8] {
+    let (a, b) = (f64s(lo), f64s(hi));
+    std::array::from_fn(|i| std::array::from_fn(|k| if i >> k & 1 == 0 { a[k] } else { b[k] }))
+}
+
+/// The four vertices of the quad `corner + a u + b v`.
+fn vertices(corner: [f64; 3], u: [f64; 3], v: [f64; 3]) -> [[f64; 3]; 4] {
+    std::array::from_fn(|i| {
+        let (a, b) = ((i & 1) as f64, (i >> 1) as f64);
+        std::array::from_fn(|k| corner[k] + a * u[k] + b * v[k])
+    })
+}
+
 fn f64s(v: Vec3) -> [f64; 3] {
     [v.x, v.y, v.z].map(f64::from)
 }
@@ -212,6 +255,14 @@ pub(super) fn primitives(
         let corner = ck.point(&q.corner, &format!("{field}.corner"))?;
         let u = ck.point(&q.u, &format!("{field}.u"))?;
         let v = ck.point(&q.v, &format!("{field}.v"))?;
+        let vertices = vertices(f64s(corner), f64s(u), f64s(v));
+        check_placed(
+            ck,
+            &placed,
+            &vertices,
+            q.corner.span(),
+            &format!("{field}.corner"),
+        )?;
         let quad = placed_quad(&placed, f64s(corner), f64s(u), f64s(v), id)
             .ok_or_else(|| too_thin(ck, q.v.span(), &format!("{field}.v")))?;
         prims.quads.push(quad);
@@ -231,6 +282,13 @@ pub(super) fn primitives(
         let id = material(&b.material, &format!("{field}.material"))?;
         let placed = Placement::check(ck, &field, b.rotate_y_deg.as_ref(), b.translate.as_ref())?;
         let (lo, hi) = box_corners(ck, &field, &b.min, &b.max)?;
+        check_placed(
+            ck,
+            &placed,
+            &corners(lo, hi),
+            b.max.span(),
+            &format!("{field}.max"),
+        )?;
         let quads = box_quads(&placed, lo, hi, id)
             .ok_or_else(|| too_thin(ck, b.max.span(), &format!("{field}.max")))?;
         prims.quads.extend(quads);
@@ -349,6 +407,8 @@ impl Ball<'_> {
                     "applies to a moving sphere only: give its center2 too",
                 ));
             }
+            let span = self.center.span();
+            check_placed(ck, place, &[f64s(center)], span, &format!("{field}.center"))?;
             return Ok(Shape::Still(Sphere::new(moved(center), radius, material)));
         };
         let center2 = ck.point(center2_desc, &format!("{field}.center2"))?;
@@ -476,6 +536,7 @@ fn rect(
     u[first] = ranges[first][1] - ranges[first][0];
     let mut v = [0.0; 3];
     v[second] = ranges[second][1] - ranges[second][0];
+    check_placed(ck, place, &vertices(corner, u, v), span.clone(), field)?;
     placed_quad(place, corner, u, v, material).ok_or_else(|| too_thin(ck, span, field))
 }
 
@@ -566,6 +627,13 @@ fn sphere_cloud(
     let (lo, hi) = box_corners(ck, field, &d.min, &d.max)?;
     let radius = ck.radius(&d.radius, &format!("{field}.radius"), true)?;
     let placed = Placement::check(ck, field, d.rotate_y_deg.as_ref(), d.translate.as_ref())?;
+    check_placed(
+        ck,
+        &placed,
+        &corners(lo, hi),
+        d.max.span(),
+        &format!("{field}.max"),
+    )?;
     let draws = DrawSettings::check(
         ck,
         field,
@@ -670,6 +738,13 @@ fn sphere_boundary(
 fn box_boundary(ck: &Checker, field: &str, b: &BoundaryBoxDesc) -> Result<Boundary> {
     let placed = Placement::check(ck, field, b.rotate_y_deg.as_ref(), b.translate.as_ref())?;
     let (lo, hi) = box_corners(ck, field, &b.min, &b.max)?;
+    check_placed(
+        ck,
+        &placed,
+        &corners(lo, hi),
+        b.max.span(),
+        &format!("{field}.max"),
+    )?;
     let quads = box_quads(&placed, lo, hi, MaterialId(u32::MAX))
         .ok_or_else(|| too_thin(ck, b.max.span(), &format!("{field}.max")))?;
     Ok(Boundary::Quads(quads))

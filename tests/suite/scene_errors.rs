@@ -478,6 +478,63 @@ fn a_bad_random_spheres_generator_is_rejected_with_its_line() {
     );
 }
 
+/// The bound on coordinates is on where a primitive ends up: a still sphere's centre within
+/// it, rotated 45° and moved by the most a translation may, lay at 2.4e18 and was rendered
+/// (a moving sphere's placed centre was already refused so). Each kind of placed primitive
+/// is refused at the key that places it beyond, and one placed just within renders.
+#[test]
+fn a_primitive_placed_past_the_bound_is_refused() {
+    const PLACE: &str = "rotate_y_deg = 45.0\ntranslate = [1e18, 0.0, 1e18]";
+    let sphere = GOOD.replace(
+        "center = [0.0, 0.0, -1.0]",
+        &format!("center = [1e18, 0.0, 1e18]\n{PLACE}"),
+    );
+    assert_rejected(
+        "placed-sphere",
+        &sphere,
+        &[
+            "scene.toml:12:10",
+            "spheres[0].center",
+            "2.414",
+            "within ±1e18",
+        ],
+    );
+    let with = |table: &str| format!("{GOOD}\n{table}\n{PLACE}\n");
+    for (name, table, expected) in [
+        (
+            "placed-box",
+            "[[boxes]]\nmin = [0.0, 0.0, 0.0]\nmax = [1e18, 1.0, 1e18]\nmaterial = \"red\"",
+            "boxes[0].max",
+        ),
+        (
+            "placed-quad",
+            "[[quads]]\ncorner = [1e18, 0.0, 1e18]\nu = [1.0, 0.0, 0.0]\nv = [0.0, 1.0, 0.0]\n\
+             material = \"red\"",
+            "quads[0].corner",
+        ),
+        (
+            "placed-rect",
+            "[[rects]]\nx = [0.0, 1.0]\ny = [0.0, 1.0]\nz = 1e18\nmaterial = \"red\"",
+            "rects[0]",
+        ),
+        (
+            "placed-cloud",
+            "[[random_sphere_clouds]]\ncount = 2\nmin = [0.0, 0.0, 0.0]\nmax = [1e18, 1.0, 1e18]\n\
+             radius = 1.0\nmaterial = \"red\"",
+            "random_sphere_clouds[0].max",
+        ),
+    ] {
+        assert_rejected(name, &with(table), &[expected, "within ±1e18"]);
+    }
+    let within = GOOD.replace(
+        "center = [0.0, 0.0, -1.0]",
+        "center = [1e17, 0.0, 1e17]\nrotate_y_deg = 45.0\ntranslate = [-5e17, 0.0, 0.0]",
+    );
+    let dir = dir_with_scene("placed-within", within);
+    let o = run(&["render", "scene.toml", "-o", "out.png", "-q"], &dir);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
 /// A moving sphere keeps moving outside its two times: where the shutter opens or closes, a
 /// centre taken past the coordinates' bound squares to infinity and the sphere silently
 /// vanished from the image (`move_times = [0, 1e-30]` under a shutter of [0, 1] rendered
