@@ -1770,6 +1770,57 @@ fn a_new_database_on_a_nearly_full_disk_is_made_whole_or_not_at_all() {
     assert!(landed > 0 && failed > 0, "{out}{}", stderr(&o));
 }
 
+/// A first import that fails to add its results (a file size limit, `ulimit -f`, as a full
+/// disk) leaves no database: one was made and published empty before the rows were added,
+/// and stayed, of no runs. The new database is filled before it is published. At each
+/// limit, from room for the empty database but not the result (a result of 240 KB) to room
+/// for both, the import lands whole or fails leaving nothing.
+#[test]
+fn a_first_import_that_fails_leaves_no_empty_database() {
+    let dir = temp_dir("results-first-import-fails");
+    let mut v = json(&root().join("fuzz/corpus/result/quick-one-thread.json"));
+    v["validation"]["status"] = "invalid".into();
+    v["validation"]["images"] = (0..1000).map(|i| format!("{i:04}").repeat(60)).collect();
+    write_json(&dir.join("big.json"), &v);
+    let (mut landed, mut failed) = (0, 0);
+    for blocks in [64, 96, 128, 192, 256, 4096] {
+        let sub = dir.join(format!("f{blocks}"));
+        std::fs::create_dir_all(&sub).unwrap();
+        let o = Command::new("sh")
+            .arg("-c")
+            .arg(format!(
+                "ulimit -f {blocks} && exec '{}' results import ../big.json",
+                env!("CARGO_BIN_EXE_tessera")
+            ))
+            .env("TESSERA_DB", sub.join("r.db"))
+            .current_dir(&sub)
+            .output()
+            .unwrap();
+        let left: Vec<String> = (std::fs::read_dir(&sub).unwrap())
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        match o.status.code() {
+            Some(0) => {
+                landed += 1;
+                assert_eq!(listed(&sub, &sub.join("r.db"), &[]).len(), 1, "{blocks}");
+            }
+            Some(2) => {
+                failed += 1;
+                assert!(
+                    left.is_empty(),
+                    "ulimit -f {blocks}: a failed first import left {left:?}: {}",
+                    stderr(&o)
+                );
+            }
+            _ => panic!(
+                "ulimit -f {blocks}: neither landed nor refused: {}",
+                stderr(&o)
+            ),
+        }
+    }
+    assert!(landed > 0 && failed > 0, "landed {landed}, failed {failed}");
+}
+
 #[test]
 fn a_full_or_read_only_disk_is_an_error_that_keeps_what_was_there() {
     let test = "a_full_or_read_only_disk_is_an_error_that_keeps_what_was_there";

@@ -183,8 +183,7 @@ fn import(path: &Path, files: &[PathBuf]) -> Result<()> {
     for file in files {
         results.extend(BenchResult::read_all(file)?);
     }
-    let mut db = ResultsDb::open(path)?;
-    let added = db.add_all(&results, "import")?;
+    let added = ResultsDb::add_to(path, &results, "import")?;
     let new = added.iter().filter(|a| matches!(a, Added::New(_))).count();
     out(&format!(
         "imported {}, {} already present\n",

@@ -302,6 +302,18 @@ pub(super) fn immutable_there(path: &Path) -> bool {
 /// where a database is there already: then that one is used and this one removed. No
 /// process ever sees a half-made database.
 pub(super) fn create(path: &Path) -> Result<()> {
+    create_with(path, |_| Ok(())).map(drop)
+}
+
+/// Makes a new database at `path` as `create` does, with `fill` run on it before it is
+/// published: what `fill` writes is there from the first moment anyone sees it, and where
+/// `fill` fails nothing is published. It gives what `fill` gave where this one was
+/// published, and None where another process published one first (then `fill`'s rows are
+/// not in it).
+pub(super) fn create_with<T>(
+    path: &Path,
+    fill: impl FnOnce(&mut ResultsDb) -> Result<T>,
+) -> Result<Option<T>> {
     let shown = path.display();
     let dir = match path.parent() {
         Some(dir) if !dir.as_os_str().is_empty() => dir,
@@ -321,7 +333,7 @@ pub(super) fn create(path: &Path) -> Result<()> {
         .with_context(|| format!("{shown}: could not create the results database"))?;
     // Removed when dropped, unless published by a rename.
     let made = made.into_temp_path();
-    let built = build_new(&made, path);
+    let built = build_new(&made, path, fill);
     if built.is_err() {
         // What SQLite could not finish (on a full disk) leaves its -wal and -shm files
         // behind: they go with the temporary file.
@@ -331,20 +343,23 @@ pub(super) fn create(path: &Path) -> Result<()> {
             let _ = std::fs::remove_file(side);
         }
     }
-    built?;
+    let filled = built?;
     match std::fs::hard_link(&made, path) {
         // Ours, or another process's made first: either is whole.
-        Ok(()) => Ok(()),
-        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Ok(()),
+        Ok(()) => Ok(Some(filled)),
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Ok(None),
         // A file system without hard links: renamed instead, where nothing is there yet.
         Err(e) if links_refused(&e) => match made.persist_noclobber(path) {
-            Ok(()) => Ok(()),
-            Err(e) if e.error.kind() == std::io::ErrorKind::AlreadyExists => Ok(()),
+            Ok(()) => Ok(Some(filled)),
+            Err(e) if e.error.kind() == std::io::ErrorKind::AlreadyExists => Ok(None),
             Err(e)
                 if std::fs::symlink_metadata(path)
                     .is_err_and(|m| m.kind() == std::io::ErrorKind::NotFound) =>
             {
-                e.path.persist(path).map_err(|e| e.error)
+                e.path
+                    .persist(path)
+                    .map(|()| Some(filled))
+                    .map_err(|e| e.error)
             }
             Err(e) => Err(e.error),
         },
@@ -371,8 +386,12 @@ pub(super) fn refuse_dangling_link(path: &Path) -> Result<()> {
 }
 
 /// Makes a whole database of the latest schema, in WAL mode, at `made` (named `path` in
-/// messages), and closes it.
-pub(super) fn build_new(made: &Path, path: &Path) -> Result<()> {
+/// messages), runs `fill` on it, and closes it.
+pub(super) fn build_new<T>(
+    made: &Path,
+    path: &Path,
+    fill: impl FnOnce(&mut ResultsDb) -> Result<T>,
+) -> Result<T> {
     let started = Instant::now();
     let mut db = ResultsDb::connect(made, OpenFlags::SQLITE_OPEN_READ_WRITE, started)?;
     // Messages name the database being made, not its temporary name.
@@ -381,6 +400,8 @@ pub(super) fn build_new(made: &Path, path: &Path) -> Result<()> {
         .pragma_update(None, "journal_mode", "wal")
         .map_err(|e| db.error(e, "could not create it", started))?;
     db.migrate(0, started)?;
+    db.conn.pragma_update(None, "foreign_keys", true)?;
+    let filled = fill(&mut db)?;
     // Everything written back from the WAL into the file itself before it is published under
     // `path`: its -wal file is `made`'s, which `path` never reads. A close does this too, but
     // says nothing when it cannot (a full disk), and the published file would be empty.
@@ -407,7 +428,7 @@ pub(super) fn build_new(made: &Path, path: &Path) -> Result<()> {
             path.display()
         );
     }
-    Ok(())
+    Ok(filled)
 }
 
 /// Whether `e` is a file system refusing hard links.

@@ -18,7 +18,7 @@ use super::result::{
 };
 use anyhow::{Context, Result, anyhow, bail};
 use file::{
-    cannot_open_wal_files, create, immutable_there, open_immutable, recognise,
+    cannot_open_wal_files, create, create_with, immutable_there, open_immutable, recognise,
     refuse_dangling_link, schema_difference, whose,
 };
 use rusqlite::{Connection, OpenFlags, OptionalExtension, TransactionBehavior, params};
@@ -242,6 +242,23 @@ impl ResultsDb {
     /// Opens the database at `path`, creating it (and its directory) if it does not exist.
     pub fn open(path: &Path) -> Result<Self> {
         Self::open_as(path, Access::Write, Instant::now())?.opened()
+    }
+
+    /// Adds `reports` (from `source`) to the database at `path` in one transaction, as
+    /// `add_all` does, creating it where it does not exist: then they are written into the
+    /// new database before it is published, so that an import that fails (a full disk)
+    /// leaves no database of no runs behind, as one did.
+    pub fn add_to(path: &Path, reports: &[BenchResult], source: &str) -> Result<Vec<Added>> {
+        let missing = matches!(std::fs::symlink_metadata(path),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound);
+        if missing {
+            let made = create_with(path, |db| db.add_all(reports, source))?;
+            if let Some(added) = made {
+                return Ok(added);
+            }
+        }
+        // There already, or published by another process first: added to it.
+        Self::open(path)?.add_all(reports, source)
     }
 
     /// Opens the database at `path` to read it: it is not created, and nothing is written,
