@@ -26,6 +26,9 @@ pub const MAX_LINES: usize = 1 << 20;
 /// `scaling` too): each run's rate takes at most 31 bytes of the JSON, so a result of as
 /// many stays within `MAX_FILE`, and its import (and an export of it) reads it.
 pub const MAX_RUNS: usize = 1 << 14;
+/// The most rows a result's scaling table may hold: a bench measures a few thread counts
+/// (powers of two up to the machine's CPUs, and its headline), far fewer than 64.
+pub const MAX_SCALING_ROWS: usize = 64;
 /// The longest text field accepted (a CPU model, a commit, a scene name).
 pub const MAX_TEXT: usize = 256;
 /// The most threads a result may claim; more is no machine's.
@@ -353,7 +356,7 @@ impl BenchResult {
         count("workload.width", self.workload.width as usize, 1 << 16)?;
         count("workload.height", self.workload.height as usize, 1 << 16)?;
         count("workload.spp", self.workload.spp as usize, 1 << 24)?;
-        count("scaling rows", self.scaling.len(), 64)?;
+        count("scaling rows", self.scaling.len(), MAX_SCALING_ROWS)?;
         if let Some(busy) = &self.busy {
             check_busy(busy)?;
         }

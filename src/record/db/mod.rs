@@ -13,8 +13,8 @@
 mod file;
 
 use super::result::{
-    BenchResult, MAX_FILE, MAX_SAMPLES_PER_SEC, MAX_TEXT, MAX_THREADS, MIN_SAMPLES_PER_SEC,
-    is_run_time,
+    BenchResult, MAX_FILE, MAX_SAMPLES_PER_SEC, MAX_SCALING_ROWS, MAX_TEXT, MAX_THREADS,
+    MIN_SAMPLES_PER_SEC, is_run_time,
 };
 use anyhow::{Context, Result, anyhow, bail};
 use file::{
@@ -675,13 +675,27 @@ impl ResultsDb {
 
 impl ResultsDb {
     /// Each thread count's samples/s (median, min, max) of run `id`, fewest threads first.
+    /// At most `MAX_SCALING_ROWS` are read, as many as an import keeps: a run of more is
+    /// refused once one more is read. A run of 3 million rows was read whole (4.8 s,
+    /// 103 MB) before its first row out of bounds refused it, and each of 65,536 rows
+    /// within bounds was kept, for every run `report` pools.
     pub fn scaling(&self, id: i64) -> Result<Vec<(i64, [f64; 3])>> {
         let mut stmt = self.conn.prepare(
             "SELECT threads, sps_median, sps_min, sps_max FROM scaling
-             WHERE run_id = ?1 ORDER BY threads",
+             WHERE run_id = ?1 ORDER BY threads LIMIT ?2",
         )?;
-        let rows = stmt.query_map([id], |r| Ok((r.get(0)?, [r.get(1)?, r.get(2)?, r.get(3)?])))?;
-        let rows = rows.collect::<rusqlite::Result<Vec<(i64, [f64; 3])>>>()?;
+        let most = MAX_SCALING_ROWS as i64;
+        let rows = stmt.query_map(params![id, most + 1], |r| {
+            Ok((r.get(0)?, [r.get(1)?, r.get(2)?, r.get(3)?]))
+        })?;
+        let rows = (rows.collect::<rusqlite::Result<Vec<(i64, [f64; 3])>>>())
+            .map_err(|e| self.unreadable(Some(id), &stmt, e))?;
+        if rows.len() > MAX_SCALING_ROWS {
+            bail!(self.unsound(
+                id,
+                format!("more than {MAX_SCALING_ROWS} scaling rows, more than any result holds")
+            ));
+        }
         for &(threads, sps) in &rows {
             self.sound(id, "a scaling row's ", threads, sps)?;
         }
