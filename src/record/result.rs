@@ -150,14 +150,36 @@ pub struct Validation {
     pub images: Vec<String>,
 }
 
+/// The earliest time a run may be dated: 2020-01-01. tessera did not exist before.
+const EARLIEST_RUN: u64 = 1_577_836_800;
+
+/// The latest time a run kept in a database may be dated, whatever the reader's clock says:
+/// 2100-01-01. A run dated later is absurd on any clock (one of the year 292277026596 stayed
+/// the newest of every later run); one dated after the reader's clock is not: a database
+/// recorded by a clock that ran ahead, or read on one that is behind.
+pub const LATEST_KEPT_RUN: u64 = 4_102_444_800;
+
+/// Now, by this machine's clock, in seconds since 1970.
+fn now_unix_s() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(u64::MAX, |d| d.as_secs())
+}
+
 /// Whether `unix_s` is a time a run took place: from 2020-01-01 to a day from now. tessera
 /// did not exist before, and clocks drift.
 pub fn is_run_time(unix_s: u64) -> bool {
-    const EARLIEST: u64 = 1_577_836_800;
-    let now = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(u64::MAX, |d| d.as_secs());
-    (EARLIEST..=now.saturating_add(86_400)).contains(&unix_s)
+    (EARLIEST_RUN..=now_unix_s().saturating_add(86_400)).contains(&unix_s)
+}
+
+/// Whether `unix_s` is a time a run kept in a database may be dated, to be read: from
+/// 2020-01-01 to `LATEST_KEPT_RUN` (or a day from now, on a clock past it). The import
+/// held it to a day past its own clock; holding it so again on reading refused every
+/// command on a whole database, its owner's too, wherever the reader's clock was over a
+/// day behind the one that recorded a run.
+pub fn is_kept_run_time(unix_s: u64) -> bool {
+    let latest = LATEST_KEPT_RUN.max(now_unix_s().saturating_add(86_400));
+    (EARLIEST_RUN..=latest).contains(&unix_s)
 }
 
 impl BenchResult {

@@ -507,6 +507,39 @@ fn a_database_whose_numbers_no_import_takes_is_refused() {
     }
 }
 
+/// A run dated over a day past the reader's clock (recorded by a clock ahead of it, or read
+/// on one behind) made every command refuse the whole database, its owner's own too: the
+/// reading held each run to a day past its own clock, as an import does. On reading, only a
+/// date no clock makes is refused (before 2020, after 2100); `far-future` above is one.
+#[test]
+fn a_run_dated_past_the_reader_s_clock_still_reads() {
+    let dir = temp_dir("results-ahead");
+    let (db, _) = database_of_one_run(&dir);
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_secs();
+    let conn = rusqlite::Connection::open(&db).unwrap();
+    conn.execute(
+        "UPDATE runs SET started_unix_s = ?1",
+        [now as i64 + 30 * 86_400],
+    )
+    .unwrap();
+    drop(conn);
+    let html = dir.join("r.html");
+    for args in [
+        &["list"][..],
+        &["rank"],
+        &["history"],
+        &["compare", "1", "1"],
+        &["report", "-o", html.to_str().unwrap()],
+    ] {
+        let o = results(&dir, &db, args);
+        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+    }
+    assert_eq!(listed(&dir, &db, &[]).len(), 1);
+}
+
 /// A result of the smallest positive rates a double holds (5e-324 samples/s, where the
 /// slowest run makes a sample in a year, 3.1e-8) was imported, and its M samples/s, 0,
 /// drew `NaN%` and `inf%` into the report's efficiency table. Such a rate is refused, in a
