@@ -270,18 +270,30 @@ impl BenchResult {
             if results.len() == MAX_LINES {
                 bail!("{at}: more than {MAX_LINES} results in one file");
             }
-            results.push(Self::parse_within(&line, &at, MAX_LINE)?);
+            results.push(Self::parse_within(&line, &at, MAX_LINE, is_run_time)?);
         }
         Ok(results)
     }
 
     /// A result from the bytes of a file named `what`.
     pub fn parse(bytes: &[u8], what: &str) -> Result<Self> {
-        Self::parse_within(bytes, what, MAX_FILE)
+        Self::parse_within(bytes, what, MAX_FILE, is_run_time)
     }
 
-    /// A result from at most `most` bytes of a file named `what`.
-    fn parse_within(bytes: &[u8], what: &str, most: u64) -> Result<Self> {
+    /// A result kept in a database, from its bytes (`what` names it), as `parse` reads a
+    /// file's, but dated as a database's runs are read (`is_kept_run_time`): an export of
+    /// runs recorded by a clock ahead of this one's is that database's, not refused.
+    pub fn parse_kept(bytes: &[u8], what: &str) -> Result<Self> {
+        Self::parse_within(bytes, what, MAX_FILE, is_kept_run_time)
+    }
+
+    /// A result from at most `most` bytes of a file named `what`, dated within `run_time`.
+    fn parse_within(
+        bytes: &[u8],
+        what: &str,
+        most: u64,
+        run_time: fn(u64) -> bool,
+    ) -> Result<Self> {
         if bytes.len() as u64 > most {
             bail!(
                 "{what}: larger than {} KiB: not a tessera bench result",
@@ -305,7 +317,7 @@ impl BenchResult {
         let report: BenchResult = serde_json::from_value(value)
             .map_err(|e| anyhow::anyhow!("{what}: not a valid result: {e}"))?;
         report
-            .check()
+            .check_dated(run_time)
             .map_err(|why| anyhow::anyhow!("{what}: not a sound result: {why}"))?;
         // The database keeps the result written again, compact, and an export checks what it
         // kept as a file: it is held to a file's bound too. Its numbers may take more bytes
@@ -325,6 +337,11 @@ impl BenchResult {
     /// Refuses what no real run produces: absurd counts, times and speeds, overlong text,
     /// a headline missing from its table, a validation that contradicts itself.
     pub fn check(&self) -> Result<(), String> {
+        self.check_dated(is_run_time)
+    }
+
+    /// `check`, with a start time within `run_time`.
+    fn check_dated(&self, run_time: fn(u64) -> bool) -> Result<(), String> {
         let texts = [
             ("build.version", Some(&self.build.version)),
             ("build.commit", Some(&self.build.commit)),
@@ -499,7 +516,7 @@ impl BenchResult {
             ));
         }
         let started = self.method.started_unix_s;
-        if !is_run_time(started) {
+        if !run_time(started) {
             return Err(format!(
                 "method.started_unix_s {started} is not a time a run took place"
             ));

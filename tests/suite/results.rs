@@ -521,7 +521,8 @@ fn a_run_dated_past_the_reader_s_clock_still_reads() {
         .as_secs();
     let conn = rusqlite::Connection::open(&db).unwrap();
     conn.execute(
-        "UPDATE runs SET started_unix_s = ?1",
+        "UPDATE runs SET started_unix_s = ?1,
+             result = json_set(result, '$.method.started_unix_s', ?1)",
         [now as i64 + 30 * 86_400],
     )
     .unwrap();
@@ -533,6 +534,7 @@ fn a_run_dated_past_the_reader_s_clock_still_reads() {
         &["history"],
         &["compare", "1", "1"],
         &["report", "-o", html.to_str().unwrap()],
+        &["export", "--jsonl"],
     ] {
         let o = results(&dir, &db, args);
         assert!(o.status.success(), "{args:?}: {}", stderr(&o));

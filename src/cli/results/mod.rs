@@ -580,7 +580,7 @@ fn export(path: &Path) -> Result<()> {
                 );
             }
             // A line of JSON that no import takes would make an export that does not import.
-            if let Err(why) = BenchResult::parse(json.as_bytes(), "it") {
+            if let Err(why) = BenchResult::parse_kept(json.as_bytes(), "it") {
                 bail!(
                     "{}: result {} (oldest first) is not a result an import takes ({why:#}); \
                      tessera writes none such: nothing exported",
