@@ -51,23 +51,79 @@ impl RgbImage {
     /// else its content), once the size its header claims is found within
     /// `MAX_COMPARED_PIXELS`.
     pub fn load(path: &Path) -> Result<Self> {
-        let (decoder, _, _) = Self::decoder(path)?;
-        Self::decode(path, decoder).map(|(image, _)| image)
+        let (decoder, _, format) = Self::decoder(path)?;
+        Self::decode(path, decoder, format).map(|(image, _)| image)
     }
 
-    /// The pixels of the image at `path` from `decoder`, its header already read, and how
-    /// many of its values were NaN (a float image's), each taken as 0.
-    fn decode(path: &Path, decoder: impl image::ImageDecoder) -> Result<(Self, usize)> {
-        let img = image::DynamicImage::from_decoder(decoder).map_err(|e| Error::Image {
+    /// The pixels of the image at `path` from `decoder` (of `format`), its header already
+    /// read, and how many of its values were NaN (a float image's), each taken as 0.
+    ///
+    /// The memory the decode takes is asked of the system first, and a refusal is an error
+    /// that says how much it was: the decoder's buffer and the floats are reserved with
+    /// `try_reserve_exact` and held, and what the EXR and JPEG decoders take beside them
+    /// (`decoder_scratch`) is reserved and given back just before they take it. Under
+    /// `ulimit -v` of 300 MB, `compare` of two real 4096x4096 PNGs once ended in a panic within
+    /// the image crate's `to_rgb32f` (which reserves with `try_reserve` and unwraps it),
+    /// whose backtrace then waited forever on a lock it held.
+    /// The floats are the image crate's own conversion (`to_rgb32f`), made a band of rows at
+    /// a time into the floats reserved: the values are those it gives the whole image.
+    fn decode(
+        path: &Path,
+        decoder: impl image::ImageDecoder,
+        format: Option<image::ImageFormat>,
+    ) -> Result<(Self, usize)> {
+        let (width, height) = decoder.dimensions();
+        let color = decoder.color_type();
+        let decoded = decoder.total_bytes();
+        let floats = u64::from(width) * u64::from(height) * 3;
+        let scratch = decoder_scratch(format, decoded);
+        let needed = decoded
+            .saturating_add(floats.saturating_mul(4))
+            .saturating_add(scratch);
+        let refused = || Error::Image {
+            path: path.to_owned(),
+            message: format!(
+                "could not be compared: its {width}x{height} pixels take {needed} bytes of \
+                 memory to compare ({decoded} decoded, {} as floats and {scratch} within the \
+                 decoder), which the system refused",
+                floats * 4
+            ),
+        };
+        let mut bytes = Vec::<u8>::new();
+        let mut data = Vec::<f32>::new();
+        let mut probe = Vec::<u8>::new();
+        usize::try_from(decoded)
+            .ok()
+            .and_then(|n| bytes.try_reserve_exact(n).ok())
+            .and_then(|()| usize::try_from(floats).ok())
+            .and_then(|n| data.try_reserve_exact(n).ok())
+            .and_then(|()| usize::try_from(scratch).ok())
+            .and_then(|n| probe.try_reserve_exact(n).ok())
+            .ok_or_else(refused)?;
+        drop(probe);
+        bytes.resize(bytes.capacity(), 0);
+        let fail = |e: image::ImageError| Error::Image {
             path: path.to_owned(),
             message: decode_failure(&e),
-        })?;
-        let rgb = img.to_rgb32f();
-        let nans = rgb.iter().filter(|c| c.is_nan()).count();
+        };
+        decoder.read_image(&mut bytes).map_err(fail)?;
+        // Whole rows a band (the decoder's buffer is `height` rows of as many bytes).
+        let row = (bytes.len() / usize::try_from(height).unwrap_or(usize::MAX).max(1)).max(1);
+        let rows = (CONVERTED_BAND_BYTES / row).max(1);
+        let mut nans = 0;
+        for band in bytes.chunks(row * rows) {
+            let band_rows = u32::try_from(band.len() / row).unwrap_or(u32::MAX);
+            let rgb = band_rgb32f(color, width, band_rows, band).ok_or_else(|| Error::Image {
+                path: path.to_owned(),
+                message: format!("has pixels of a colour type ({color:?}) compare does not read"),
+            })?;
+            nans += rgb.iter().filter(|c| c.is_nan()).count();
+            data.extend(rgb.into_raw().into_iter().map(unit));
+        }
         let image = Self {
-            width: rgb.width(),
-            height: rgb.height(),
-            data: rgb.into_raw().into_iter().map(unit).collect(),
+            width,
+            height,
+            data,
         };
         Ok((image, nans))
     }
@@ -78,7 +134,13 @@ impl RgbImage {
     /// channels only, so a transparent image and an opaque one of the same colours would
     /// otherwise be identical), and a JPEG's EXIF orientation and colour profile (and more
     /// than one EXIF segment).
-    fn opened(path: &Path) -> Result<(impl image::ImageDecoder, Vec<String>)> {
+    fn opened(
+        path: &Path,
+    ) -> Result<(
+        impl image::ImageDecoder,
+        Vec<String>,
+        Option<image::ImageFormat>,
+    )> {
         use image::ImageDecoder;
         let (mut decoder, mut display_changes, format) = Self::decoder(path)?;
         let fail = |e: image::ImageError| Error::Image {
@@ -108,7 +170,7 @@ impl RgbImage {
                 display_changes.push(JPEG_ICC_PROFILE.to_owned());
             }
         }
-        Ok((decoder, display_changes))
+        Ok((decoder, display_changes, format))
     }
 
     /// A decoder of the image at `path` with its header read and its size checked, what the
@@ -279,6 +341,61 @@ impl RgbImage {
             data: bytes.iter().map(|&b| f32::from(b) / 255.0).collect(),
         }
     }
+}
+
+/// The most bytes of decoded pixels converted to floats at a time (`RgbImage::decode`): a
+/// band of rows of at most 1 MiB (one row where a row is longer).
+const CONVERTED_BAND_BYTES: usize = 1 << 20;
+
+/// The bytes a decoder of `format` takes beside the buffer of `decoded` bytes it fills: the
+/// EXR decoder its own copy of the whole picture (four bytes a value, as many as it hands
+/// on), the JPEG decoder a progressive file's coefficients (two bytes a sample); the PNG and
+/// PNM decoders a few rows.
+fn decoder_scratch(format: Option<image::ImageFormat>, decoded: u64) -> u64 {
+    match format {
+        Some(image::ImageFormat::OpenExr) => decoded,
+        Some(image::ImageFormat::Jpeg) => decoded.saturating_mul(2),
+        _ => 0,
+    }
+}
+
+/// The floats the image crate's `to_rgb32f` gives for `band`, `rows` rows of `width` pixels
+/// of the colour type `color` as the decoder wrote them (its samples in native byte order),
+/// the image's colour space taken as `DynamicImage::from_decoder` takes it; None for a
+/// colour type it does not decode to.
+fn band_rgb32f(
+    color: image::ColorType,
+    width: u32,
+    rows: u32,
+    band: &[u8],
+) -> Option<image::Rgb32FImage> {
+    use image::{ColorType as C, DynamicImage as D, ImageBuffer};
+    let u16s = || {
+        band.chunks_exact(2)
+            .map(|b| u16::from_ne_bytes([b[0], b[1]]))
+            .collect::<Vec<_>>()
+    };
+    let f32s = || {
+        band.chunks_exact(4)
+            .map(|b| f32::from_ne_bytes([b[0], b[1], b[2], b[3]]))
+            .collect::<Vec<_>>()
+    };
+    let mut image = match color {
+        C::L8 => ImageBuffer::from_raw(width, rows, band.to_vec()).map(D::ImageLuma8),
+        C::La8 => ImageBuffer::from_raw(width, rows, band.to_vec()).map(D::ImageLumaA8),
+        C::Rgb8 => ImageBuffer::from_raw(width, rows, band.to_vec()).map(D::ImageRgb8),
+        C::Rgba8 => ImageBuffer::from_raw(width, rows, band.to_vec()).map(D::ImageRgba8),
+        C::L16 => ImageBuffer::from_raw(width, rows, u16s()).map(D::ImageLuma16),
+        C::La16 => ImageBuffer::from_raw(width, rows, u16s()).map(D::ImageLumaA16),
+        C::Rgb16 => ImageBuffer::from_raw(width, rows, u16s()).map(D::ImageRgb16),
+        C::Rgba16 => ImageBuffer::from_raw(width, rows, u16s()).map(D::ImageRgba16),
+        C::Rgb32F => ImageBuffer::from_raw(width, rows, f32s()).map(D::ImageRgb32F),
+        C::Rgba32F => ImageBuffer::from_raw(width, rows, f32s()).map(D::ImageRgba32F),
+        _ => None,
+    }?;
+    image.set_rgb_primaries(image::metadata::Cicp::SRGB.primaries);
+    image.set_transfer_function(image::metadata::Cicp::SRGB.transfer);
+    Some(image.to_rgb32f())
 }
 
 /// The most segments of a JPEG walked for its EXIF ones: the book's earth map has a dozen.
@@ -727,16 +844,16 @@ pub fn difference(a: &RgbImage, b: &RgbImage) -> std::result::Result<Difference,
 /// before either is decoded.
 pub fn difference_of_files(a: &Path, b: &Path) -> Result<Difference> {
     use image::ImageDecoder;
-    let (decoder_a, shown_a) = RgbImage::opened(a)?;
-    let (decoder_b, shown_b) = RgbImage::opened(b)?;
+    let (decoder_a, shown_a, format_a) = RgbImage::opened(a)?;
+    let (decoder_b, shown_b, format_b) = RgbImage::opened(b)?;
     if let Some(message) = sizes_differ(decoder_a.dimensions(), decoder_b.dimensions()) {
         return Err(Error::Image {
             path: b.to_owned(),
             message,
         });
     }
-    let (ia, nans_a) = RgbImage::decode(a, decoder_a)?;
-    let (ib, nans_b) = RgbImage::decode(b, decoder_b)?;
+    let (ia, nans_a) = RgbImage::decode(a, decoder_a, format_a)?;
+    let (ib, nans_b) = RgbImage::decode(b, decoder_b, format_b)?;
     let mut d = difference(&ia, &ib).map_err(|message| Error::Image {
         path: b.to_owned(),
         message,

@@ -515,6 +515,29 @@ fn compare_checks_the_sizes_images_claim_before_decoding_them() {
     assert!(stdout(&o).contains("inf dB (identical)"), "{}", stdout(&o));
 }
 
+/// `compare` of a real 4096x4096 PNG (within every bound) under 300 MiB of address space
+/// ended in a panic within the image crate's `to_rgb32f` (exit 101; with `RUST_BACKTRACE`
+/// set, its backtrace then waited forever on a lock): the memory its pixels take to compare is
+/// asked of the system first, and a refusal is an error that says how much (exit 2). With
+/// room enough the same files compare `identical`.
+#[test]
+fn compare_refuses_an_image_whose_memory_the_system_refuses() {
+    let dir = temp_dir("hostile-compare-memory");
+    image::RgbImage::new(4096, 4096)
+        .save(dir.join("big.png"))
+        .unwrap();
+    let o = run_capped(&["compare", "big.png", "big.png"], &dir, 300);
+    refused(
+        &o,
+        "big.png: could not be compared: its 4096x4096 pixels take 251658240 bytes of memory \
+         to compare",
+        "capped",
+    );
+    let o = run_capped(&["compare", "big.png", "big.png"], &dir, 1024);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("inf dB (identical)"), "{}", stdout(&o));
+}
+
 /// A file far longer than any image of `compare`'s 2^24 pixels takes: a JPEG followed by 4 GiB
 /// (its decoder reads the whole file: 4.2 GB and 22 s before), a PPM whose header is a comment
 /// of 100 GiB (12 minutes of reading), each sparse, on a few KiB of disk; and a PAM within that
