@@ -324,13 +324,17 @@ impl Decoded {
         // The decoder makes room for every pixel from the header alone, before it reads a
         // chunk: a file of 313 bytes claiming 4096x4096 float RGB had 201 MB reserved, and
         // ended tessera where that much could not be. The chunks the header claims must be
-        // in the file first, each at least `MIN_CHUNK_BYTES`, and without compression its
-        // pixels' bytes too.
+        // in the file first, each at least `MIN_CHUNK_BYTES`, and the fewest bytes its
+        // compression can store its pixels in (`least_stored`) too: a file of 4.4 KB that
+        // held the offset table and 16 bytes a chunk of 4096x4096 float RGB of ZIP blocks had
+        // 400 MB reserved before its first chunk failed to inflate.
         let Some(chunks) = chunks else {
             return Ok(());
         };
         let stored = match (self.compression, decoded) {
-            (Some(0), Some((_, decoded))) => u64::try_from(decoded).unwrap_or(u64::MAX),
+            (Some(compression), Some((_, decoded))) => {
+                least_stored(compression, u64::try_from(decoded).unwrap_or(u64::MAX))
+            }
             _ => 0,
         };
         let least = header_len
@@ -344,6 +348,27 @@ impl Decoded {
             ));
         }
         Ok(())
+    }
+}
+
+/// The fewest bytes pixels that take `decoded` bytes decoded take stored in the compression
+/// `compression` (as EXR numbers it), by the most each compression can shrink them: the
+/// decoder makes room for them all from the header, so the bytes the file must hold follow
+/// them. Without compression, and HTJ2K (which the decoder reads only where a chunk is stored
+/// as it is, the same length decoded), all of them; RLE two bytes for a run of at most 128;
+/// ZIP and ZIPS a deflate stream, at most 258 bytes for two bits (1032 to one); PXR24 the
+/// same of floats cut to 24 bits (4/3 more); B44 and B44A at least 3 bytes for a block of
+/// 16 halves (32 bytes), other channels as they are. PIZ (Huffman codes of runs) and DWAA and
+/// DWAB (a zlib stream of run-length codes of a DCT: a flat picture shrinks some 66,000 to
+/// one, a 4096x4096 image of floats to 3 KB) are given no floor: 16 bytes a chunk.
+fn least_stored(compression: u8, decoded: u64) -> u64 {
+    match compression {
+        0 | 10 | 11 => decoded,
+        1 => decoded / 64,
+        2 | 3 => decoded / 1032,
+        5 => decoded / 1376,
+        6 | 7 => decoded / 32 * 3,
+        _ => 0,
     }
 }
 
@@ -1270,5 +1295,42 @@ mod tests {
         );
         // 48 MiB read 8 KiB at a time: about 6,000 reads.
         assert!(file.calls < 10_000, "{} reads and seeks", file.calls);
+    }
+
+    /// A file of 4,396 bytes (a header of 300, and the offset table and 16 bytes a chunk of
+    /// the 256 ZIP blocks of 4096x4096 float RGB) passed the check of its chunks, and the
+    /// decoder reserved every pixel (400 MB) before it found the first chunk short. Each
+    /// compression's chunks must hold the fewest bytes it stores the pixels in
+    /// (`least_stored`); an HTJ2K file, which the decoder reads only as stored, all of them.
+    #[test]
+    fn chunks_must_hold_the_bytes_their_compression_stores_the_pixels_in() {
+        let decoded = |compression| Decoded {
+            data: Some([0, 0, 4095, 4095]),
+            bytes_per_pixel: Some(12),
+            compression: Some(compression),
+            tiles: None,
+        };
+        let pixels: u64 = 4096 * 4096 * 12;
+        let said = decoded(3).check(u64::MAX, 300, 300 + 256 * 16).unwrap_err();
+        assert!(
+            said.starts_with("is cut short: its header claims 256 chunks"),
+            "{said}"
+        );
+        assert!(said.contains(&format!("at least {}", 300 + 256 * 16 + pixels / 1032)));
+        let floor = 300 + 256 * 16 + pixels / 1032;
+        decoded(3).check(u64::MAX, 300, floor).unwrap();
+        assert!(decoded(3).check(u64::MAX, 300, floor - 1).is_err());
+        // HTJ2K32: 128 chunks of 32 rows, each stored whole.
+        assert!(decoded(11).check(u64::MAX, 300, 300 + 128 * 16).is_err());
+        decoded(11)
+            .check(u64::MAX, 300, 300 + 128 * 16 + pixels)
+            .unwrap();
+        // RLE: one chunk a row.
+        assert!(decoded(1).check(u64::MAX, 300, 300 + 4096 * 16).is_err());
+        decoded(1)
+            .check(u64::MAX, 300, 300 + 4096 * 16 + pixels / 64)
+            .unwrap();
+        // DWAB: no floor past 16 bytes a chunk.
+        decoded(9).check(u64::MAX, 300, 300 + 16 * 16).unwrap();
     }
 }
