@@ -20,13 +20,23 @@ use toml::Spanned;
 /// The most spheres a cloud may hold.
 pub const MAX_CLOUD: i64 = 1 << 20;
 /// The most primitives a scene may hold in all, spheres (listed, generated, in clouds,
-/// still or moving) and quads (a box is six): far above the books' (the final scene has
-/// about 2,400 quads and 1,100 spheres), and within about 300 MB with their tree.
+/// still or moving) and quads (a box is six), a medium's boundary among them: far above the
+/// books' (the final scene has about 2,400 quads and 1,100 spheres), and within about 300 MB
+/// with their tree.
 pub const MAX_PRIMITIVES: usize = 1 << 20;
 
-/// The primitives `prims` holds so far.
+/// The primitives `prims` holds so far, each medium's boundary counted as the spheres or
+/// quads it is made of (a box medium holds six quads, and a ray that reaches it tests them
+/// all): media went uncounted, and some 500,000 box media fit in a file's values beside
+/// the most other primitives a scene may hold.
 pub(super) fn held(prims: &Primitives) -> usize {
-    prims.spheres.len() + prims.moving_spheres.len() + prims.quads.len()
+    let media = (prims.media.iter())
+        .map(|m| match &m.boundary {
+            Boundary::Sphere(_) | Boundary::MovingSphere(_) => 1,
+            Boundary::Quads(quads) => quads.len(),
+        })
+        .sum::<usize>();
+    prims.spheres.len() + prims.moving_spheres.len() + prims.quads.len() + media
 }
 
 /// A rotation about the y axis through the origin, then a translation: the book's
@@ -321,6 +331,7 @@ pub(super) fn primitives(
         prims
             .media
             .push(medium(ck, &field, m, material, materials, shutter)?);
+        check_held(ck, held(&prims), m.span(), &field)?;
     }
     Ok(prims)
 }

@@ -2597,3 +2597,34 @@ fn an_output_name_that_is_another_users_pipe_is_refused() {
         "another user's pipe",
     );
 }
+
+/// A medium's boundary is primitives too (a box medium six quads, each tested by a ray that
+/// reaches it), and was not counted: a cloud of the most spheres a scene may hold, less
+/// three, beside one box of smoke was built whole. The boundary counts, and the cloud that
+/// goes over with it is refused at its count, before it is drawn.
+#[test]
+fn a_medium_s_boundary_counts_among_the_scene_s_primitives() {
+    let dir = temp_dir("hostile-media-counted");
+    let most = 1 << 20;
+    let text = format!(
+        "[image]\nwidth = 8\nheight = 8\nsamples_per_pixel = 1\nmax_depth = 2\n\
+         [materials.m]\ntype = \"lambertian\"\nalbedo = [0.5, 0.5, 0.5]\n\
+         [materials.smoke]\ntype = \"isotropic\"\nalbedo = [0.5, 0.5, 0.5]\n\
+         [[media]]\ndensity = 0.01\nmaterial = \"smoke\"\n\
+         box = {{ min = [0.0, 0.0, 0.0], max = [1.0, 1.0, 1.0] }}\n\
+         [[random_sphere_clouds]]\ncount = {}\nmin = [0.0, 0.0, 0.0]\nmax = [1.0, 1.0, 1.0]\n\
+         radius = 0.1\nmaterial = \"m\"\n",
+        most - 3
+    );
+    std::fs::write(dir.join("media.toml"), text).unwrap();
+    refused(
+        &run_capped(&["render", "media.toml", "-o", "media.png"], &dir, 64),
+        &format!(
+            "media.toml:17:9: field `random_sphere_clouds[0].count`: would make the scene's \
+             primitives (spheres and quads; a box is six) {}",
+            most + 3
+        ),
+        "a cloud of the most spheres less three beside a box of smoke",
+    );
+    assert!(!dir.join("media.png").exists());
+}
