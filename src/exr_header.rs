@@ -341,6 +341,15 @@ impl Decoded {
             .saturating_add(chunks.saturating_mul(MIN_CHUNK_BYTES))
             .saturating_add(stored);
         if least > len {
+            // HTJ2K's floor is every pixel's bytes only because the decoder reads no other
+            // chunk: a real HTJ2K file is not cut short, and is told why it is refused.
+            if let Some(10 | 11) = self.compression {
+                return Err(format!(
+                    "is compressed with HTJ2K, which the decoder reads only where every chunk \
+                     is stored uncompressed: its {chunks} chunks would take at least {least} \
+                     bytes with the header, and the file has {len}"
+                ));
+            }
             return Err(format!(
                 "is cut short: its header claims {chunks} chunks (blocks of scan lines or \
                  tiles of a data window of {width}x{height}), which take at least {least} \
@@ -1320,8 +1329,12 @@ mod tests {
         let floor = 300 + 256 * 16 + pixels / 1032;
         decoded(3).check(u64::MAX, 300, floor).unwrap();
         assert!(decoded(3).check(u64::MAX, 300, floor - 1).is_err());
-        // HTJ2K32: 128 chunks of 32 rows, each stored whole.
-        assert!(decoded(11).check(u64::MAX, 300, 300 + 128 * 16).is_err());
+        // HTJ2K32: 128 chunks of 32 rows, each stored whole; one compressed is refused as
+        // HTJ2K, not as cut short.
+        let said = decoded(11)
+            .check(u64::MAX, 300, 300 + 128 * 16)
+            .unwrap_err();
+        assert!(said.starts_with("is compressed with HTJ2K"), "{said}");
         decoded(11)
             .check(u64::MAX, 300, 300 + 128 * 16 + pixels)
             .unwrap();
