@@ -137,6 +137,18 @@ fn check_placed(
     Ok(())
 }
 
+/// Refuses a box from `lo` to `hi` (its `max` at `span`, of the table `field`) whose
+/// corners, once placed, lie beyond `±MAX_LENGTH` (`check_placed`).
+fn check_placed_box(
+    ck: &Checker,
+    place: &Placement,
+    (lo, hi): (Vec3, Vec3),
+    span: Range<usize>,
+    field: &str,
+) -> Result<()> {
+    check_placed(ck, place, &corners(lo, hi), span, &format!("{field}.max"))
+}
+
 /// The eight corners of the box from `lo` to `hi`.
 fn corners(lo: Vec3, hi: Vec3) -> [[f64; 3]; 8] {
     let (a, b) = (f64s(lo), f64s(hi));
@@ -292,13 +304,7 @@ pub(super) fn primitives(
         let id = material(&b.material, &format!("{field}.material"))?;
         let placed = Placement::check(ck, &field, b.rotate_y_deg.as_ref(), b.translate.as_ref())?;
         let (lo, hi) = box_corners(ck, &field, &b.min, &b.max)?;
-        check_placed(
-            ck,
-            &placed,
-            &corners(lo, hi),
-            b.max.span(),
-            &format!("{field}.max"),
-        )?;
+        check_placed_box(ck, &placed, (lo, hi), b.max.span(), &field)?;
         let quads = box_quads(&placed, lo, hi, id)
             .ok_or_else(|| too_thin(ck, b.max.span(), &format!("{field}.max")))?;
         prims.quads.extend(quads);
@@ -638,13 +644,7 @@ fn sphere_cloud(
     let (lo, hi) = box_corners(ck, field, &d.min, &d.max)?;
     let radius = ck.radius(&d.radius, &format!("{field}.radius"), true)?;
     let placed = Placement::check(ck, field, d.rotate_y_deg.as_ref(), d.translate.as_ref())?;
-    check_placed(
-        ck,
-        &placed,
-        &corners(lo, hi),
-        d.max.span(),
-        &format!("{field}.max"),
-    )?;
+    check_placed_box(ck, &placed, (lo, hi), d.max.span(), field)?;
     let draws = DrawSettings::check(
         ck,
         field,
@@ -749,13 +749,7 @@ fn sphere_boundary(
 fn box_boundary(ck: &Checker, field: &str, b: &BoundaryBoxDesc) -> Result<Boundary> {
     let placed = Placement::check(ck, field, b.rotate_y_deg.as_ref(), b.translate.as_ref())?;
     let (lo, hi) = box_corners(ck, field, &b.min, &b.max)?;
-    check_placed(
-        ck,
-        &placed,
-        &corners(lo, hi),
-        b.max.span(),
-        &format!("{field}.max"),
-    )?;
+    check_placed_box(ck, &placed, (lo, hi), b.max.span(), field)?;
     let quads = box_quads(&placed, lo, hi, MaterialId(u32::MAX))
         .ok_or_else(|| too_thin(ck, b.max.span(), &format!("{field}.max")))?;
     Ok(Boundary::Quads(quads))
