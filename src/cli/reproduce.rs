@@ -13,7 +13,7 @@ use tessera::recipe::{self, Recipe, describe};
 use tessera::record::workload::Workload;
 use tessera::render::{self, RenderOptions};
 use tessera::text::{ascii_json, path_safe, terminal_safe, terminal_safe_lines};
-use tessera::verify::{self, Unrendered};
+use tessera::verify::{self, Differs, Unrendered};
 
 /// `tessera info` as typed.
 #[derive(clap::Args)]
@@ -73,20 +73,21 @@ pub fn info(args: InfoArgs) -> Result<ExitCode> {
         Unrendered::Render(_) => None,
     };
     if args.json {
-        // The recipe as tessera wrote it; where the image is not what it makes, with a
-        // field `differs` (its summary and details), which no recipe has.
-        let mut json = recipe.to_json();
-        if let Some(d) = &differs
-            && json.ends_with('}')
-        {
-            let field = serde_json::json!({"summary": d.summary, "details": d.details});
-            json.pop();
-            json.push_str(&format!(
-                ",\"differs\":{}}}",
-                ascii_json(&field.to_string())
-            ));
+        // The recipe as tessera wrote it, its fields in order; where the image is not what
+        // it makes, with a field `differs` (its summary and details), which no recipe has.
+        #[derive(serde::Serialize)]
+        struct Shown<'a> {
+            #[serde(flatten)]
+            recipe: &'a Recipe,
+            #[serde(skip_serializing_if = "Option::is_none")]
+            differs: Option<&'a Differs>,
         }
-        out(&format!("{json}\n"))?;
+        let shown = Shown {
+            recipe: &recipe,
+            differs: differs.as_ref(),
+        };
+        let json = serde_json::to_string(&shown)?;
+        out(&format!("{}\n", ascii_json(&json)))?;
         return Ok(ExitCode::SUCCESS);
     }
     let o = &recipe.overrides;

@@ -33,7 +33,7 @@ pub fn read_recipe(path: &Path) -> Result<(ImageHeader, Recipe)> {
 }
 
 /// How an image differs from what its recipe makes.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct Differs {
     /// What differs, in a line.
     pub summary: String,
