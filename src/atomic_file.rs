@@ -176,26 +176,77 @@ fn refuse_unnameable(path: &Path, name: &std::ffi::OsStr) -> std::io::Result<()>
 /// write to (`/tmp`), another user can leave one under the name an output will have,
 /// pointing at a device of theirs (their own terminal), which then received the image, recipe
 /// and all, with no file made and exit 0. Such a link is replaced by the file, as a link to
-/// a file is.
+/// a file is. So is, written in place, a file that `path` names as one of this process's
+/// open files (`names_an_open_file`: `/dev/stdout` redirected to a file).
 fn is_special(path: &Path) -> bool {
     use std::os::unix::fs::MetadataExt;
     match std::fs::symlink_metadata(path) {
         Ok(link) if link.file_type().is_symlink() && owner::is_another_users(link.uid(), &[]) => {
             false
         }
-        Ok(_) => std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir()),
+        Ok(_) => std::fs::metadata(path)
+            .is_ok_and(|m| !m.is_dir() && (!m.is_file() || names_an_open_file(path))),
         Err(_) => false,
+    }
+}
+
+/// Symbolic links followed, at most, to see where a path leads (the kernel's own limit).
+const MAX_LINKS: usize = 40;
+
+/// True when `path` is, or leads by symbolic links to, one of this process's open files
+/// as `/proc` names them (`/proc/self/fd/N`, `/dev/fd/N`): `/dev/stdout` with the output
+/// redirected to a file (`-o /dev/stdout > out.json`), the file the shell opened for the
+/// redirect. Renaming over the path replaced the link itself (`/dev/stdout` of the whole
+/// machine, where tessera ran as root) and left the redirected file empty, exit 0.
+fn names_an_open_file(path: &Path) -> bool {
+    let mut at = path.to_owned();
+    for _ in 0..MAX_LINKS {
+        if is_an_open_file_s_name(&at) {
+            return true;
+        }
+        // The link is read, not followed: `/proc/self/fd/N` itself reads as the file's name.
+        let Ok(target) = std::fs::read_link(&at) else {
+            return false;
+        };
+        at = directory_of(&at).join(target);
+    }
+    false
+}
+
+/// Whether `path` is a name `/proc` gives an open file of this process: `/proc/self/fd/N`,
+/// `/proc/thread-self/fd/N`, `/proc/PID/fd/N` with this process's id, or `/dev/fd/N`.
+fn is_an_open_file_s_name(path: &Path) -> bool {
+    use std::path::Component;
+    let parts: Vec<Component> = path.components().collect();
+    let named = |c: &Component, name: &str| c.as_os_str() == name;
+    let a_number =
+        |c: &Component| (c.as_os_str().to_str()).is_some_and(|n| n.parse::<u32>().is_ok());
+    let this_process = std::process::id().to_string();
+    match parts.as_slice() {
+        [Component::RootDir, proc, whose, fd, n] if named(proc, "proc") => {
+            (named(whose, "self") || named(whose, "thread-self") || named(whose, &this_process))
+                && named(fd, "fd")
+                && a_number(n)
+        }
+        [Component::RootDir, dev, fd, n] => named(dev, "dev") && named(fd, "fd") && a_number(n),
+        _ => false,
     }
 }
 
 /// Opens the device or pipe at `path` (`is_special`) to write in place. A symbolic link is
 /// followed only where there was one when `is_special` took it (this user's or root's):
 /// one swapped in since for a device named itself is refused (`O_NOFOLLOW`), not followed.
+/// A file (one of this process's open files, `names_an_open_file`) is written at its end,
+/// as the shell's `>` (which left it empty) or `>>` asked: opened again by its name, it
+/// would be written from its start, over what it held.
 fn open_in_place(path: &Path) -> std::io::Result<std::fs::File> {
     use std::os::unix::fs::OpenOptionsExt;
     let link = std::fs::symlink_metadata(path)?.file_type().is_symlink();
     let mut options = std::fs::OpenOptions::new();
     options.write(true);
+    if std::fs::metadata(path)?.is_file() {
+        options.append(true);
+    }
     if !link {
         options.custom_flags(libc::O_NOFOLLOW);
     }
@@ -426,6 +477,43 @@ mod tests {
         assert!(is_special(null), "/dev/null was replaced by a file");
         let full = write_atomically(Path::new("/dev/full"), b"x");
         assert!(full.is_err_and(|e| e.to_string().contains("/dev/full")));
+    }
+
+    /// A link to one of the process's own open files (`/dev/stdout`, a link to
+    /// `/proc/self/fd/1`) is written through, as the shell opened that file (`>` or `>>`),
+    /// and the link is left as it was: renaming over it replaced the link itself (as root,
+    /// `/dev/stdout` of the whole machine) and wrote nothing to the redirected file.
+    #[test]
+    fn a_link_to_an_open_file_of_the_process_is_written_through_not_replaced() {
+        use std::os::fd::AsRawFd;
+        if !Path::new("/proc/self/fd").is_dir() {
+            return; // no /proc
+        }
+        let dir = std::env::temp_dir().join(format!("tessera-fdlink-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for (append, before, after) in [
+            (false, &b""[..], &b"the image"[..]),
+            (true, &b"kept\n"[..], &b"kept\nthe image"[..]),
+        ] {
+            let sink = dir.join("sink");
+            std::fs::write(&sink, before).unwrap();
+            let open = std::fs::OpenOptions::new()
+                .write(true)
+                .append(append)
+                .open(&sink)
+                .unwrap();
+            let link = dir.join("stdout");
+            let _ = std::fs::remove_file(&link);
+            let fd = format!("/proc/self/fd/{}", open.as_raw_fd());
+            std::os::unix::fs::symlink(&fd, &link).unwrap();
+            check_writable(&link).unwrap();
+            write_atomically(&link, b"the image").unwrap();
+            let kept = std::fs::symlink_metadata(&link).unwrap();
+            assert!(kept.file_type().is_symlink(), "the link was replaced");
+            assert_eq!(std::fs::read(&sink).unwrap(), after, "append: {append}");
+            drop(open);
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     /// A directory that cannot take the output is named, not the temporary file that was
