@@ -974,6 +974,33 @@ mod tests {
         );
     }
 
+    /// A palette PNG whose PLTE chunk is not whole entries of three bytes (4 bytes here)
+    /// ended compare in a panic within the PNG decoder, which indexed past the palette's end
+    /// expanding the pixels (exit 101). It is refused before the pixels are decoded.
+    #[test]
+    fn a_palette_of_a_partial_entry_is_refused_before_decoding() {
+        let mut palette = Vec::new();
+        let mut encoder = png::Encoder::new(&mut palette, 2, 1);
+        encoder.set_color(png::ColorType::Indexed);
+        encoder.set_depth(png::BitDepth::Eight);
+        encoder.set_palette(vec![255, 0, 0, 7]);
+        let mut writer = encoder.write_header().unwrap();
+        writer.write_image_data(&[0, 0]).unwrap();
+        writer.finish().unwrap();
+        let dir = std::env::temp_dir().join(format!("tessera-png-plte4-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let red = png(png::ColorType::Rgb, &[255, 0, 0, 255, 0, 0]);
+        std::fs::write(dir.join("a.png"), red).unwrap();
+        std::fs::write(dir.join("b.png"), palette).unwrap();
+        let said = difference_of_files(&dir.join("a.png"), &dir.join("b.png"));
+        std::fs::remove_dir_all(&dir).unwrap();
+        let e = said.unwrap_err().to_string();
+        assert!(
+            e.contains("b.png") && e.contains("a PLTE chunk of 4 bytes"),
+            "{e}"
+        );
+    }
+
     /// A PNG whose IEND chunk's CRC is wrong, which libpng refuses at its end, was
     /// `inf dB (identical)` to the same PNG whole. It is listed, naming the chunk.
     #[test]

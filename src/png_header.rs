@@ -123,6 +123,17 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
                 "has an IHDR chunk of {length} bytes, not the 13 of a PNG"
             ));
         }
+        // A palette is whole entries of three bytes: libpng refuses a palette image's
+        // PLTE chunk of any other length ("PLTE: invalid"), and the PNG decoder here
+        // indexes past the chunk's end where it expands the pixels (a 4-byte palette once
+        // ended `compare` in a panic, "range end index 3 out of range for slice of length
+        // 1").
+        if &kind == b"PLTE" && length % 3 != 0 {
+            return Err(format!(
+                "has a PLTE chunk of {length} bytes at byte {at}, not whole entries of 3 bytes \
+                 as a palette is (libpng refuses the file)"
+            ));
+        }
         // A chunk's type is four ASCII letters: libpng refuses a file of any other ("invalid
         // chunk type"), where the PNG decoder skips it as an unknown chunk of no importance.
         if !kind.iter().all(u8::is_ascii_alphabetic) {
@@ -738,6 +749,32 @@ mod tests {
         damaged[33 + 8 + recipe.len() - 1] ^= 1;
         let e = read(Cursor::new(&damaged), png.len() as u64).unwrap_err();
         assert!(e.contains("bad CRC"), "{e}");
+    }
+
+    /// A PLTE chunk whose length is not whole entries of three bytes: libpng refuses the
+    /// file, and the PNG decoder indexed past the chunk's end expanding a palette image's
+    /// pixels (`compare` of a 2x2 image with a palette of 4 bytes exited 101, "range end
+    /// index 3 out of range for slice of length 1"). It is refused, naming the chunk.
+    #[test]
+    fn a_palette_of_a_partial_entry_is_refused() {
+        let ihdr = chunk(b"IHDR", &[0, 0, 0, 2, 0, 0, 0, 2, 8, 3, 0, 0, 0]);
+        let pixels = chunk(b"IDAT", &fdeflate::compress_to_vec(&[0; 6]));
+        let end = chunk(b"IEND", &[]);
+        let with_palette = |bytes: usize| {
+            let plte = chunk(b"PLTE", &vec![255; bytes]);
+            let png = [&PNG_SIGNATURE[..], &ihdr, &plte, &pixels, &end].concat();
+            read(Cursor::new(&png), png.len() as u64)
+        };
+        for bytes in [4, 5, 7, 767] {
+            let e = with_palette(bytes).unwrap_err();
+            assert!(
+                e.contains(&format!("a PLTE chunk of {bytes} bytes at byte 33")),
+                "{e}"
+            );
+        }
+        for bytes in [3, 6, 768] {
+            assert!(with_palette(bytes).is_ok(), "{bytes}");
+        }
     }
 
     /// A chunk whose type is not four letters (a control character, a digit, a byte past
