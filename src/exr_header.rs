@@ -559,6 +559,47 @@ fn luminance_chroma(value: &[u8]) -> Option<String> {
     })
 }
 
+/// The longest name OpenEXR reads in a file without the long-names flag (`LONG_NAMES`): an
+/// attribute's or a channel's of more bytes ends its read of the header.
+const MAX_SHORT_NAME: usize = 31;
+
+/// What is said of the channels of a `chlist` value that OpenEXR refuses and the `exr`
+/// crate reads, if there are such: a name twice ("Attempt to add duplicate channel"), of
+/// which the decoder measures one, or in a file without the long-names flag (`long_names`)
+/// a name longer than `MAX_SHORT_NAME` bytes, which the decoder reads whatever the flag
+/// (it refuses an attribute's). A list of B, G, R and a second R, the first red, was
+/// `identical` to a red file, where every viewer built on OpenEXR refuses it. A list cut
+/// short is judged as far as its cut.
+fn refused_channels(value: &[u8], long_names: bool) -> Option<String> {
+    let (mut names, mut rest) = (Vec::new(), value);
+    while let Some(end) = rest.iter().position(|&b| b == 0).filter(|&end| end > 0) {
+        let name = &rest[..end];
+        let shown = || String::from_utf8_lossy(name).escape_debug().to_string();
+        if names.contains(&name) {
+            return Some(format!(
+                "a channel list that names `{}` twice, which OpenEXR refuses: viewers built \
+                 on it refuse the file, where the decoder measured one of the two",
+                shown()
+            ));
+        }
+        if !long_names && name.len() > MAX_SHORT_NAME {
+            return Some(format!(
+                "a channel `{}` of a name of {} bytes in a file without the long-names flag, \
+                 which OpenEXR refuses (it reads names of at most {MAX_SHORT_NAME} there): \
+                 viewers built on it refuse the file",
+                shown(),
+                name.len()
+            ));
+        }
+        names.push(name);
+        let Some(next) = rest.get(end + 17..) else {
+            break;
+        };
+        rest = next;
+    }
+    None
+}
+
 /// `check_bounds` (`most_decoded` bytes of pixels), and what the file holds that changes how
 /// a viewer shows the picture (`ExrHeader::display_changes`), whatever its channels, with an
 /// offset table entry that points to another chunk's data (`misplaced_chunk`): for `compare`.
@@ -570,6 +611,7 @@ pub fn display_changes<R: Read + std::io::Seek>(
     let (mut changes, mut attributes) = (Vec::new(), Vec::new());
     let (mut tiles, mut compression, mut data, mut display) = (None, None, None, None);
     let mut decoded = Decoded::default();
+    let mut list = None;
     let header_len = walk(&mut r, len, &mut |name, kind, value| {
         attributes.push((name.to_owned(), kind.to_owned()));
         decoded.note(name, kind, &value);
@@ -580,7 +622,10 @@ pub fn display_changes<R: Read + std::io::Seek>(
             ("compression", "compression") => compression = value.first().copied(),
             ("dataWindow", "box2i") => data = box2i(&value, "dataWindow").ok(),
             ("displayWindow", "box2i") => display = box2i(&value, "displayWindow").ok(),
-            ("channels", "chlist") => changes.extend(luminance_chroma(&value)),
+            ("channels", "chlist") => {
+                changes.extend(luminance_chroma(&value));
+                list = Some(value.clone());
+            }
             ("tiles", "tiledesc") => {
                 tiles = tile_size(&value);
                 // Levels past the first are the picture again at smaller sizes, which a
@@ -599,6 +644,15 @@ pub fn display_changes<R: Read + std::io::Seek>(
         Ok(())
     })?;
     decoded.check(most_decoded, header_len, len)?;
+    // The version's flags, which the walk read and checked, for the names' longest.
+    if let Some(list) = list {
+        let mut version = [0u8; 4];
+        r.seek(std::io::SeekFrom::Start(4))
+            .and_then(|_| r.read_exact(&mut version))
+            .map_err(|e| format!("could not be read: {e}"))?;
+        let long_names = u32::from_le_bytes(version) & LONG_NAMES != 0;
+        changes.extend(refused_channels(&list, long_names));
+    }
     changes.extend(lacking(&attributes));
     // The decoder measures the display window (what lies outside it cropped, what it
     // holds outside the data window black), where viewers built on OpenEXR (GIMP,
@@ -1085,6 +1139,44 @@ mod tests {
             attributes.push(("tiles", "tiledesc", value));
         }
         attributes
+    }
+
+    /// A channel list OpenEXR refuses, which the decoder reads: a name twice (B, G, R and a
+    /// second R, the first red, was `identical` to a red file), or a name of more than 31
+    /// bytes in a file without the long-names flag. Each is listed, naming the channel; a
+    /// name of 31 bytes, or a longer one with the flag, is not.
+    #[test]
+    fn a_channel_list_openexr_refuses_is_listed() {
+        let listed = |names: &[&[u8]], flags: u8| {
+            let mut list = Vec::new();
+            for name in names {
+                list.extend(*name);
+                list.push(0);
+                list.extend([2, 0, 1, 1].iter().flat_map(|v: &i32| v.to_le_bytes()));
+            }
+            list.push(0);
+            let mut file = header_of(&[("channels", "chlist", list)]);
+            file[5] |= flags;
+            display_changes(Cursor::new(&file), file.len() as u64, 1 << 20)
+                .unwrap()
+                .into_iter()
+                .filter(|c| c.contains("channel"))
+                .collect::<Vec<_>>()
+        };
+        let twice = listed(&[b"B", b"G", b"R", b"R"], 0);
+        assert!(
+            twice.len() == 1 && twice[0].starts_with("a channel list that names `R` twice"),
+            "{twice:?}"
+        );
+        let long = [b'X'; 32];
+        let said = listed(&[b"B", b"G", b"R", &long], 0);
+        assert!(
+            said.len() == 1 && said[0].contains("of a name of 32 bytes in a file without"),
+            "{said:?}"
+        );
+        assert!(listed(&[b"B", b"G", b"R", &long], 4).is_empty());
+        assert!(listed(&[b"B", b"G", b"R", &long[..31]], 0).is_empty());
+        assert!(listed(&[b"B", b"G", b"R"], 0).is_empty());
     }
 
     /// The chunks of a part are counted from its header as the `exr` crate counts them
