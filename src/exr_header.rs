@@ -571,11 +571,12 @@ const MAX_SHORT_NAME: usize = 31;
 /// `identical` to a red file, where every viewer built on OpenEXR refuses it. A list cut
 /// short is judged as far as its cut.
 fn refused_channels(value: &[u8], long_names: bool) -> Option<String> {
-    let (mut names, mut rest) = (Vec::new(), value);
+    // A set: the list may hold some 60,000 names within the bound on a value's bytes.
+    let (mut names, mut rest) = (std::collections::BTreeSet::new(), value);
     while let Some(end) = rest.iter().position(|&b| b == 0).filter(|&end| end > 0) {
         let name = &rest[..end];
         let shown = || String::from_utf8_lossy(name).escape_debug().to_string();
-        if names.contains(&name) {
+        if names.contains(name) {
             return Some(format!(
                 "a channel list that names `{}` twice, which OpenEXR refuses: viewers built \
                  on it refuse the file, where the decoder measured one of the two",
@@ -591,7 +592,7 @@ fn refused_channels(value: &[u8], long_names: bool) -> Option<String> {
                 name.len()
             ));
         }
-        names.push(name);
+        names.insert(name);
         let Some(next) = rest.get(end + 17..) else {
             break;
         };
