@@ -50,6 +50,57 @@ fn database_of_one_run(dir: &Path) -> (PathBuf, Value) {
     (db, v)
 }
 
+/// Sets each run's digest in `conn` to its stored result's, as an import keeps it: a test
+/// that changes a result (`json_set`) keeps the run one that every reader takes.
+fn redigest(conn: &rusqlite::Connection) {
+    let runs: Vec<(i64, String)> = (conn.prepare("SELECT id, result FROM runs").unwrap())
+        .query_map([], |r| Ok((r.get(0)?, r.get(1)?)))
+        .unwrap()
+        .collect::<Result<_, _>>()
+        .unwrap();
+    for (id, result) in runs {
+        let digest = format!("{:032x}", xxhash_rust::xxh3::xxh3_128(result.as_bytes()));
+        conn.execute(
+            "UPDATE runs SET digest = ?1 WHERE id = ?2",
+            rusqlite::params![digest, id],
+        )
+        .unwrap();
+    }
+}
+
+/// A database of tessera's first schema at `db` (in WAL mode where `wal`, as tessera 0.1.0
+/// left it), holding one run of the corpus's `tessera-bench/1` result on an `Old CPU`: the
+/// result imported by this build into a database beside it, its rows copied, so that its
+/// columns are what its result says.
+fn first_schema_database(dir: &Path, db: &Path, wal: bool) {
+    let mut v = json(&root().join("fuzz/corpus/result/schema-1.json"));
+    v["host"]["cpu_model"] = Value::from("Old CPU");
+    write_json(&dir.join("old.json"), &v);
+    let made = dir.join("old-made.db");
+    let o = results(dir, &made, &["import", "old.json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let conn = rusqlite::Connection::open(db).unwrap();
+    let mode = if wal {
+        "PRAGMA journal_mode = WAL;"
+    } else {
+        ""
+    };
+    conn.execute_batch(&format!("{mode} {FIRST_SCHEMA}"))
+        .unwrap();
+    conn.execute("ATTACH ?1 AS made", [made.to_str().unwrap()])
+        .unwrap();
+    conn.execute_batch(
+        "INSERT INTO runs SELECT id, digest, added_unix_s, source, started_unix_s, machine_id,
+            cpu_model, logical_cpus, version, commit_id, simd, workload, workload_id, threads,
+            sps_median, sps_min, sps_max, validation, result FROM made.runs;
+         INSERT INTO scaling SELECT * FROM made.scaling;
+         DETACH made;",
+    )
+    .unwrap();
+    conn.close().unwrap();
+    std::fs::remove_file(&made).unwrap();
+}
+
 fn stdout(o: &Output) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()
 }
@@ -507,6 +558,136 @@ fn a_database_whose_numbers_no_import_takes_is_refused() {
     }
 }
 
+/// Each run keeps columns (what `list`, `rank`, `history`, `compare` and `report` show)
+/// beside its whole result (what `export` writes) and the result's digest, and a database
+/// made elsewhere may make them disagree: columns saying `valid`, 900 M samples/s, beside a
+/// result saying `invalid`, 1 M samples/s, were ranked and reported as the columns said,
+/// exit 0, and ranked otherwise once exported and imported elsewhere. Every reader now
+/// checks each run it reads against its result and refuses one that disagrees (exit 2),
+/// naming the run, the column, and both values.
+#[test]
+fn a_database_whose_columns_contradict_its_results_is_refused() {
+    let dir = temp_dir("results-contradicted");
+    let v = json(&root().join("fuzz/corpus/result/quick-scaling.json"));
+    write_json(&dir.join("q.json"), &v);
+    for (name, sql, says) in [
+        (
+            "valid",
+            "UPDATE runs SET validation = 'invalid'",
+            "column validation says `invalid`, its result says `valid`",
+        ),
+        (
+            "faster",
+            "UPDATE runs SET sps_median = 9e8, sps_min = 9e8, sps_max = 9e8",
+            "column sps_median says 900000000, its result says 9655541.134770188",
+        ),
+        (
+            "machine",
+            "UPDATE runs SET machine_id = 'm-0000000000000000'",
+            "column machine_id says `m-0000000000000000`, its result says \
+             `m-8b6ff694dced7be1`",
+        ),
+        (
+            "no-cpu",
+            "UPDATE runs SET cpu_model = NULL",
+            "column cpu_model says nothing, its result says `AMD EPYC`",
+        ),
+        (
+            "commit",
+            "UPDATE runs SET commit_id = 'abc'",
+            "column commit_id says `abc`, its result says `ba4a7032",
+        ),
+        (
+            "workload",
+            "UPDATE runs SET workload = 'cover'",
+            "column workload says `cover`, its result says `quick`",
+        ),
+        (
+            "threads",
+            "UPDATE runs SET threads = 1",
+            "column threads says 1, its result says 2",
+        ),
+        (
+            "started",
+            "UPDATE runs SET started_unix_s = started_unix_s + 1",
+            "column started_unix_s says 1796327354, its result says 1796327353",
+        ),
+        (
+            "busy",
+            "UPDATE runs SET busy = 1",
+            "column busy says 1, its result says 0",
+        ),
+        (
+            "digest",
+            "UPDATE runs SET digest = '00000000000000000000000000000000'",
+            "column digest says `00000000000000000000000000000000`, its result's is ",
+        ),
+        // The result changed and its digest with it: the columns are what is not its.
+        (
+            "result-invalid",
+            "UPDATE runs SET result = json_set(result, '$.validation.status', 'invalid',
+                '$.validation.images', json_array('xxh3-128:0'))",
+            "column validation says `valid`, its result says `invalid`",
+        ),
+        (
+            "result-not-a-result",
+            "UPDATE runs SET result = '{}'",
+            "its result: not a tessera bench result (no `schema` field)",
+        ),
+        (
+            "scaling-faster",
+            "UPDATE scaling SET sps_median = 6e6, sps_max = 6e6 WHERE threads = 1",
+            "the scaling row of 1 threads: column sps_median says 6000000, its result says \
+             5145687.415658214",
+        ),
+        (
+            "scaling-missing",
+            "DELETE FROM scaling WHERE threads = 1",
+            "no scaling row of 1 threads, where its result has one",
+        ),
+        (
+            "scaling-more",
+            "INSERT INTO scaling VALUES (1, 4, 1e7, 1e7, 1e7)",
+            "a scaling row of 4 threads, where its result has none",
+        ),
+    ] {
+        let db = dir.join(format!("{name}.db"));
+        let o = results(&dir, &db, &["import", "q.json"]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let html = dir.join(format!("{name}.html"));
+        let readers = [
+            &["list"][..],
+            &["rank"],
+            &["history"],
+            &["compare", "1", "1"],
+            &["report", "-o", html.to_str().unwrap()],
+        ];
+        // Before it is changed, every reader takes it.
+        for args in readers {
+            let o = results(&dir, &db, args);
+            assert!(o.status.success(), "{name} {args:?}: {}", stderr(&o));
+        }
+        let _ = std::fs::remove_file(&html);
+        let conn = rusqlite::Connection::open(&db).unwrap();
+        conn.execute(sql, []).unwrap();
+        if name.starts_with("result-") {
+            redigest(&conn);
+        }
+        drop(conn);
+        for args in readers {
+            let o = results_within_a_minute(&dir, &db, args);
+            let err = stderr(&o);
+            assert_eq!(o.status.code(), Some(2), "{name} {args:?}: {err}");
+            assert!(
+                err.contains(&format!("{name}.db: run 1: {says}")),
+                "{name} {args:?}: {err}"
+            );
+            assert!(o.stdout.is_empty(), "{name} {args:?}: {}", stdout(&o));
+        }
+        assert!(!html.exists(), "{name}");
+    }
+}
+
 /// A run dated over a day past the reader's clock (recorded by a clock ahead of it, or read
 /// on one behind) made every command refuse the whole database, its owner's own too: the
 /// reading held each run to a day past its own clock, as an import does. On reading, only a
@@ -526,6 +707,7 @@ fn a_run_dated_past_the_reader_s_clock_still_reads() {
         [now as i64 + 30 * 86_400],
     )
     .unwrap();
+    redigest(&conn);
     drop(conn);
     let html = dir.join("r.html");
     for args in [
@@ -614,39 +796,30 @@ fn a_database_whose_text_is_not_utf_8_is_refused_naming_the_run_and_column() {
     }
 }
 
-/// Copies run 1 of `db` as runs 2 to `n`, each of its own workload (`workload_id`) or its own
-/// machine: what 50,000 imported results of as many scenes or machines leave.
-fn copies_of_the_first_run(db: &Path, n: usize, own: &str) {
-    let mut conn = rusqlite::Connection::open(db).unwrap();
-    let tx = conn.transaction().unwrap();
-    for i in 2..=n {
-        tx.execute(
-            &format!(
-                "INSERT INTO runs (digest, added_unix_s, source, started_unix_s, machine_id,
-                    cpu_model, logical_cpus, version, commit_id, simd, workload, workload_id,
-                    threads, sps_median, sps_min, sps_max, validation, result, busy)
-                 SELECT ?1, added_unix_s, source, started_unix_s + ?2,
-                    {machine}, cpu_model, logical_cpus, version, commit_id, simd, workload,
-                    {workload}, threads, sps_median, sps_min, sps_max, validation, result, busy
-                 FROM runs WHERE id = 1",
-                machine = if own == "machine" { "?3" } else { "machine_id" },
-                workload = if own == "workload" {
-                    "?3"
-                } else {
-                    "workload_id"
-                },
-            ),
-            rusqlite::params![format!("{i:032x}"), i as i64, format!("{own}-{i:08}")],
-        )
-        .unwrap();
-        tx.execute(
-            "INSERT INTO scaling SELECT ?1, threads, sps_median, sps_min, sps_max
-             FROM scaling WHERE run_id = 1",
-            [i as i64],
-        )
-        .unwrap();
+/// `n` results in `dir/many.jsonl`, one a line: the corpus's one-thread result, each a
+/// second later than the one before and each of its own workload id or its own machine
+/// (`own`), what 50,000 imported results of as many scenes or machines leave.
+fn many_results(dir: &Path, n: usize, own: &str) -> PathBuf {
+    let base = json(&root().join("fuzz/corpus/result/quick-one-thread.json"));
+    let started = base["method"]["started_unix_s"].as_u64().unwrap();
+    let mut lines = String::new();
+    for i in 1..=n {
+        let mut v = base.clone();
+        v["method"]["started_unix_s"] = Value::from(started - (n - i) as u64);
+        if i > 1 {
+            let at = if own == "machine" {
+                &mut v["host"]["machine_id"]
+            } else {
+                &mut v["workload"]["id"]
+            };
+            *at = Value::from(format!("{own}-{i:08}"));
+        }
+        lines.push_str(&serde_json::to_string(&v).unwrap());
+        lines.push('\n');
     }
-    tx.commit().unwrap();
+    let path = dir.join("many.jsonl");
+    std::fs::write(&path, lines).unwrap();
+    path
 }
 
 /// `rank` and `report` found each run's workload by looking through the workloads so far,
@@ -661,12 +834,11 @@ fn copies_of_the_first_run(db: &Path, n: usize, own: &str) {
 fn rank_and_report_of_many_workloads_and_machines_show_each() {
     const RUNS: usize = 5_000;
     let dir = temp_dir("results-many");
-    let base = root().join("fuzz/corpus/result/quick-one-thread.json");
     for own in ["workload", "machine"] {
         let db = dir.join(format!("{own}.db"));
-        let o = results(&dir, &db, &["import", base.to_str().unwrap()]);
+        let many = many_results(&dir, RUNS, own);
+        let o = results(&dir, &db, &["import", many.to_str().unwrap()]);
         assert!(o.status.success(), "{}", stderr(&o));
-        copies_of_the_first_run(&db, RUNS, own);
         let o = results_within_a_minute(&dir, &db, &["rank"]);
         assert!(o.status.success(), "{own} rank: {}", stderr(&o));
         let tables = stdout(&o)
@@ -896,15 +1068,7 @@ fn a_database_of_the_first_schema_still_opens_with_its_runs() {
     let dir = temp_dir("results-first-schema");
     let db = dir.join("first.db");
     let (a, _) = two_results(&dir);
-    let conn = rusqlite::Connection::open(&db).unwrap();
-    conn.execute_batch(FIRST_SCHEMA).unwrap();
-    conn.execute(
-        "INSERT INTO runs VALUES (1, 'd', 1, 'import', 1700000000, 'm-0', 'Old CPU', 4,
-         '0.1.0', 'abc', 'avx2', 'cover', 'id', 4, 1e6, 9e5, 1.1e6, 'valid', '{}')",
-        [],
-    )
-    .unwrap();
-    drop(conn);
+    first_schema_database(&dir, &db, false);
     let runs = listed(&dir, &db, &[]);
     assert_eq!(runs.len(), 1);
     assert!(runs[0].contains("Old CPU"), "{}", runs[0]);
@@ -1913,16 +2077,7 @@ fn a_database_on_a_read_only_file_system_reads() {
     let (a, b) = two_results(&dir);
     // A first-schema database as tessera 0.1.0 left it: in WAL mode, closed.
     let legacy = dir.join("legacy.db");
-    let conn = rusqlite::Connection::open(&legacy).unwrap();
-    conn.execute_batch(&format!("PRAGMA journal_mode = WAL; {FIRST_SCHEMA}"))
-        .unwrap();
-    conn.execute(
-        "INSERT INTO runs VALUES (1, 'd', 1, 'import', 1700000000, 'm-0', 'Old CPU', 4,
-         '0.1.0', 'abc', 'avx2', 'cover', 'id', 4, 1e6, 9e5, 1.1e6, 'valid', '{}')",
-        [],
-    )
-    .unwrap();
-    conn.close().unwrap();
+    first_schema_database(&dir, &legacy, true);
     assert_eq!(bytes(&legacy)[18..20], [2, 2], "not in WAL mode");
     let tessera = env!("CARGO_BIN_EXE_tessera");
     let (a, b) = (a.to_str().unwrap(), b.to_str().unwrap());
@@ -2080,8 +2235,13 @@ fn reading_another_user_s_database_leaves_nothing_beside_it() {
     // Changes kept in a -wal file, as a writer that has not yet checkpointed leaves them.
     let conn = rusqlite::Connection::open(&db).unwrap();
     conn.pragma_update(None, "wal_autocheckpoint", 0).unwrap();
-    conn.execute("UPDATE runs SET cpu_model = 'In the WAL'", [])
-        .unwrap();
+    conn.execute(
+        "UPDATE runs SET cpu_model = 'In the WAL',
+            result = json_set(result, '$.host.cpu_model', 'In the WAL')",
+        [],
+    )
+    .unwrap();
+    redigest(&conn);
     std::fs::copy(dir.join("r.db-wal"), dir.join("kept-wal")).unwrap();
     drop(conn);
     std::fs::set_permissions(&db, std::fs::Permissions::from_mode(0o644)).unwrap();
