@@ -1,0 +1,437 @@
+//! The tests of `exr_header`: headers built here, walked, bounded and refused.
+
+use super::*;
+use std::io::{Cursor, Seek, SeekFrom};
+
+/// A part type given as another type than text said the type's text agreed with the
+/// flags and disagreed with them in one breath ("the part type `tiledimage` where its
+/// version flags say `tiledimage`"); it names the attribute's type.
+#[test]
+fn a_part_type_of_another_type_than_string_is_named_so() {
+    let header = |kind: &[u8]| {
+        let mut file = vec![0x76, 0x2f, 0x31, 0x01, 2, 2, 0, 0];
+        file.extend(
+            [
+                &b"type\0"[..],
+                kind,
+                b"\0",
+                &10u32.to_le_bytes(),
+                b"tiledimage",
+            ]
+            .concat(),
+        );
+        file.push(0);
+        file
+    };
+    let file = header(b"text");
+    let said = read(&file[..], file.len() as u64).err();
+    assert_eq!(
+        said.as_deref(),
+        Some("has the attribute `type` of type `text`, not the type OpenEXR gives it (string)")
+    );
+    // Of the right type and value, the walk goes on past it.
+    let file = header(b"string");
+    let said = read(&file[..], file.len() as u64).err().unwrap_or_default();
+    assert!(!said.contains("`type`"), "{said}");
+}
+
+/// The bytes a data window's pixels take decoded, all channels: a header claiming more
+/// than the bound is refused, whatever its display window (one pixel here), by both
+/// walks; one within it is not.
+#[test]
+fn pixels_that_take_more_than_the_bound_decoded_are_refused() {
+    let header = |width: i32, half: bool| {
+        let mut channels = Vec::new();
+        for name in [b"A", b"B", b"G", b"R"] {
+            channels.extend(name);
+            channels.push(0);
+            let kind = if half && name == b"A" { 1 } else { 2 };
+            channels.extend([kind, 0, 1, 1].iter().flat_map(|v: &i32| v.to_le_bytes()));
+        }
+        channels.push(0);
+        let window = |x: i32| -> Vec<u8> {
+            [0, 0, x - 1, 0]
+                .iter()
+                .flat_map(|v| v.to_le_bytes())
+                .collect()
+        };
+        let mut file = vec![0x76, 0x2f, 0x31, 0x01, 2, 0, 0, 0];
+        for (name, kind, value) in [
+            ("channels", "chlist", channels),
+            ("dataWindow", "box2i", window(width)),
+            ("displayWindow", "box2i", window(1)),
+        ] {
+            file.extend([name.as_bytes(), b"\0", kind.as_bytes(), b"\0"].concat());
+            file.extend((value.len() as u32).to_le_bytes());
+            file.extend(value);
+        }
+        file.push(0);
+        file
+    };
+    for (width, half, within) in [(101, false, false), (100, false, true), (114, true, true)] {
+        let file = header(width, half);
+        let bounds = check_bounds(&file[..], file.len() as u64, 1600);
+        let changes = display_changes(Cursor::new(&file), file.len() as u64, 1600);
+        if within {
+            assert_eq!(bounds, Ok(()), "{width}");
+            assert!(changes.is_ok(), "{width}: {changes:?}");
+        } else {
+            let said = format!(
+                "has pixels that take 1616 bytes decoded (a data window of {width}x1, 16 bytes \
+                 a pixel), more than the 1600"
+            );
+            assert!(
+                bounds.as_ref().unwrap_err().starts_with(&said),
+                "{bounds:?}"
+            );
+            assert!(
+                changes.as_ref().unwrap_err().starts_with(&said),
+                "{changes:?}"
+            );
+        }
+    }
+}
+
+/// A header of the attributes `attributes` (name, type, value), and its end.
+fn header_of(attributes: &[(&str, &str, Vec<u8>)]) -> Vec<u8> {
+    let mut file = vec![0x76, 0x2f, 0x31, 0x01, 2, 0, 0, 0];
+    if attributes.iter().any(|(name, _, _)| *name == "tiles") {
+        file[5] = 2;
+    }
+    for (name, kind, value) in attributes {
+        file.extend([name.as_bytes(), b"\0", kind.as_bytes(), b"\0"].concat());
+        file.extend((value.len() as u32).to_le_bytes());
+        file.extend(value);
+    }
+    file.push(0);
+    file
+}
+
+/// The attributes of a `width` x `height` file of half R, G and B of the compression
+/// `compression`, tiled as `tiles` says (tile width and height, level mode) where given.
+fn chunked(
+    width: i32,
+    height: i32,
+    compression: u8,
+    tiles: Option<(u32, u32, u8)>,
+) -> Vec<(&'static str, &'static str, Vec<u8>)> {
+    let mut channels = Vec::new();
+    for name in [b"B", b"G", b"R"] {
+        channels.extend(name);
+        channels.push(0);
+        channels.extend([1, 0, 1, 1].iter().flat_map(|v: &i32| v.to_le_bytes()));
+    }
+    channels.push(0);
+    let window: Vec<u8> = [0, 0, width - 1, height - 1]
+        .iter()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    let mut attributes = vec![
+        ("channels", "chlist", channels),
+        ("compression", "compression", vec![compression]),
+        ("dataWindow", "box2i", window.clone()),
+        ("displayWindow", "box2i", window),
+    ];
+    if let Some((w, h, mode)) = tiles {
+        let value = [&w.to_le_bytes()[..], &h.to_le_bytes(), &[mode]].concat();
+        attributes.push(("tiles", "tiledesc", value));
+    }
+    attributes
+}
+
+/// A channel list OpenEXR refuses, which the decoder reads: a name twice (B, G, R and a
+/// second R, the first red, was `identical` to a red file), or a name of more than 31
+/// bytes in a file without the long-names flag. Each is listed, naming the channel; a
+/// name of 31 bytes, or a longer one with the flag, is not.
+#[test]
+fn a_channel_list_openexr_refuses_is_listed() {
+    let listed = |names: &[&[u8]], flags: u8| {
+        let mut list = Vec::new();
+        for name in names {
+            list.extend(*name);
+            list.push(0);
+            list.extend([2, 0, 1, 1].iter().flat_map(|v: &i32| v.to_le_bytes()));
+        }
+        list.push(0);
+        let mut file = header_of(&[("channels", "chlist", list)]);
+        file[5] |= flags;
+        display_changes(Cursor::new(&file), file.len() as u64, 1 << 20)
+            .unwrap()
+            .into_iter()
+            .filter(|c| c.contains("channel"))
+            .collect::<Vec<_>>()
+    };
+    let twice = listed(&[b"B", b"G", b"R", b"R"], 0);
+    assert!(
+        twice.len() == 1 && twice[0].starts_with("a channel list that names `R` twice"),
+        "{twice:?}"
+    );
+    let long = [b'X'; 32];
+    let said = listed(&[b"B", b"G", b"R", &long], 0);
+    assert!(
+        said.len() == 1 && said[0].contains("of a name of 32 bytes in a file without"),
+        "{said:?}"
+    );
+    assert!(listed(&[b"B", b"G", b"R", &long], 4).is_empty());
+    assert!(listed(&[b"B", b"G", b"R", &long[..31]], 0).is_empty());
+    assert!(listed(&[b"B", b"G", b"R"], 0).is_empty());
+}
+
+/// The chunks of a part are counted from its header as the `exr` crate counts them
+/// (which reads its offset table, and places each chunk, by that count): scan lines of
+/// each compression, tiles of one level, of mipmap and ripmap levels rounded down and
+/// up.
+#[test]
+fn chunks_are_counted_as_the_decoder_counts_them() {
+    use exr::meta::{BlockDescription, attribute, compute_chunk_count};
+    use exr::prelude::{Compression, Vec2};
+    let compressions = [
+        Compression::Uncompressed,
+        Compression::RLE,
+        Compression::ZIP1,
+        Compression::ZIP16,
+        Compression::PIZ,
+        Compression::PXR24,
+        Compression::B44,
+        Compression::B44A,
+        Compression::DWAA(None),
+        Compression::DWAB(None),
+        Compression::HTJ2K256,
+        Compression::HTJ2K32,
+    ];
+    for (number, compression) in compressions.into_iter().enumerate() {
+        for (width, height) in [(1, 1), (7, 300), (4096, 4097), (1, 1 << 24)] {
+            let theirs = compute_chunk_count(
+                compression,
+                Vec2(width as usize, height as usize),
+                BlockDescription::ScanLines,
+            );
+            let ours = chunk_count(width, height, Some(number as u8), None);
+            assert_eq!(
+                ours,
+                Some(theirs as u64),
+                "{compression:?} {width}x{height}"
+            );
+        }
+    }
+    let levels = [
+        attribute::LevelMode::Singular,
+        attribute::LevelMode::MipMap,
+        attribute::LevelMode::RipMap,
+    ];
+    let roundings = [exr::math::RoundingMode::Down, exr::math::RoundingMode::Up];
+    for (mode, level_mode) in levels.into_iter().enumerate() {
+        for (up, rounding_mode) in roundings.into_iter().enumerate() {
+            for (width, height, tile) in [(1, 1, 1), (5, 300, 2), (4097, 33, 16), (600, 1, 64)] {
+                let tiles = attribute::TileDescription {
+                    tile_size: Vec2(tile, tile),
+                    level_mode,
+                    rounding_mode,
+                };
+                let theirs = compute_chunk_count(
+                    Compression::Uncompressed,
+                    Vec2(width as usize, height as usize),
+                    BlockDescription::Tiles(tiles),
+                );
+                let tiles = Tiles {
+                    width: tile as u32,
+                    height: tile as u32,
+                    mode: mode as u8 | (up as u8) << 4,
+                };
+                let ours = chunk_count(width, height, Some(0), Some(tiles));
+                assert_eq!(
+                    ours,
+                    Some(theirs as u64),
+                    "{level_mode:?} {rounding_mode:?} {width}x{height} of {tile}"
+                );
+            }
+        }
+    }
+}
+
+/// The widest data window (2^32 - 1 pixels a side) of tiles of one pixel and their
+/// ripmap levels has some 2^66 chunks: counted, they wrapped to fewer where overflow
+/// is not checked (and the levels of a side over 2^31 rounded up overflowed a u32),
+/// and ended a build where it is. They are the most a u64 holds.
+#[test]
+fn a_count_of_more_chunks_than_a_u64_holds_is_its_most() {
+    for mode in [0x02, 0x12, 0x01, 0x11] {
+        let tiles = Tiles {
+            width: 1,
+            height: 1,
+            mode,
+        };
+        let count = chunk_count(u32::MAX, u32::MAX, Some(0), Some(tiles));
+        let least = u64::from(u32::MAX) * u64::from(u32::MAX);
+        assert!(count.is_some_and(|c| c >= least), "{mode:x}: {count:?}");
+    }
+}
+
+/// The `exr` crate takes some 72 bytes to place each chunk before it decodes a pixel:
+/// a column of 14 million one-pixel scan lines, one a chunk (308 MB), took 1.0 GB to
+/// compare with itself. A header claiming more than `MAX_CHUNKS_READ` chunks is refused
+/// by both walks from the header alone (these files are a few hundred bytes); one of
+/// that many is not.
+#[test]
+fn a_header_of_more_chunks_than_are_read_is_refused() {
+    let most = MAX_CHUNKS_READ as i32;
+    for (attributes, chunks) in [
+        // A column of scan lines, one a chunk, uncompressed or ZIPS.
+        (chunked(1, most + 1, 0, None), Some(most + 1)),
+        (chunked(1, most + 1, 2, None), Some(most + 1)),
+        (chunked(1, most, 0, None), None),
+        // Scan lines 16 a chunk (ZIP).
+        (chunked(1, 16 * most, 3, None), None),
+        (chunked(1, 16 * most + 1, 3, None), Some(most + 1)),
+        // Tiles of one pixel of 1025x1024 pixels, and 16x16 tiles of 4096x4096.
+        (chunked(1025, 1024, 0, Some((1, 1, 0))), Some(1025 * 1024)),
+        (chunked(4096, 4096, 0, Some((16, 16, 0))), None),
+        // Mipmap levels of 1024x1024 tiles of one pixel: 1024^2 * 4/3 and more.
+        (chunked(1024, 1024, 0, Some((1, 1, 1))), Some(1_398_101)),
+    ] {
+        let file = header_of(&attributes);
+        // A file long enough to hold its chunks, as the header is all that is read.
+        let len = 1 << 40;
+        let bounds = check_bounds(&file[..], len, u64::MAX);
+        let changes = display_changes(Cursor::new(&file), len, u64::MAX).map(drop);
+        match chunks {
+            None => {
+                assert_eq!(bounds, Ok(()));
+                assert_eq!(changes, Ok(()));
+            }
+            Some(chunks) => {
+                let said = format!("has {chunks} chunks (blocks of scan lines or tiles");
+                for refused in [bounds, changes] {
+                    let refused = refused.unwrap_err();
+                    assert!(refused.starts_with(&said), "{refused}");
+                    assert!(refused.contains("more than the 1048576 read here"));
+                }
+            }
+        }
+    }
+}
+
+/// A file that counts the reads and seeks that reach it.
+struct Counted {
+    inner: Cursor<Vec<u8>>,
+    calls: usize,
+}
+
+impl Read for Counted {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        self.calls += 1;
+        self.inner.read(buf)
+    }
+}
+
+impl Seek for Counted {
+    fn seek(&mut self, to: SeekFrom) -> std::io::Result<u64> {
+        self.calls += 1;
+        self.inner.seek(to)
+    }
+}
+
+/// One column of `rows` uncompressed scan lines, one a chunk, its table's first two
+/// entries swapped: the table at the file's start (a header of no length), then the
+/// first four bytes of each chunk, the row it says it holds.
+fn swapped_scan_lines(rows: u32) -> Vec<u8> {
+    let chunks = 8 * u64::from(rows);
+    let mut file: Vec<u8> = (0..u64::from(rows))
+        .flat_map(|i| (chunks + 4 * i).to_le_bytes())
+        .collect();
+    file.extend((0..rows).flat_map(u32::to_le_bytes));
+    let (first, second) = file.split_at_mut(8);
+    first.swap_with_slice(&mut second[..8]);
+    file
+}
+
+/// The layout of an uncompressed file of scan lines whose header ends at byte 0.
+fn uncompressed_scan_lines() -> ExrLayout {
+    ExrLayout {
+        header_len: 0,
+        tiles: None,
+        compression: Some(0),
+        top: 0,
+    }
+}
+
+/// A header may claim 2^24 rows of a file of a few hundred bytes: room was made for
+/// the table's 2^24 entries (128 MiB) before its first was read, which ended `compare`
+/// where memory is bounded (`ulimit -v 100000`). A table the file is too short to
+/// hold is not read at all: its length is the one thing asked of the file.
+#[test]
+fn a_table_longer_than_the_file_is_not_read() {
+    let mut file = Counted {
+        inner: Cursor::new(vec![0; 16]),
+        calls: 0,
+    };
+    let layout = uncompressed_scan_lines();
+    let said = misplaced_chunk(&mut file, 1, 1 << 24, &layout).unwrap();
+    assert_eq!(said, None);
+    assert_eq!(file.calls, 1);
+}
+
+/// A file of scan lines from another program may hold millions of chunks (a column of
+/// 4096x4096 pixels, one line each): the table of 2^22 + 1 entries was not checked at
+/// all (a swapped pair was `identical` to `compare`), and one of 2^22 took a seek and an
+/// 8 KiB read for each entry, seconds.
+#[test]
+fn a_table_of_millions_of_entries_is_checked_in_one_read_of_the_file() {
+    let rows = (1 << 22) + 1;
+    let mut file = Counted {
+        inner: Cursor::new(swapped_scan_lines(rows)),
+        calls: 0,
+    };
+    let layout = uncompressed_scan_lines();
+    let said = misplaced_chunk(&mut file, 1, rows, &layout).unwrap();
+    assert!(
+        said.as_deref().is_some_and(|s| s.starts_with(
+            "entry 0 of its offset table, for the scan lines from 0, points to the chunk of \
+             those from 1"
+        )),
+        "{said:?}"
+    );
+    // 48 MiB read 8 KiB at a time: about 6,000 reads.
+    assert!(file.calls < 10_000, "{} reads and seeks", file.calls);
+}
+
+/// A file of 4,396 bytes (a header of 300, and the offset table and 16 bytes a chunk of
+/// the 256 ZIP blocks of 4096x4096 float RGB) passed the check of its chunks, and the
+/// decoder reserved every pixel (400 MB) before it found the first chunk short. Each
+/// compression's chunks must hold the fewest bytes it stores the pixels in
+/// (`least_stored`); an HTJ2K file, which the decoder reads only as stored, all of them.
+#[test]
+fn chunks_must_hold_the_bytes_their_compression_stores_the_pixels_in() {
+    let decoded = |compression| Decoded {
+        data: Some([0, 0, 4095, 4095]),
+        bytes_per_pixel: Some(12),
+        compression: Some(compression),
+        tiles: None,
+    };
+    let pixels: u64 = 4096 * 4096 * 12;
+    let said = decoded(3).check(u64::MAX, 300, 300 + 256 * 16).unwrap_err();
+    assert!(
+        said.starts_with("is cut short: its header claims 256 chunks"),
+        "{said}"
+    );
+    assert!(said.contains(&format!("at least {}", 300 + 256 * 16 + pixels / 1032)));
+    let floor = 300 + 256 * 16 + pixels / 1032;
+    decoded(3).check(u64::MAX, 300, floor).unwrap();
+    assert!(decoded(3).check(u64::MAX, 300, floor - 1).is_err());
+    // HTJ2K32: 128 chunks of 32 rows, each stored whole; one compressed is refused as
+    // HTJ2K, not as cut short.
+    let said = decoded(11)
+        .check(u64::MAX, 300, 300 + 128 * 16)
+        .unwrap_err();
+    assert!(said.starts_with("is compressed with HTJ2K"), "{said}");
+    decoded(11)
+        .check(u64::MAX, 300, 300 + 128 * 16 + pixels)
+        .unwrap();
+    // RLE: one chunk a row.
+    assert!(decoded(1).check(u64::MAX, 300, 300 + 4096 * 16).is_err());
+    decoded(1)
+        .check(u64::MAX, 300, 300 + 4096 * 16 + pixels / 64)
+        .unwrap();
+    // DWAB: no floor past 16 bytes a chunk.
+    decoded(9).check(u64::MAX, 300, 300 + 16 * 16).unwrap();
+}
