@@ -30,13 +30,16 @@ pub const MAX_PRIMITIVES: usize = 1 << 20;
 /// all): media went uncounted, and some 500,000 box media fit in a file's values beside
 /// the most other primitives a scene may hold.
 pub(super) fn held(prims: &Primitives) -> usize {
-    let media = (prims.media.iter())
-        .map(|m| match &m.boundary {
-            Boundary::Sphere(_) | Boundary::MovingSphere(_) => 1,
-            Boundary::Quads(quads) => quads.len(),
-        })
-        .sum::<usize>();
+    let media = prims.media.iter().map(boundary_primitives).sum::<usize>();
     prims.spheres.len() + prims.moving_spheres.len() + prims.quads.len() + media
+}
+
+/// The primitives a medium's boundary is made of: a sphere, or a box's quads.
+fn boundary_primitives(medium: &Medium) -> usize {
+    match &medium.boundary {
+        Boundary::Sphere(_) | Boundary::MovingSphere(_) => 1,
+        Boundary::Quads(quads) => quads.len(),
+    }
 }
 
 /// A rotation about the y axis through the origin, then a translation: the book's
@@ -332,12 +335,15 @@ pub(super) fn primitives(
         prims.quads.extend(quads);
         check_quads(ck, &prims, g.span(), &field)?;
     }
+    // Counted as they are added: `held` walks every medium, and a walk for each of some
+    // 170,000 media (the most the bound lets by) would take seconds.
+    let mut held_so_far = held(&prims);
     for (i, m) in d.media.iter().enumerate() {
         let field = format!("media[{i}]");
-        prims
-            .media
-            .push(medium(ck, &field, m, material, materials, shutter)?);
-        check_held(ck, held(&prims), m.span(), &field)?;
+        let made = medium(ck, &field, m, material, materials, shutter)?;
+        held_so_far = held_so_far.saturating_add(boundary_primitives(&made));
+        prims.media.push(made);
+        check_held(ck, held_so_far, m.span(), &field)?;
     }
     Ok(prims)
 }
