@@ -93,6 +93,13 @@ impl Film {
         out: &mut dyn Write,
     ) -> std::io::Result<()> {
         let (w, h) = (self.width, self.height);
+        // A recipe no reader takes is not written: the caller leaves it out, and says so.
+        if let Some(why) = recipe
+            .filter(|_| format != Format::Ppm)
+            .and_then(Recipe::too_long_to_carry)
+        {
+            return Err(std::io::Error::new(std::io::ErrorKind::InvalidInput, why));
+        }
         match format {
             Format::Ppm => {
                 write!(out, "P3\n{w} {h}\n255\n")?;
@@ -569,5 +576,37 @@ mod tests {
         assert_eq!(Format::from_path(Path::new("a.exr")).unwrap(), Format::Exr);
         assert!(Format::from_path(Path::new("a.jpg")).is_err());
         assert!(Format::from_path(Path::new("a")).is_err());
+    }
+
+    /// A recipe no reader takes is never written: `written_len` foretells its length, and
+    /// writing one is an error, whatever the format with metadata.
+    #[test]
+    fn a_recipe_too_long_for_its_readers_is_not_written() {
+        use crate::scene::{Overrides, Scene};
+        let film = Film::new(4, 2, 1);
+        let head = "[image]\nwidth = 4\nheight = 2\nsamples_per_pixel = 1\nmax_depth = 1\n";
+        for (comment, fits) in [(recipe::MAX_BYTES / 2, true), (recipe::MAX_BYTES, false)] {
+            let text = format!("{head}#{}\n", "x".repeat(comment));
+            let scene = Scene::parse(&text, Path::new("s.toml"), &Overrides::default()).unwrap();
+            let source = recipe::Source::new(Path::new("s.toml"), &text, Overrides::default());
+            let recipe = Recipe::new(&source, &scene, &film);
+            assert_eq!(Recipe::written_len(&source, &scene), recipe.to_json().len());
+            assert_eq!(recipe.too_long_to_carry().is_none(), fits);
+            for format in [Format::Png, Format::Exr] {
+                let written = film.write(format, 2.0, Some(&recipe), &mut Vec::new());
+                match written {
+                    Ok(()) => assert!(fits, "{format:?}"),
+                    Err(e) => {
+                        assert!(!fits, "{format:?}: {e}");
+                        assert!(e.to_string().contains("an image may carry"), "{e}");
+                    }
+                }
+            }
+            // A PPM carries no recipe, so has none too long.
+            assert!(
+                film.write(Format::Ppm, 2.0, Some(&recipe), &mut Vec::new())
+                    .is_ok()
+            );
+        }
     }
 }

@@ -188,9 +188,28 @@ pub fn sums_hash(film: &Film) -> String {
     format!("xxh3-128:{:032x}", film.content_hash())
 }
 
+/// Why an image cannot carry a recipe of `len` bytes, if it cannot: one over `MAX_BYTES`
+/// is refused by every reader of recipes, `info`, `compare` and `reproduce` among them.
+pub fn too_long_to_carry(len: usize) -> Option<String> {
+    (len > MAX_BYTES).then(|| {
+        format!("its recipe would be {len} bytes, more than the {MAX_BYTES} an image may carry")
+    })
+}
+
 impl Recipe {
     /// The recipe of `film`, rendered from `scene`, which `source` describes.
     pub fn new(source: &Source, scene: &Scene, film: &Film) -> Self {
+        Self::with_sums(source, scene, sums_hash(film))
+    }
+
+    /// The bytes the recipe of a render of `scene` from `source` takes once written: known
+    /// before the render, as the sums' hash is of a fixed length.
+    pub fn written_len(source: &Source, scene: &Scene) -> usize {
+        let unrendered = sums_hash(&Film::new(0, 0, 0));
+        Self::with_sums(source, scene, unrendered).to_json().len()
+    }
+
+    fn with_sums(source: &Source, scene: &Scene, sums: String) -> Self {
         Recipe {
             schema: SCHEMA.to_owned(),
             tessera: Maker {
@@ -200,9 +219,15 @@ impl Recipe {
             scene: source.scene.clone(),
             overrides: source.overrides,
             image: Effective::of(scene),
-            sums: sums_hash(film),
+            sums,
             textures: textures_of(scene),
         }
+    }
+
+    /// Why an image cannot carry this recipe, if it cannot: its readers, tessera's own
+    /// first, refuse a recipe over `MAX_BYTES`, so one that long is left out, not written.
+    pub fn too_long_to_carry(&self) -> Option<String> {
+        too_long_to_carry(self.to_json().len())
     }
 
     /// The recipe as JSON, every character beyond ASCII escaped (`\uXXXX`), so that formats

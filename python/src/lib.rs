@@ -200,11 +200,28 @@ struct NativeImage {
 }
 
 impl NativeImage {
-    fn encode(&self, format: Format) -> std::io::Result<Vec<u8>> {
+    fn encode(&self, format: Format, recipe: Option<&Recipe>) -> std::io::Result<Vec<u8>> {
         let mut bytes = Vec::new();
-        self.film
-            .write(format, self.gamma, Some(&self.recipe), &mut bytes)?;
+        self.film.write(format, self.gamma, recipe, &mut bytes)?;
         Ok(bytes)
+    }
+
+    /// The recipe a file of `format` carries: none in a PPM, and none, with a warning, where
+    /// it is too long for any reader to take (a scene file over about 1 MiB), as `tessera
+    /// render` leaves it out.
+    fn carried(&self, py: Python<'_>, format: Format) -> PyResult<Option<&Recipe>> {
+        if format == Format::Ppm {
+            return Ok(None);
+        }
+        let Some(why) = py.detach(|| self.recipe.too_long_to_carry()) else {
+            return Ok(Some(&self.recipe));
+        };
+        let message = std::ffi::CString::new(format!("{why}, so the image carries none"))
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let category = py.get_type::<pyo3::exceptions::PyUserWarning>();
+        // 2: the warning names the caller's line, not the package's `save`.
+        PyErr::warn(py, category.as_any(), &message, 2)?;
+        Ok(None)
     }
 }
 
@@ -282,8 +299,9 @@ impl NativeImage {
                 ))));
             }
         };
+        let recipe = self.carried(py, format)?;
         let bytes = py
-            .detach(|| self.encode(format))
+            .detach(|| self.encode(format, recipe))
             .map_err(|e| TesseraError::new_err(format!("could not encode the image: {e}")))?;
         Ok(PyBytes::new(py, &bytes))
     }
@@ -291,7 +309,9 @@ impl NativeImage {
     /// Writes the image to `path` (its format from the extension), whole or not at all: the
     /// file `tessera render` writes for the same scene and settings.
     fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
-        py.detach(|| self.film.save(&path, self.gamma, Some(&self.recipe)))
+        let format = Format::from_path(&path).map_err(|e| to_py(py, e))?;
+        let recipe = self.carried(py, format)?;
+        py.detach(|| self.film.save(&path, self.gamma, recipe))
             .map_err(|e| to_py(py, e))
     }
 

@@ -2,6 +2,7 @@
 of the same files and databases."""
 
 import json
+import warnings
 
 import pytest
 
@@ -147,6 +148,22 @@ def test_reproduce_refuses_what_has_no_recipe(cli, tmp_path):
         tessera.reproduce(tmp_path / "junk.png")
     with pytest.raises(FileNotFoundError):
         tessera.reproduce(tmp_path / "none.png")
+
+
+# A recipe over the 1 MiB every reader takes is left out, with a warning, as the CLI does.
+def test_a_scene_too_long_for_a_recipe_saves_without_one_and_warns(tmp_path):
+    text = (ROOT / "scenes" / "img-1.03-red-sphere.toml").read_text()
+    image = tessera.render(text + "# " + "x" * (1 << 20) + "\n", width=16, spp=1)
+    for name in ["long.png", "long.exr"]:
+        with pytest.warns(UserWarning, match="an image may carry, so the image carries none"):
+            image.save(tmp_path / name)
+        with pytest.raises(tessera.TesseraError, match="no recipe"):
+            tessera.reproduce(tmp_path / name)
+    with pytest.warns(UserWarning, match="an image may carry"):
+        assert image.png().startswith(b"\x89PNG")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        image.save(tmp_path / "long.ppm")
 
 
 def test_bench_gives_a_valid_result_the_cli_imports(cli, tmp_path):

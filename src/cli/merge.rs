@@ -138,7 +138,11 @@ fn merged_recipe(
                 ..render.clone()
             };
     if describes {
-        Ok(Recipe::new(source, &scene, film))
+        let recipe = Recipe::new(source, &scene, film);
+        match recipe.too_long_to_carry() {
+            Some(why) => Err(format!("the parts' scene is too long: {why}")),
+            None => Ok(recipe),
+        }
     } else {
         Err("the parts' recipe does not describe them".to_owned())
     }

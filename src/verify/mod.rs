@@ -23,8 +23,8 @@ pub fn read_recipe(path: &Path) -> Result<(ImageHeader, Recipe)> {
     let Some(text) = &header.recipe else {
         return Err(Error::Image {
             path: path.to_owned(),
-            message: "no recipe (the image was written with --no-provenance, by another \
-                      program, or its metadata was stripped)"
+            message: "no recipe (the image was written with --no-provenance, of a scene \
+                      too long to carry, by another program, or its metadata was stripped)"
                 .into(),
         });
     };

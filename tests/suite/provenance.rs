@@ -238,6 +238,67 @@ fn merged_shards_and_resumed_checkpoints_carry_the_single_renders_recipe() {
 }
 
 #[test]
+fn a_scene_too_long_for_a_recipe_renders_without_one_and_says_so() {
+    // The red sphere and 1.1 MB of comments: its recipe would pass the 1 MiB every reader of
+    // recipes refuses, `info` first.
+    let mut text = std::fs::read_to_string(scene_path("img-1.03-red-sphere.toml")).unwrap();
+    text.push_str(&format!("# {}\n", "x".repeat(100)).repeat(11_000));
+    let dir = dir_with_scene("provenance-too-long", &text);
+    let size = ["--width", "32", "--spp", "2"];
+    for image in ["long.png", "long.exr"] {
+        let o = run(
+            &[&["render", "scene.toml", "-o", image][..], &size].concat(),
+            &dir,
+        );
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        assert!(
+            stderr(&o).contains("more than the 1048576 an image may carry")
+                && stderr(&o).contains(&format!("so {image} carries none")),
+            "{}",
+            stderr(&o)
+        );
+        let o = run(&["info", image], &dir);
+        assert_eq!(o.status.code(), Some(2), "{image}: {}", stderr(&o));
+        assert!(stderr(&o).contains("no recipe"), "{}", stderr(&o));
+    }
+    assert_eq!(png_recipe_text(&dir.join("long.png")), None);
+    // Parts carry none either, and their merge says it has none to carry.
+    for shard in ["0/2", "1/2"] {
+        let part = format!("p{}.part", &shard[..1]);
+        let o = run(
+            &[
+                &["render", "scene.toml", "--shard", shard, "-o", &part][..],
+                &size,
+            ]
+            .concat(),
+            &dir,
+        );
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        assert!(stderr(&o).contains("carries none"), "{}", stderr(&o));
+    }
+    let o = run(&["merge", "p0.part", "p1.part", "-o", "m.png"], &dir);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("carry no common recipe"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(png_recipe_text(&dir.join("m.png")), None);
+    // A PPM carries none in any case, and --no-provenance leaves it out: no warning.
+    for extra in [
+        &["-o", "long.ppm"][..],
+        &["-o", "bare.png", "--no-provenance"],
+    ] {
+        let o = run(
+            &[&["render", "scene.toml"][..], &size, extra].concat(),
+            &dir,
+        );
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        assert!(!stderr(&o).contains("warning"), "{}", stderr(&o));
+    }
+}
+
+#[test]
 fn an_edited_or_stripped_image_is_never_called_identical() {
     let dir = temp_dir("provenance-edits");
     let image = small_cover(&dir, "cover.png");

@@ -2,6 +2,7 @@
 //! output checked writable, before any work starts: a `RenderPlan` that knows how to run.
 
 use super::{Args, PreviewArgs, SceneArgs, SplitArg};
+use crate::cli::output::note;
 use crate::cli::writable::{check_output, same_file};
 use anyhow::{Result, bail};
 use std::net::{SocketAddr, TcpListener};
@@ -11,7 +12,7 @@ use tessera::image_file::Format;
 use tessera::job::Job;
 use tessera::math::PixelRect;
 use tessera::partial::RenderId;
-use tessera::recipe::Source;
+use tessera::recipe::{Recipe, Source};
 use tessera::render::RenderOptions;
 use tessera::scene::{Overrides, Scene};
 use tessera::shard::{self, Shard, Split, parse_samples};
@@ -292,11 +293,27 @@ impl RenderPlan {
                 }
             }
         }
+        // A recipe too long for any reader to take is left out of the image and its parts
+        // before the render, with a word, rather than refused once the render is done.
+        // A PPM carries none in any case.
+        let recipe = (!args.no_provenance).then_some(source).filter(|source| {
+            let why = tessera::recipe::too_long_to_carry(Recipe::written_len(source, &scene));
+            let carries = !matches!(&output, Output::Image(p) if Format::from_path(p).ok() == Some(Format::Ppm));
+            if let Some(why) = why.as_ref().filter(|_| carries) {
+                note(format_args!(
+                    "tessera: warning: {}: {why}, so {} carries none (--no-provenance leaves \
+                     it out without this warning)",
+                    args.scene.scene.display(),
+                    output.path().display()
+                ));
+            }
+            why.is_none()
+        });
         // Last, so that the port is taken only once everything else is known to be right.
         let preview = PreviewSettings::new(&args.preview)?;
         Ok(Self {
             render: RenderId {
-                recipe: (!args.no_provenance).then_some(source),
+                recipe,
                 ..RenderId::of(&scene, target)
             },
             scene,
