@@ -177,7 +177,7 @@ fn refuse_unnameable(path: &Path, name: &std::ffi::OsStr) -> std::io::Result<()>
 /// pointing at a device of theirs (their own terminal), which then received the image, recipe
 /// and all, with no file made and exit 0. Such a link is replaced by the file, as a link to
 /// a file is. So is, written in place, a file that `path` names as one of this process's
-/// open files (`names_an_open_file`: `/dev/stdout` redirected to a file).
+/// open files (`open_file_named`: `/dev/stdout` redirected to a file).
 fn is_special(path: &Path) -> bool {
     use std::os::unix::fs::MetadataExt;
     match std::fs::symlink_metadata(path) {
@@ -185,7 +185,7 @@ fn is_special(path: &Path) -> bool {
             false
         }
         Ok(_) => std::fs::metadata(path)
-            .is_ok_and(|m| !m.is_dir() && (!m.is_file() || names_an_open_file(path))),
+            .is_ok_and(|m| !m.is_dir() && (!m.is_file() || open_file_named(path).is_some())),
         Err(_) => false,
     }
 }
@@ -193,50 +193,93 @@ fn is_special(path: &Path) -> bool {
 /// Symbolic links followed, at most, to see where a path leads (the kernel's own limit).
 const MAX_LINKS: usize = 40;
 
-/// True when `path` is, or leads by symbolic links to, one of this process's open files
-/// as `/proc` names them (`/proc/self/fd/N`, `/dev/fd/N`): `/dev/stdout` with the output
-/// redirected to a file (`-o /dev/stdout > out.json`), the file the shell opened for the
-/// redirect. Renaming over the path replaced the link itself (`/dev/stdout` of the whole
-/// machine, where tessera ran as root) and left the redirected file empty, exit 0.
-fn names_an_open_file(path: &Path) -> bool {
+/// The file descriptor N when `path` is, or leads by symbolic links to, one of this
+/// process's open files as `/proc` names them (`/proc/self/fd/N`, `/dev/fd/N`): `/dev/stdout`
+/// with the output redirected to a file (`-o /dev/stdout > out.json`), the file the shell
+/// opened for the redirect. Renaming over the path replaced the link itself (`/dev/stdout` of
+/// the whole machine, where tessera ran as root) and left the redirected file empty, exit 0.
+fn open_file_named(path: &Path) -> Option<u32> {
     let mut at = path.to_owned();
     for _ in 0..MAX_LINKS {
-        if is_an_open_file_s_name(&at) {
-            return true;
+        if let Some(fd) = open_file_s_number(&at) {
+            return Some(fd);
         }
         // The link is read, not followed: `/proc/self/fd/N` itself reads as the file's name.
-        let Ok(target) = std::fs::read_link(&at) else {
-            return false;
-        };
+        let target = std::fs::read_link(&at).ok()?;
         at = directory_of(&at).join(target);
     }
-    false
+    None
 }
 
-/// Whether `path` is a name `/proc` gives an open file of this process: `/proc/self/fd/N`,
-/// `/proc/thread-self/fd/N`, `/proc/PID/fd/N` with this process's id, or `/dev/fd/N`.
-fn is_an_open_file_s_name(path: &Path) -> bool {
+/// N, where `path` is a name `/proc` gives the open file N of this process:
+/// `/proc/self/fd/N`, `/proc/thread-self/fd/N`, `/proc/PID/fd/N` with this process's id, or
+/// `/dev/fd/N`.
+fn open_file_s_number(path: &Path) -> Option<u32> {
     use std::path::Component;
     let parts: Vec<Component> = path.components().collect();
     let named = |c: &Component, name: &str| c.as_os_str() == name;
-    let a_number =
-        |c: &Component| (c.as_os_str().to_str()).is_some_and(|n| n.parse::<u32>().is_ok());
+    let number = |c: &Component| (c.as_os_str().to_str()).and_then(|n| n.parse::<u32>().ok());
     let this_process = std::process::id().to_string();
     match parts.as_slice() {
-        [Component::RootDir, proc, whose, fd, n] if named(proc, "proc") => {
-            (named(whose, "self") || named(whose, "thread-self") || named(whose, &this_process))
-                && named(fd, "fd")
-                && a_number(n)
+        [Component::RootDir, proc, whose, fd, n]
+            if named(proc, "proc")
+                && (named(whose, "self")
+                    || named(whose, "thread-self")
+                    || named(whose, &this_process))
+                && named(fd, "fd") =>
+        {
+            number(n)
         }
-        [Component::RootDir, dev, fd, n] => named(dev, "dev") && named(fd, "fd") && a_number(n),
-        _ => false,
+        [Component::RootDir, dev, fd, n] if named(dev, "dev") && named(fd, "fd") => number(n),
+        _ => None,
     }
+}
+
+/// Whether this process has its file descriptor `fd` open for writing, as
+/// `/proc/self/fdinfo/N` says (the access mode of its `flags`, in octal); None where that
+/// cannot be read.
+fn open_for_writing(fd: u32) -> Option<bool> {
+    let info = std::fs::read_to_string(format!("/proc/self/fdinfo/{fd}")).ok()?;
+    let flags = info.lines().find_map(|l| l.strip_prefix("flags:"))?;
+    let flags = u32::from_str_radix(flags.trim(), 8).ok()?;
+    let mode = flags & libc::O_ACCMODE as u32;
+    Some(
+        flags & libc::O_PATH as u32 == 0
+            && (mode == libc::O_WRONLY as u32 || mode == libc::O_RDWR as u32),
+    )
+}
+
+/// Refuses a `path` that leads to one of this process's open files (`open_file_named`)
+/// that the process does not hold open for writing: standard input (`-o /dev/stdin <
+/// scene.toml`), or any descriptor opened only to read. Written through, the output was
+/// appended to the very file the shell gave as input (a 12-byte file grew to 3,393 bytes,
+/// exit 0), or, where the input is a pipe, written into the pipe the process itself reads,
+/// which waits forever once its buffer is full. Only what the shell opened for writing
+/// (`>`, `>>`, `<>`) is written through.
+fn refuse_read_only_descriptor(path: &Path) -> std::io::Result<()> {
+    let Some(fd) = open_file_named(path) else {
+        return Ok(());
+    };
+    let which = match fd {
+        0 => "standard input (file descriptor 0)".to_owned(),
+        n => format!("file descriptor {n}"),
+    };
+    let why = match open_for_writing(fd) {
+        Some(true) => return Ok(()),
+        Some(false) => "which this process has open only for reading",
+        None => "which this process cannot tell is open for writing (no /proc/self/fdinfo)",
+    };
+    // Not "permission denied": that reads as the directory's, which is not at fault.
+    Err(std::io::Error::other(format!(
+        "leads to {which}, {why}: the output would go into what this command reads; name \
+         a file, or redirect standard output with `>` and write to /dev/stdout"
+    )))
 }
 
 /// Opens the device or pipe at `path` (`is_special`) to write in place. A symbolic link is
 /// followed only where there was one when `is_special` took it (this user's or root's):
 /// one swapped in since for a device named itself is refused (`O_NOFOLLOW`), not followed.
-/// A file (one of this process's open files, `names_an_open_file`) is written at its end,
+/// A file (one of this process's open files, `open_file_named`) is written at its end,
 /// as the shell's `>` (which left it empty) or `>>` asked: opened again by its name, it
 /// would be written from its start, over what it held.
 fn open_in_place(path: &Path) -> std::io::Result<std::fs::File> {
@@ -259,9 +302,11 @@ fn open_in_place(path: &Path) -> std::io::Result<std::fs::File> {
 /// name an output will have: writing their pipe in place sent the image to whoever reads it,
 /// with no file made and exit 0, or, with nobody reading, waited forever; a socket cannot be
 /// opened at all ("No such device or address"). The kernel's `fs.protected_fifos` guards only
-/// opens that may create the file, which this is not.
+/// opens that may create the file, which this is not. So too one of this process's open
+/// files that it does not hold open for writing (`refuse_read_only_descriptor`).
 fn refuse_in_place(path: &Path) -> std::io::Result<()> {
     use std::os::unix::fs::{FileTypeExt, MetadataExt};
+    refuse_read_only_descriptor(path)?;
     let Ok(meta) = std::fs::metadata(path) else {
         return Ok(());
     };
@@ -511,6 +556,57 @@ mod tests {
             let kept = std::fs::symlink_metadata(&link).unwrap();
             assert!(kept.file_type().is_symlink(), "the link was replaced");
             assert_eq!(std::fs::read(&sink).unwrap(), after, "append: {append}");
+            drop(open);
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A link to one of the process's open files that it holds only for reading (standard
+    /// input: `-o /dev/stdin < scene.toml`) is refused, the file left as it was: written
+    /// through, the image was appended to the input file (12 bytes grew to 3,393, exit 0).
+    /// One held for reading and writing (`<>`) is written through.
+    #[test]
+    fn a_link_to_an_open_file_held_only_for_reading_is_refused_and_the_file_untouched() {
+        use std::os::fd::AsRawFd;
+        if !Path::new("/proc/self/fdinfo").is_dir() {
+            return; // no /proc
+        }
+        let dir = std::env::temp_dir().join(format!("tessera-fdread-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let input = dir.join("scene.toml");
+        std::fs::write(&input, b"the input").unwrap();
+        let link = dir.join("stdin.png");
+        for (write, after) in [
+            (false, &b"the input"[..]),
+            (true, &b"the inputthe image"[..]),
+        ] {
+            let open = std::fs::OpenOptions::new()
+                .read(true)
+                .write(write)
+                .open(&input)
+                .unwrap();
+            let _ = std::fs::remove_file(&link);
+            let fd = format!("/proc/self/fd/{}", open.as_raw_fd());
+            std::os::unix::fs::symlink(&fd, &link).unwrap();
+            let checked = check_writable(&link);
+            let written =
+                write_result_atomically_with(&link, &mut |out| out.write_all(b"the image"));
+            if write {
+                checked.unwrap();
+                written.unwrap();
+            } else {
+                let said = checked.unwrap_err().to_string();
+                assert!(said.contains("open only for reading"), "{said}");
+                assert!(said.contains("stdin.png"), "{said}");
+                assert!(written.is_err());
+            }
+            assert_eq!(std::fs::read(&input).unwrap(), after, "write: {write}");
+            assert!(
+                std::fs::symlink_metadata(&link)
+                    .unwrap()
+                    .file_type()
+                    .is_symlink()
+            );
             drop(open);
         }
         std::fs::remove_dir_all(&dir).unwrap();

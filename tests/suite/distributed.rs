@@ -548,6 +548,35 @@ fn a_part_claiming_a_huge_image_is_refused_before_anything_is_allocated() {
     assert_eq!(bytes(&dir, "out.png"), b"precious");
 }
 
+/// `-o /dev/stdin < in.txt` (a part) or `-o in.png` with `in.png` a link to `/dev/stdin`
+/// (an image, named by its extension): standard input is open only for reading, so the
+/// output is refused before the render, and the file the shell opened is left as it was;
+/// written through, the image (a 12-byte file grew to 3,393 bytes) or the part (26,847) was
+/// appended to it, exit 0.
+#[test]
+fn an_output_named_as_standard_input_is_refused_and_the_input_untouched() {
+    let dir = temp_dir("output-to-stdin");
+    let input = dir.join("in.txt");
+    std::os::unix::fs::symlink("/dev/stdin", dir.join("in.png")).unwrap();
+    for (output, more) in [("in.png", &[][..]), ("/dev/stdin", &["--shard", "0/1"][..])] {
+        std::fs::write(&input, b"hello input\n").unwrap();
+        let o = tessera()
+            .args(with(&small(&cover(), &["-o", output]), more))
+            .current_dir(&dir)
+            .stdin(std::fs::File::open(&input).unwrap())
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{output}: {err}");
+        let said = format!("{output}: leads to standard input (file descriptor 0)");
+        assert!(
+            err.contains(&said) && err.contains("only for reading"),
+            "{err}"
+        );
+        assert_eq!(bytes(&dir, "in.txt"), b"hello input\n", "{output}");
+    }
+}
+
 #[test]
 fn a_checkpoint_on_a_full_disk_warns_once_and_the_image_is_still_written() {
     let dir = temp_dir("full-disk");
