@@ -51,19 +51,6 @@ fn check_set(parts: &[(&Path, &Part)]) -> Result<Whole> {
             ));
         }
     }
-    if let Some(found) = overlap(parts, base.window).found {
-        let (a, b) = (parts[found.0], parts[found.1]);
-        let (sa, sb) = (a.1.state.job.samples, b.1.state.job.samples);
-        return Err(part_error(
-            b.0,
-            format!(
-                "overlaps {}: both hold samples {}..{} of some pixels",
-                a.0.display(),
-                sa.start.max(sb.start),
-                sa.end.min(sb.end)
-            ),
-        ));
-    }
     let window = base.window;
     let total = base.target;
     if let Some(&(path, p)) = parts.iter().find(|(_, p)| p.state.job.samples.end > total) {
@@ -83,7 +70,14 @@ fn check_set(parts: &[(&Path, &Part)]) -> Result<Whole> {
         })
         .sum();
     let needed = u128::from(window.area()) * u128::from(total);
-    if covered != needed {
+    // Counted from the headers alone, with nothing allocated: fewer pixel-samples than the
+    // image needs leave a gap, overlap or not. The search for an overlap below keeps four
+    // bytes a pixel of the window, which a header may claim at `scene::MAX_PIXELS` (1 GiB):
+    // two one-pixel parts of the largest image once asked for it before their gap was seen
+    // (`ulimit -v 1048576`: "memory allocation of 1073741824 bytes failed", abort). Parts
+    // that claim at least the window's pixel-samples claim at least its pixels, whose
+    // image of 24 bytes a pixel a merge allocates next.
+    if covered < needed {
         let listing: Vec<String> = parts
             .iter()
             .map(|(path, p)| {
@@ -107,6 +101,29 @@ fn check_set(parts: &[(&Path, &Part)]) -> Result<Whole> {
             window.height,
             // One line, as every error is printed: a newline would show as `\u{a}`.
             listing.join("; ")
+        )));
+    }
+    if let Some(found) = overlap(parts, base.window).found {
+        let (a, b) = (parts[found.0], parts[found.1]);
+        let (sa, sb) = (a.1.state.job.samples, b.1.state.job.samples);
+        return Err(part_error(
+            b.0,
+            format!(
+                "overlaps {}: both hold samples {}..{} of some pixels",
+                a.0.display(),
+                sa.start.max(sb.start),
+                sa.end.min(sb.end)
+            ),
+        ));
+    }
+    // Parts inside the window, overlapping nowhere, holding as many pixel-samples as it
+    // needs, cover it exactly; more than it needs overlap somewhere, which `overlap` finds:
+    // this is said only were it to miss one.
+    if covered != needed {
+        return Err(Error::Merge(format!(
+            "the parts hold {covered} pixel-samples, more than the {needed} that {}x{} pixels \
+             × samples 0..{total} need, so some overlap",
+            window.width, window.height
         )));
     }
     Ok(Whole {
@@ -269,8 +286,11 @@ mod tests {
             two.ends_with("samples 0..4; p: pixels 8x3 at (0, 0), samples 4..9"),
             "{two}"
         );
-        let overlap = merge(&[named(part(full, [0, 4])), named(part(top, [3, 5]))]);
+        let overlap = merge(&[named(part(full, [0, 9])), named(part(top, [3, 5]))]);
         assert!(overlap.unwrap_err().to_string().contains("overlaps"));
+        // Too few pixel-samples leave a gap, said from the count alone, overlap or not.
+        let both = merge(&[named(part(full, [0, 4])), named(part(top, [3, 5]))]);
+        assert!(both.unwrap_err().to_string().contains("gaps"));
         let hole = merge(&[named(part(full, [0, 4])), named(part(full, [5, 9]))]);
         assert!(hole.unwrap_err().to_string().contains("gaps"));
     }

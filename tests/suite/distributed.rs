@@ -548,6 +548,56 @@ fn a_part_claiming_a_huge_image_is_refused_before_anything_is_allocated() {
     assert_eq!(bytes(&dir, "out.png"), b"precious");
 }
 
+/// A part of the image `width`×`height` holding one finished pixel at (`x`, `y`), sample 0
+/// of 1: its header passes every check of its own.
+fn one_pixel_part(width: u32, height: u32, x: u32, y: u32) -> Vec<u8> {
+    let header = format!(
+        concat!(
+            r#"{{"version":3,"render":{{"fingerprint":"00","seed":1,"width":{w},"height":{h},"#,
+            r#""max_depth":5,"gamma":2.0,"window":{{"x0":0,"y0":0,"width":{w},"height":{h}}},"#,
+            r#""target":1}},"state":{{"job":{{"region":{{"x0":{x},"y0":{y},"width":1,"#,
+            r#""height":1}},"samples":{{"start":0,"end":1}}}},"tile":1,"done":[1]}}}}"#
+        ),
+        w = width,
+        h = height,
+        x = x,
+        y = y
+    );
+    let mut bytes = b"TESSERA-PARTIAL\n".to_vec();
+    bytes.extend_from_slice(&(header.len() as u64).to_le_bytes());
+    bytes.extend_from_slice(header.as_bytes());
+    bytes.resize(bytes.len() + 24 + 8, 0);
+    bytes
+}
+
+/// Two one-pixel parts of a 16384×16384 image leave a gap, seen from their headers before
+/// anything the size of the image is allocated: the search for overlaps once came first,
+/// four bytes a pixel (1 GiB), and under a 1 GiB address-space limit the merge aborted
+/// ("memory allocation of 1073741824 bytes failed", exit 134).
+#[test]
+fn parts_that_leave_a_gap_in_a_huge_image_are_refused_before_it_is_allocated() {
+    let dir = temp_dir("gap-in-a-huge-image");
+    std::fs::write(dir.join("a.part"), one_pixel_part(16384, 16384, 0, 0)).unwrap();
+    std::fs::write(dir.join("b.part"), one_pixel_part(16384, 16384, 5, 5)).unwrap();
+    std::fs::write(dir.join("out.png"), b"precious").unwrap();
+    let tessera = env!("CARGO_BIN_EXE_tessera");
+    let o = Command::new("sh")
+        .args([
+            "-c",
+            &format!("ulimit -v 1048576; exec {tessera} merge a.part b.part -o out.png"),
+        ])
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("the parts leave gaps") && !err.contains("allocation"),
+        "{err}"
+    );
+    assert_eq!(bytes(&dir, "out.png"), b"precious");
+}
+
 /// `-o /dev/stdin < in.txt` (a part) or `-o in.png` with `in.png` a link to `/dev/stdin`
 /// (an image, named by its extension): standard input is open only for reading, so the
 /// output is refused before the render, and the file the shell opened is left as it was;
