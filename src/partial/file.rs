@@ -129,8 +129,22 @@ impl<R: Read> PartReader<R> {
             inner: (&mut reader).take(header_len),
             checksum: &mut checksum,
         };
-        let header: Part = match serde_json::from_reader(&mut text) {
+        let mut version = None;
+        let parsed = {
+            use serde::de::DeserializeSeed;
+            let mut json = serde_json::Deserializer::from_reader(&mut text);
+            (HeaderSeed {
+                version: &mut version,
+            })
+            .deserialize(&mut json)
+            .and_then(|header| json.end().map(|()| header))
+        };
+        let header: Part = match parsed {
             Ok(h) => h,
+            // Said before anything else: the rest is another layout's.
+            Err(_) if version.is_some_and(|v| v != VERSION) => {
+                return fail(super::another_version(version.unwrap_or(VERSION)));
+            }
             Err(e) if e.is_io() => {
                 return Err(Error::Io {
                     path: path.to_owned(),
@@ -219,6 +233,75 @@ impl<R: Read> PartReader<R> {
             ));
         }
         Ok(())
+    }
+}
+
+/// A part's JSON header, read with its format version checked first: a header of another
+/// version than this build's is another layout, whose fields this one does not know, so the
+/// parse stops at the version and `version` says which it was. A part of a newer tessera
+/// once read "has a corrupt header: unknown field `…`", which says nothing of why. Fields
+/// are taken in any order; one this layout does not know is refused once the version is
+/// known to be this build's.
+struct HeaderSeed<'a> {
+    /// The version the header gives, once read.
+    version: &'a mut Option<u32>,
+}
+
+/// The fields of a part's header, for messages.
+const HEADER_FIELDS: &[&str] = &["version", "render", "state"];
+
+impl<'de> serde::de::DeserializeSeed<'de> for HeaderSeed<'_> {
+    type Value = Part;
+
+    fn deserialize<D: serde::Deserializer<'de>>(self, d: D) -> Result<Part, D::Error> {
+        d.deserialize_map(self)
+    }
+}
+
+impl<'de> serde::de::Visitor<'de> for HeaderSeed<'_> {
+    type Value = Part;
+
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("a part's header (an object of `version`, `render` and `state`)")
+    }
+
+    fn visit_map<A: serde::de::MapAccess<'de>>(self, mut map: A) -> Result<Part, A::Error> {
+        use serde::de::Error as _;
+        let (mut render, mut state, mut unknown) = (None, None, None);
+        while let Some(key) = map.next_key::<String>()? {
+            match key.as_str() {
+                "version" if self.version.is_some() => {
+                    return Err(A::Error::duplicate_field("version"));
+                }
+                "version" => {
+                    let version = map.next_value::<u32>()?;
+                    *self.version = Some(version);
+                    if version != VERSION {
+                        return Err(A::Error::custom(super::another_version(version)));
+                    }
+                }
+                "render" if render.is_some() => return Err(A::Error::duplicate_field("render")),
+                "render" => render = Some(map.next_value::<RenderId>()?),
+                "state" if state.is_some() => return Err(A::Error::duplicate_field("state")),
+                "state" => state = Some(map.next_value::<JobState>()?),
+                // Refused once the version is known: another version's field says nothing.
+                _ => {
+                    map.next_value::<serde::de::IgnoredAny>()?;
+                    unknown.get_or_insert(key);
+                }
+            }
+        }
+        let version = self
+            .version
+            .ok_or_else(|| A::Error::missing_field("version"))?;
+        if let Some(field) = unknown {
+            return Err(A::Error::unknown_field(&field, HEADER_FIELDS));
+        }
+        Ok(Part {
+            version,
+            render: render.ok_or_else(|| A::Error::missing_field("render"))?,
+            state: state.ok_or_else(|| A::Error::missing_field("state"))?,
+        })
     }
 }
 
@@ -356,6 +439,67 @@ mod tests {
         );
         let bytes = p.to_bytes();
         assert_eq!(Part::from_bytes(&bytes, Path::new("p")).unwrap(), p);
+    }
+
+    /// `bytes`, a part file, with its JSON header replaced by `header` and its checksum made
+    /// again.
+    fn with_header(bytes: &[u8], header: &str) -> Vec<u8> {
+        let old = u64::from_le_bytes(bytes[16..24].try_into().unwrap()) as usize;
+        let body = &bytes[24 + old..bytes.len() - 8];
+        let mut out = MAGIC.to_vec();
+        out.extend_from_slice(&(header.len() as u64).to_le_bytes());
+        out.extend_from_slice(header.as_bytes());
+        out.extend_from_slice(body);
+        let sum = xxhash_rust::xxh3::xxh3_64(&out);
+        out.extend_from_slice(&sum.to_le_bytes());
+        out
+    }
+
+    /// A part of another format version is refused as that, whatever else its header holds
+    /// and wherever its version stands: one of a newer tessera with a field this one does
+    /// not know read "has a corrupt header: unknown field `…`".
+    #[test]
+    fn a_part_of_another_format_version_is_refused_as_that_first() {
+        let bytes = part(PixelRect::full(3, 2), [0, 4]).to_bytes();
+        let len = u64::from_le_bytes(bytes[16..24].try_into().unwrap()) as usize;
+        let header = std::str::from_utf8(&bytes[24..24 + len]).unwrap();
+        let (version, rest) = header.split_once(',').unwrap();
+        assert_eq!(version, format!("{{\"version\":{VERSION}"));
+        let refused = |header: &str| {
+            let e = Part::from_bytes(&with_header(&bytes, header), Path::new("p.part"));
+            e.unwrap_err().to_string()
+        };
+        let newer = VERSION + 1;
+        for header in [
+            format!("{{\"version\":{newer},\"tiles\":[[0,0,3,2]],{rest}"),
+            format!("{{\"version\":{newer},\"render\":{{\"camera\":1}}}}"),
+            format!("{{\"tiles\":[],\"version\":{newer},{rest}"),
+            format!("{{\"version\":{newer}"),
+        ] {
+            let said = refused(&header);
+            assert!(
+                said.starts_with(&format!(
+                    "p.part: is a part of format version {newer}; this tessera reads version \
+                     {VERSION}: it was written by a newer tessera"
+                )),
+                "{header}: {said}"
+            );
+        }
+        let said = refused(&format!("{{\"version\":1,{rest}"));
+        assert!(
+            said.contains("version 1;") && said.contains("an older"),
+            "{said}"
+        );
+        // This version's header, its fields in another order, is read; a field it does not
+        // know is refused as one.
+        let reordered = format!("{{{},\"version\":{VERSION}}}", &rest[..rest.len() - 1]);
+        let read = Part::from_bytes(&with_header(&bytes, &reordered), Path::new("p"));
+        assert_eq!(read.unwrap().to_bytes(), bytes);
+        let said = refused(&format!("{version},\"tiles\":[],{rest}"));
+        assert!(said.contains("unknown field `tiles`"), "{said}");
+        let twice = format!("{version},\"version\":{VERSION},{rest}");
+        assert!(refused(&twice).contains("duplicate field `version`"));
+        assert!(refused(&format!("{{{rest}")).contains("missing field `version`"));
     }
 
     #[test]

@@ -116,10 +116,7 @@ impl Part {
     fn check_claims(&self, path: &Path) -> Result<()> {
         let fail = |message: String| Err(part_error(path, message));
         if self.version != VERSION {
-            return fail(format!(
-                "has format version {}, this tessera reads {VERSION}",
-                self.version
-            ));
+            return fail(another_version(self.version));
         }
         let (r, job) = (&self.render, &self.state.job);
         let image = PixelRect::full(r.width, r.height);
@@ -212,6 +209,20 @@ impl Part {
         }
         Ok(())
     }
+}
+
+/// Why a part of format `version`, another than this build's, is refused.
+fn another_version(version: u32) -> String {
+    let whose = if version < VERSION {
+        "an older"
+    } else {
+        "a newer"
+    };
+    format!(
+        "is a part of format version {version}; this tessera reads version {VERSION}: it was \
+         written by {whose} tessera, which can merge or resume it; or render it again with \
+         this one"
+    )
 }
 
 fn part_error(path: &Path, message: String) -> Error {
