@@ -11,7 +11,7 @@ use tessera::film::Film;
 use tessera::image_file::Format;
 use tessera::partial::RenderId;
 use tessera::recipe::{Recipe, Source};
-use tessera::text::message_safe;
+use tessera::text::{message_safe, path_safe};
 
 /// `tessera merge` as typed.
 #[derive(clap::Args)]
@@ -60,7 +60,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 note(format_args!(
                     "tessera: warning: {}; {} carries no recipe",
                     message_safe(why),
-                    output.display()
+                    path_safe(&output)
                 ));
             }
             recipe.ok()
@@ -69,7 +69,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         None => {
             note(format_args!(
                 "tessera: note: the parts carry no common recipe, so {} carries none",
-                output.display()
+                path_safe(&output)
             ));
             None
         }
@@ -77,7 +77,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     film.save(&output, render.gamma, recipe.as_ref())?;
     note(format_args!(
         "{}: merged {}, {}x{}, {} spp",
-        output.display(),
+        path_safe(&output),
         super::output::count(paths.len() as u64, "part"),
         film.width,
         film.height,

@@ -627,6 +627,42 @@ fn an_output_named_as_standard_input_is_refused_and_the_input_untouched() {
     }
 }
 
+/// An output's name is one line in the notes that name it, as in errors: `-o
+/// "r\nfake: line.png"` printed its summary on two lines, the second one starting with what
+/// the name chose (`render`, with or without `--shard`, and `merge`).
+#[test]
+fn an_output_s_name_is_one_line_in_the_notes() {
+    let dir = temp_dir("newline-in-output");
+    let scene = cover();
+    let notes = |args: &[&str]| {
+        let o = run(args, &dir);
+        assert!(o.status.success(), "{}", stderr(&o));
+        stderr(&o)
+    };
+    let base = ["render", scene.as_str(), "--width", "40", "--spp", "2"];
+    for (output, more) in [
+        ("r\nfake: line.png", &[][..]),
+        ("p0\nfake: line.part", &["--shard", "0/2"][..]),
+    ] {
+        let said = notes(&with(&with(&base, &["-o", output]), more));
+        assert!(said.lines().all(|l| !l.starts_with("fake")), "{said}");
+        assert!(said.contains(&output.replace('\n', "\\u{a}")), "{said}");
+    }
+    ok(&with(&base, &["--shard", "1/2", "-o", "p1.part"]), &dir);
+    let said = notes(&[
+        "merge",
+        "p0\nfake: line.part",
+        "p1.part",
+        "-o",
+        "m\nfake: x.png",
+    ]);
+    assert!(said.lines().all(|l| !l.starts_with("fake")), "{said}");
+    assert!(
+        said.contains("m\\u{a}fake: x.png: merged 2 parts"),
+        "{said}"
+    );
+}
+
 #[test]
 fn a_checkpoint_on_a_full_disk_warns_once_and_the_image_is_still_written() {
     let dir = temp_dir("full-disk");

@@ -26,6 +26,7 @@ use tessera::preview::{About, RunState};
 use tessera::recipe::Recipe;
 use tessera::render::{self, Control, ProgressSaver, RenderOptions, RenderStats, Watch};
 use tessera::scene::Scene;
+use tessera::text::{message_safe, path_safe};
 
 pub use plan::DEFAULT_SCENE;
 
@@ -163,7 +164,8 @@ impl Checkpoint<'_> {
             if self.failed == 0 {
                 bar.suspend(|| {
                     note(format_args!(
-                        "tessera: warning: could not save the checkpoint: {e}; rendering goes on"
+                        "tessera: warning: could not save the checkpoint: {}; rendering goes on",
+                        message_safe(&e.to_string())
                     ))
                 });
             }
@@ -189,7 +191,8 @@ impl Checkpoint<'_> {
         }
         if let Err(e) = saved {
             note(format_args!(
-                "tessera: warning: could not save the finished checkpoint ({e}); writing the image"
+                "tessera: warning: could not save the finished checkpoint ({}); writing the image",
+                message_safe(&e.to_string())
             ));
         }
         Ok(())
@@ -284,7 +287,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
             note(format_args!(
                 "tessera: interrupted at {:.1}%; progress is saved in {}. Run the same command again to resume.",
                 state.percent_done(),
-                saver.settings.path.display()
+                path_safe(&saver.settings.path)
             ));
             return Ok(ExitCode::from(output::INTERRUPTED));
         }
@@ -338,7 +341,7 @@ fn write_image(
     if recipe.is_some() && !quiet && format == Format::Ppm {
         note(format_args!(
             "tessera: note: PPM has no metadata, so {} carries no recipe (PNG and EXR do)",
-            path.display()
+            path_safe(path)
         ));
     }
     let gamma = scene.settings.gamma;
@@ -405,7 +408,7 @@ fn resume(scene: &Scene, path: &Path, job: Job, quiet: bool) -> Result<JobState>
     if !quiet {
         note(format_args!(
             "tessera: resuming from {} ({:.1}% done)",
-            path.display(),
+            path_safe(path),
             state.percent_done()
         ));
     }
@@ -433,7 +436,7 @@ fn report(scene: &Scene, output: &Output, what: &str, stats: &RenderStats) {
     let s = &scene.settings;
     note(format_args!(
         "{}: {what}, depth {}, seed {} | {}",
-        output.path().display(),
+        path_safe(output.path()),
         s.max_depth,
         s.seed,
         render_summary(stats)

@@ -237,7 +237,8 @@ impl PreviewFile {
                 if self.failures == 0 {
                     bar.suspend(|| {
                         note(format_args!(
-                            "tessera: warning: could not write the preview file: {e}; rendering goes on"
+                            "tessera: warning: could not write the preview file: {}; rendering goes on",
+                            tessera::text::message_safe(&e.to_string())
                         ))
                     });
                 }
