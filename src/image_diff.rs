@@ -291,6 +291,12 @@ impl RgbImage {
                                         end marker after its last scan"
                                 .to_owned());
                         }
+                        // A frame of a kind the decoder does not read is refused by its
+                        // kind, not by the decoder's words for what it then meets.
+                        let marker = segments.frame_marker.or(after.frame_marker);
+                        if let Some(why) = marker.and_then(crate::jpeg_end::unread_frame) {
+                            return Err(why);
+                        }
                         // The decoder fills what the scans lack, as large as the frame
                         // claims: too little coded data for its blocks is refused undecoded.
                         // A frame of more pixels than are compared is refused below, by its

@@ -26,6 +26,40 @@ pub struct AfterScan {
     /// Its first frame header before its first scan, where the walk starts before it (the
     /// decoder refuses a second one).
     pub frame: Option<Frame>,
+    /// The marker of its first frame header of any kind (`is_frame`) before its first scan,
+    /// where the walk starts before it.
+    pub frame_marker: Option<u8>,
+}
+
+/// Whether `marker` begins a frame header (SOF0 to SOF15), of any kind: not DHT (C4), JPG
+/// (C8) or DAC (CC), which share the range.
+pub fn is_frame(marker: u8) -> bool {
+    (0xc0..=0xcf).contains(&marker) && !matches!(marker, 0xc4 | 0xc8 | 0xcc)
+}
+
+/// What is said of a JPEG whose first frame header has the marker `marker`, if the decoder
+/// does not read that kind of frame: it reads those of Huffman coding, baseline, extended
+/// and progressive (SOF0 to SOF2), and skips a frame header of another kind as an unknown
+/// segment, so that it then fails with words of a fault the file does not have ("Number of
+/// components cannot be zero").
+pub fn unread_frame(marker: u8) -> Option<String> {
+    let kind = match marker {
+        0xc3 => "lossless (SOF3)",
+        0xc5 => "differential sequential, hierarchical (SOF5)",
+        0xc6 => "differential progressive, hierarchical (SOF6)",
+        0xc7 => "differential lossless, hierarchical (SOF7)",
+        0xc9 => "extended sequential, arithmetic coding (SOF9)",
+        0xca => "progressive, arithmetic coding (SOF10)",
+        0xcb => "lossless, arithmetic coding (SOF11)",
+        0xcd => "differential sequential, arithmetic coding (SOF13)",
+        0xce => "differential progressive, arithmetic coding (SOF14)",
+        0xcf => "differential lossless, arithmetic coding (SOF15)",
+        _ => return None,
+    };
+    Some(format!(
+        "has a frame header of {kind}, a kind the decoder does not read: it reads baseline, \
+         extended and progressive JPEGs of Huffman coding (SOF0 to SOF2)"
+    ))
 }
 
 /// The fewest bits of coded data a block of 8x8 samples of one component takes in a
@@ -203,6 +237,9 @@ pub fn after_scan<R: std::io::Read>(
                     past_end |= scanned;
                 }
                 (true, m) => {
+                    if !scanned && after.frame_marker.is_none() && is_frame(m) {
+                        after.frame_marker = Some(m);
+                    }
                     if m == 0xda {
                         (scanned, ended) = (true, false);
                         if !past_end {

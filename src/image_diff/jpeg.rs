@@ -155,6 +155,8 @@ pub(super) struct JpegSegments {
     names: Option<[u8; 3]>,
     /// Its first frame header of a kind the decoder reads, if it comes before the first scan.
     pub(super) frame: Option<crate::jpeg_end::Frame>,
+    /// The marker of its first frame header of any kind, if it comes before the first scan.
+    pub(super) frame_marker: Option<u8>,
 }
 
 /// The segments of the JPEG `r` is at the start of, up to its first scan (or its first
@@ -204,6 +206,9 @@ fn jpeg_segments<R: std::io::Read + Seek>(
         let n = usize::try_from(rest).unwrap_or(0).min(head.len());
         r.read_exact(&mut head[..n])?;
         let head = &head[..n];
+        if crate::jpeg_end::is_frame(byte[0]) {
+            seen.frame_marker.get_or_insert(byte[0]);
+        }
         match byte[0] {
             0xe1 if head.starts_with(b"Exif\0\0") => {
                 seen.exif += 1;

@@ -630,6 +630,48 @@ fn a_jpeg_cut_short_is_refused() {
     assert_eq!(after.unwrap().rmse, 0.0);
 }
 
+/// The decoder reads frames of Huffman coding, baseline, extended and progressive (SOF0 to
+/// SOF2), and skips a frame header of another kind as an unknown segment: the earth map's
+/// frame header marked arithmetic-coded (SOF9), lossless (SOF3) or hierarchical (SOF5) was
+/// refused with "Number of components cannot be zero", a fault the file does not have. It
+/// is refused by the kind of its frame, named.
+#[test]
+fn a_jpeg_of_a_frame_kind_the_decoder_does_not_read_is_refused_by_its_kind() {
+    let jpeg = include_bytes!("../../scenes/earthmap.jpg");
+    let sof = jpeg.windows(2).position(|w| w == [0xff, 0xc0]).unwrap();
+    let dir = std::env::temp_dir().join(format!("tessera-jpeg-kind-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("a.jpg"), jpeg).unwrap();
+    let mut refusals = Vec::new();
+    for (marker, kind) in [
+        (0xc9, "arithmetic coding (SOF9)"),
+        (0xca, "arithmetic coding (SOF10)"),
+        (0xc3, "lossless (SOF3)"),
+        (0xc5, "hierarchical (SOF5)"),
+    ] {
+        let mut other = jpeg.to_vec();
+        other[sof + 1] = marker;
+        std::fs::write(dir.join("b.jpg"), &other).unwrap();
+        let e = difference_of_files(&dir.join("a.jpg"), &dir.join("b.jpg")).err();
+        refusals.push((kind, e.map(|e| e.to_string()).unwrap_or_default()));
+    }
+    // An extended frame (SOF1) of 8 bits is read as the baseline one is.
+    let mut extended = jpeg.to_vec();
+    extended[sof + 1] = 0xc1;
+    std::fs::write(dir.join("b.jpg"), &extended).unwrap();
+    let same = difference_of_files(&dir.join("a.jpg"), &dir.join("b.jpg"));
+    std::fs::remove_dir_all(&dir).unwrap();
+    for (kind, e) in refusals {
+        assert!(
+            e.contains("b.jpg")
+                && e.contains(kind)
+                && e.contains("a kind the decoder does not read"),
+            "{kind}: {e}"
+        );
+    }
+    assert_eq!(same.unwrap().rmse, 0.0);
+}
+
 /// An FF D9 within a segment after a scan (a comment between two scans of a
 /// progressive file) once counted as the end: a progressive JPEG cut within such a
 /// comment was measured from the scans the decoder had. The segment is skipped by its

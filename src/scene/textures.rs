@@ -248,7 +248,14 @@ pub fn decode(bytes: &[u8], pixels_left: u64) -> Result<ImageTexture, String> {
     let mut pnm = false;
     match reader.format() {
         None => return Err("is not an image tessera reads (PNG, JPEG, PPM or EXR)".into()),
-        Some(image::ImageFormat::Jpeg) => jpeg = Some(jpeg_after_scan(bytes)?),
+        Some(image::ImageFormat::Jpeg) => {
+            let after = jpeg_after_scan(bytes)?;
+            // A frame of a kind the decoder does not read, refused by its kind.
+            if let Some(why) = after.frame_marker.and_then(crate::jpeg_end::unread_frame) {
+                return Err(format!("is a JPEG that {why}"));
+            }
+            jpeg = Some(after);
+        }
         // The PNG decoder keeps every text chunk before the pixels, whatever their count.
         Some(image::ImageFormat::Png) => {
             crate::png_header::read(std::io::Cursor::new(bytes), bytes.len() as u64)?;
@@ -392,6 +399,17 @@ mod tests {
         let mut appended = whole.to_vec();
         appended.extend(b"appended");
         assert!(decode(&appended, MAX_TEXTURE_PIXELS).is_ok());
+    }
+
+    /// A frame header of a kind the decoder does not read (arithmetic coding, SOF9) was
+    /// refused as "Number of components cannot be zero"; it is refused by its kind.
+    #[test]
+    fn a_jpeg_of_a_frame_kind_the_decoder_does_not_read_is_refused_by_its_kind() {
+        let mut jpeg = include_bytes!("../../scenes/earthmap.jpg").to_vec();
+        let sof = jpeg.windows(2).position(|w| w == [0xff, 0xc0]).unwrap();
+        jpeg[sof + 1] = 0xc9;
+        let e = decode(&jpeg, MAX_TEXTURE_PIXELS).err().unwrap_or_default();
+        assert!(e.contains("arithmetic coding (SOF9)"), "{e}");
     }
 
     #[test]
