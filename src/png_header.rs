@@ -84,6 +84,8 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
     let (mut at, mut size, mut found) = (8u64, None, None);
     let mut display_changes = Vec::new();
     let (mut zlib_header, mut idat_seen, mut idat_ended) = (None, false, false);
+    // IHDR's colour type and the entries of the palette before, for a tRNS chunk's length.
+    let (mut color, mut entries) = (None, None);
     // Skips `n` bytes, within the buffer where it can.
     let skip =
         |r: &mut std::io::BufReader<R>, n: i64| r.seek_relative(n).map_err(|e| e.to_string());
@@ -134,6 +136,9 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
                  as a palette is (libpng refuses the file)"
             ));
         }
+        if &kind == b"PLTE" {
+            entries = Some(length / 3);
+        }
         // A chunk's type is four ASCII letters: libpng refuses a file of any other ("invalid
         // chunk type"), where the PNG decoder skips it as an unknown chunk of no importance.
         if !kind.iter().all(u8::is_ascii_alphabetic) {
@@ -151,6 +156,10 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
             if !display_changes.contains(&said) {
                 display_changes.push(said);
             }
+        }
+        // After the words every tRNS chunk has, what its length says.
+        if &kind == b"tRNS" {
+            display_changes.extend(color.and_then(|c| misfit_transparency(length, c, entries)));
         }
         // EXIF in a chunk named `eXIf` but for its case (`exIf`, the case of the chunk's
         // first proposal, `EXIF`), or in a `zxIf` chunk of compressed EXIF: libpng, the
@@ -198,6 +207,7 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
                 let w = u32::from_be_bytes(data[..4].try_into().expect("4 bytes"));
                 let h = u32::from_be_bytes(data[4..8].try_into().expect("4 bytes"));
                 size = Some((w, h));
+                color = Some(data[9]);
             }
             b"iTXt" => {
                 // Its keyword first: only tessera's recipe chunk is read further. Another is
@@ -283,6 +293,52 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
         display_changes,
         zlib_header,
     })
+}
+
+/// What is said of a tRNS chunk of `length` bytes in an image of the colour type `color`
+/// (IHDR's) whose palette before it has `entries` entries, if its length is not one libpng
+/// reads: two bytes of a greyscale image, six of an RGB one, one to `entries` of a palette
+/// image, none of an image of an alpha channel. libpng ignores any other (a benign error,
+/// "invalid"), where the PNG decoder here takes the first bytes of one longer than its
+/// colour type's (and a palette's alpha for its entries): viewers built on the one show the
+/// picture opaque, those built on the other show it transparent where the colour is.
+fn misfit_transparency(length: u64, color: u8, entries: Option<u64>) -> Option<String> {
+    let (kind, holds) = match color {
+        0 => ("a greyscale", 2),
+        2 => ("an RGB", 6),
+        3 => {
+            let entries = entries?;
+            return (length > entries).then(|| {
+                format!(
+                    "a tRNS chunk of {length} entries, more than the {entries} of its palette: \
+                     libpng ignores it (viewers built on it show the picture opaque), the \
+                     decoder here takes the alpha of the entries it has"
+                )
+            });
+        }
+        4 | 6 => {
+            return Some(
+                "a tRNS chunk in an image of an alpha channel, which libpng and the decoder \
+                 here ignore"
+                    .to_owned(),
+            );
+        }
+        _ => return None,
+    };
+    let taken = if length > holds {
+        format!(
+            "libpng ignores it (viewers built on it show the picture opaque), the decoder \
+             here takes its first {holds} bytes for the transparent colour"
+        )
+    } else if length < holds {
+        "libpng and the decoder here ignore it".to_owned()
+    } else {
+        return None;
+    };
+    let bytes = if length == 1 { "byte" } else { "bytes" };
+    Some(format!(
+        "a tRNS chunk of {length} {bytes}, where {kind} image's holds {holds}: {taken}"
+    ))
 }
 
 /// What an IEND chunk at byte `at` of `length` bytes, whose head is followed by `crc`, says

@@ -149,6 +149,73 @@ fn a_chunk_whose_type_is_not_four_letters_is_listed() {
     assert!(listed(b"abCd").is_empty());
 }
 
+/// A tRNS chunk of a length other than its colour type's: libpng ignores it (a benign
+/// error, "invalid"), the PNG decoder here takes its first bytes where it is longer. A
+/// greyscale image's of 4 bytes was listed only as "transparency", the same words as a
+/// tRNS every viewer shows, where viewers built on libpng show the picture opaque and the
+/// decoder here measured it beside an alpha channel. The disagreement is listed, and so is
+/// a tRNS both ignore (shorter, or in an image of an alpha channel), in words of its own.
+#[test]
+fn a_trns_chunk_of_a_length_libpng_ignores_is_listed_as_such() {
+    let listed = |color: u8, plte: &[u8], trns: &[u8]| {
+        let ihdr = chunk(b"IHDR", &[0, 0, 0, 4, 0, 0, 0, 2, 8, color, 0, 0, 0]);
+        let plte = if plte.is_empty() {
+            Vec::new()
+        } else {
+            chunk(b"PLTE", plte)
+        };
+        let png = [
+            &PNG_SIGNATURE[..],
+            &ihdr,
+            &plte,
+            &chunk(b"tRNS", trns),
+            &chunk(b"IEND", &[]),
+        ]
+        .concat();
+        read(Cursor::new(&png), png.len() as u64)
+            .unwrap()
+            .display_changes
+    };
+    let has = |said: &[String], words: &str| said.iter().any(|c| c.contains(words));
+    // Of the length libpng reads: transparency alone.
+    for (color, plte, trns) in [
+        (0, &[][..], &[0, 9][..]),
+        (2, &[], &[0; 6]),
+        (3, &[0; 6], &[0]),
+    ] {
+        let said = listed(color, plte, trns);
+        assert_eq!(said.len(), 1, "{said:?}");
+    }
+    let said = listed(0, &[], &[0, 9, 0, 0]);
+    assert!(
+        has(
+            &said,
+            "a tRNS chunk of 4 bytes, where a greyscale image's holds 2"
+        ) && has(&said, "libpng ignores it")
+            && has(&said, "the decoder here takes its first 2 bytes"),
+        "{said:?}"
+    );
+    let said = listed(2, &[], &[0; 8]);
+    assert!(has(&said, "where an RGB image's holds 6"), "{said:?}");
+    let said = listed(2, &[], &[0; 3]);
+    assert!(
+        has(&said, "where an RGB image's holds 6")
+            && has(&said, "libpng and the decoder here ignore it"),
+        "{said:?}"
+    );
+    // A palette's: at most its entries.
+    let said = listed(3, &[0; 6], &[0; 3]);
+    assert!(
+        has(
+            &said,
+            "a tRNS chunk of 3 entries, more than the 2 of its palette"
+        ),
+        "{said:?}"
+    );
+    let said = listed(6, &[], &[0; 6]);
+    assert!(has(&said, "in an image of an alpha channel"), "{said:?}");
+}
+
 /// A recipe in a tEXt or zTXt chunk beside the iTXt one checked: Python's PIL showed the
 /// last of them (another scene) for an image `reproduce` called identical.
 #[test]
