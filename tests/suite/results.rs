@@ -688,6 +688,88 @@ fn a_database_whose_columns_contradict_its_results_is_refused() {
     }
 }
 
+/// A filter (`--workload`, `--machine`, `--commit`, `--limit`) once chose runs by their
+/// columns before any was checked against its result: a column that lied hid its run from
+/// a filtered command (`list --workload quick` said "no results" of a run whose workload
+/// column said `cover`, its result `quick`; `--limit 1` left the older run unread) or showed
+/// it under a filter its result does not meet, while the unfiltered command refused the
+/// database. Every run is checked now, whatever the filter, so each refuses alike.
+#[test]
+fn a_filter_refuses_a_database_whose_columns_lie_as_no_filter_does() {
+    let dir = temp_dir("results-filter-lie");
+    let v = json(&root().join("fuzz/corpus/result/quick-scaling.json"));
+    write_json(&dir.join("old.json"), &v);
+    let mut newer = v.clone();
+    newer["method"]["started_unix_s"] =
+        Value::from(v["method"]["started_unix_s"].as_u64().unwrap() + 60);
+    write_json(&dir.join("new.json"), &newer);
+    let db = dir.join("r.db");
+    let o = results(&dir, &db, &["import", "old.json", "new.json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let machine = v["host"]["machine_id"].as_str().unwrap();
+    let commit = v["build"]["commit"].as_str().unwrap();
+    let filters: [&[&str]; 9] = [
+        &["list"],
+        &["list", "--workload", "quick"],
+        &["list", "--workload", "cover"],
+        &["list", "--machine", &machine[..6]],
+        &["list", "--machine", "m-0000"],
+        &["list", "--commit", &commit[..7]],
+        &["list", "--limit", "1"],
+        &["rank", "--workload", "quick"],
+        &["history", "--machine", machine, "--workload", "quick"],
+    ];
+    // Before it is changed, every filter takes it, and each selects what it did.
+    for args in filters {
+        let o = results(&dir, &db, args);
+        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+    }
+    assert_eq!(listed(&dir, &db, &["--workload", "quick"]).len(), 2);
+    assert_eq!(listed(&dir, &db, &["--workload", "cover"]).len(), 0);
+    assert_eq!(
+        listed(&dir, &db, &["--machine", &machine[..6].to_uppercase()]).len(),
+        2
+    );
+    assert_eq!(listed(&dir, &db, &["--machine", "epyc"]).len(), 2);
+    assert_eq!(listed(&dir, &db, &["--machine", "m-0000"]).len(), 0);
+    assert_eq!(listed(&dir, &db, &["--commit", &commit[..7]]).len(), 2);
+    assert_eq!(listed(&dir, &db, &["--commit", "%"]).len(), 0);
+    assert_eq!(listed(&dir, &db, &["--limit", "1"]).len(), 1);
+    for (name, sql, says) in [
+        (
+            "workload",
+            "UPDATE runs SET workload = 'cover' WHERE id = 1",
+            "column workload says `cover`, its result says `quick`",
+        ),
+        (
+            "machine",
+            "UPDATE runs SET machine_id = 'm-0000000000000000' WHERE id = 1",
+            "column machine_id says `m-0000000000000000`, its result says",
+        ),
+        (
+            "commit",
+            "UPDATE runs SET commit_id = 'abc' WHERE id = 1",
+            "column commit_id says `abc`, its result says",
+        ),
+    ] {
+        let lied = dir.join(format!("{name}.db"));
+        std::fs::copy(&db, &lied).unwrap();
+        let conn = rusqlite::Connection::open(&lied).unwrap();
+        conn.execute(sql, []).unwrap();
+        drop(conn);
+        for args in filters {
+            let o = results(&dir, &lied, args);
+            let err = stderr(&o);
+            assert_eq!(o.status.code(), Some(2), "{name} {args:?}: {}", stdout(&o));
+            assert!(
+                err.contains(&format!("{name}.db: run 1: {says}")),
+                "{name} {args:?}: {err}"
+            );
+            assert!(o.stdout.is_empty(), "{name} {args:?}: {}", stdout(&o));
+        }
+    }
+}
+
 /// A run dated over a day past the reader's clock (recorded by a clock ahead of it, or read
 /// on one behind) made every command refuse the whole database, its owner's own too: the
 /// reading held each run to a day past its own clock, as an import does. On reading, only a

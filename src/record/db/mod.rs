@@ -219,6 +219,27 @@ pub struct Filter {
     pub limit: Option<u32>,
 }
 
+impl Filter {
+    /// Whether `run` (checked against its result) is one this filter selects, as SQL's
+    /// `LIKE` and `lower` select: a workload by its whole name; a machine by its id's
+    /// start or by part of its CPU model, and a commit by its start, each ignoring the
+    /// case of ASCII letters only.
+    pub fn selects(&self, run: &Run) -> bool {
+        let starts = |text: &str, start: &str| {
+            (text.as_bytes().get(..start.len()))
+                .is_some_and(|t| t.eq_ignore_ascii_case(start.as_bytes()))
+        };
+        let holds = |text: &str, part: &str| {
+            (text.to_ascii_lowercase()).contains(&part.to_ascii_lowercase())
+        };
+        self.workload.as_ref().is_none_or(|w| run.workload == *w)
+            && self.machine.as_ref().is_none_or(|m| {
+                starts(&run.machine_id, m) || run.cpu_model.as_ref().is_some_and(|c| holds(c, m))
+            })
+            && self.commit.as_ref().is_none_or(|c| starts(&run.commit, c))
+    }
+}
+
 /// What adding a result did.
 #[derive(Debug, PartialEq)]
 pub enum Added {
@@ -467,10 +488,14 @@ impl ResultsDb {
     }
 
     /// The runs `filter` selects, newest first, each as its result says (every column
-    /// shown is checked against it: `agrees_with_its_result`). One read transaction holds
-    /// the rows, their results and their scaling rows together; it also keeps the lock
-    /// SQLite would otherwise take and drop for each run's every query (3,000 runs took
-    /// `list` 0.6 s so, 0.45 s in one, on a loaded machine).
+    /// shown is checked against it: `agrees_with_its_result`). Every run is checked,
+    /// whatever the filter, and the filter then selects among the checked runs: a filter
+    /// applied to the columns first let a column that lied hide its run from a filtered
+    /// command (`list --workload quick` said "no results" of a run whose workload column
+    /// said `cover`, its result `quick`) while the unfiltered one refused the database. One
+    /// read transaction holds the rows, their results and their scaling rows together; it
+    /// also keeps the lock SQLite would otherwise take and drop for each run's every query
+    /// (3,000 runs took `list` 0.6 s so, 0.45 s in one, on a loaded machine).
     pub fn runs(&self, filter: &Filter) -> Result<Vec<Run>> {
         self.as_one_read(|db| db.runs_in_one_read(filter))
     }
@@ -481,14 +506,14 @@ impl ResultsDb {
         let busy = if self.schema >= 2 { "busy" } else { "0" };
         // Each text column's length is read from its record (`octet_length`, which reads no
         // text) before its text: one longer than `MAX_TEXT_BYTES` is read as '' and named
-        // in `too_long`, and such a run passes every filter unread, to be refused. A
-        // machine id of 300 MB took 1.2 GB (the text, SQLite's copy and `lower` of it for
-        // `--machine`) before it was refused as longer than 256 characters.
+        // in `too_long`, to be refused. A machine id of 300 MB took 1.2 GB (the text,
+        // SQLite's copy and `lower` of it for `--machine`) before it was refused as longer
+        // than 256 characters.
         let text = |column: &str| {
-            format!("CASE WHEN octet_length({column}) > ?6 THEN '' ELSE {column} END AS {column}")
+            format!("CASE WHEN octet_length({column}) > ?1 THEN '' ELSE {column} END AS {column}")
         };
         let too_long = (RUN_TEXTS.iter())
-            .map(|column| format!("WHEN octet_length({column}) > ?6 THEN '{column}'"))
+            .map(|column| format!("WHEN octet_length({column}) > ?1 THEN '{column}'"))
             .collect::<Vec<_>>()
             .join(" ");
         let mut stmt = self.conn.prepare(&format!(
@@ -496,13 +521,7 @@ impl ResultsDb {
                     {commit_id}, {simd}, {workload}, {workload_id}, threads, sps_median,
                     sps_min, sps_max, {validation}, {busy}, CASE {too_long} END
              FROM runs
-             WHERE CASE WHEN (CASE {too_long} END) IS NOT NULL THEN 1 ELSE
-                   (?1 IS NULL OR workload = ?1)
-               AND (?2 IS NULL OR machine_id LIKE ?2 || '%' ESCAPE '\\'
-                    OR instr(lower(cpu_model), lower(?3)) > 0)
-               AND (?4 IS NULL OR commit_id LIKE ?4 || '%' ESCAPE '\\') END
-             ORDER BY started_unix_s DESC, id DESC
-             LIMIT ?5",
+             ORDER BY started_unix_s DESC, id DESC",
             machine_id = text("machine_id"),
             cpu_model = text("cpu_model"),
             version = text("version"),
@@ -512,46 +531,28 @@ impl ResultsDb {
             workload_id = text("workload_id"),
             validation = text("validation"),
         ))?;
-        let like = |s: &Option<String>| {
-            s.as_ref().map(|s| {
-                s.replace('\\', "\\\\")
-                    .replace('%', "\\%")
-                    .replace('_', "\\_")
-            })
-        };
-        let limit = filter.limit.map_or(-1, i64::from);
         // The run being read, to name it where one of its values cannot be.
         let reading = std::cell::Cell::new(None);
-        let rows = stmt.query_map(
-            params![
-                filter.workload,
-                like(&filter.machine),
-                filter.machine,
-                like(&filter.commit),
-                limit,
-                MAX_TEXT_BYTES
-            ],
-            |r| {
-                reading.set(r.get(0).ok());
-                let run = Run {
-                    id: r.get(0)?,
-                    started_unix_s: r.get(1)?,
-                    machine_id: r.get(2)?,
-                    cpu_model: r.get(3)?,
-                    logical_cpus: r.get(4)?,
-                    version: r.get(5)?,
-                    commit: r.get(6)?,
-                    simd: r.get(7)?,
-                    workload: r.get(8)?,
-                    workload_id: r.get(9)?,
-                    threads: r.get(10)?,
-                    sps: [r.get(11)?, r.get(12)?, r.get(13)?],
-                    validation: r.get(14)?,
-                    busy: r.get::<_, i64>(15)? != 0,
-                };
-                Ok((run, r.get::<_, i64>(15)?, r.get::<_, Option<String>>(16)?))
-            },
-        )?;
+        let rows = stmt.query_map(params![MAX_TEXT_BYTES], |r| {
+            reading.set(r.get(0).ok());
+            let run = Run {
+                id: r.get(0)?,
+                started_unix_s: r.get(1)?,
+                machine_id: r.get(2)?,
+                cpu_model: r.get(3)?,
+                logical_cpus: r.get(4)?,
+                version: r.get(5)?,
+                commit: r.get(6)?,
+                simd: r.get(7)?,
+                workload: r.get(8)?,
+                workload_id: r.get(9)?,
+                threads: r.get(10)?,
+                sps: [r.get(11)?, r.get(12)?, r.get(13)?],
+                validation: r.get(14)?,
+                busy: r.get::<_, i64>(15)? != 0,
+            };
+            Ok((run, r.get::<_, i64>(15)?, r.get::<_, Option<String>>(16)?))
+        })?;
         let read = (rows.collect::<rusqlite::Result<Vec<(Run, i64, Option<String>)>>>())
             .map_err(|e| self.unreadable(reading.get(), &stmt, e))?;
         let mut runs = Vec::with_capacity(read.len());
@@ -614,7 +615,11 @@ impl ResultsDb {
         for run in &runs {
             self.agrees_with_its_result(run)?;
         }
-        Ok(runs)
+        let most = filter.limit.map_or(usize::MAX, |n| n as usize);
+        Ok((runs.into_iter())
+            .filter(|run| filter.selects(run))
+            .take(most)
+            .collect())
     }
 
     /// Checks that `run`, as its columns and scaling rows give it, is what its stored
