@@ -855,6 +855,11 @@ fn a_database_whose_text_is_not_utf_8_is_refused_naming_the_run_and_column() {
             ][..],
         ),
         ("cpu_model", &[&["list"][..], &["rank"]][..]),
+        // Read with the result, in one query, by every check of a run.
+        (
+            "digest",
+            &[&["list"][..], &["report", "-o", "digest.html"]][..],
+        ),
         ("result", &[&["export", "--jsonl"][..]][..]),
     ] {
         let db = dir.join(format!("{column}.db"));

@@ -630,7 +630,7 @@ impl ResultsDb {
     /// and reported by its columns, and ranked otherwise once exported and imported.
     fn agrees_with_its_result(&self, run: &Run) -> Result<()> {
         let id = run.id;
-        let json = self.result_json(id)?;
+        let (json, digest) = self.result_read(id, true)?;
         let report = BenchResult::parse_kept(json.as_bytes(), "its result")
             .map_err(|why| self.unsound(id, format!("{why:#}")))?;
         let r = &report.result;
@@ -735,13 +735,7 @@ impl ResultsDb {
             bail!(self.unsound(id, why));
         }
         // Last, the digest the run is known by (an import of the same result finds it by
-        // it): its length is read first, as every text's is.
-        let mut stmt = self.conn.prepare(
-            "SELECT CASE WHEN octet_length(digest) <= ?2 THEN digest END AS digest FROM runs
-             WHERE id = ?1",
-        )?;
-        let digest: Option<String> = (stmt.query_row(params![id, MAX_TEXT_BYTES], |r| r.get(0)))
-            .map_err(|e| self.unreadable(Some(id), &stmt, e))?;
+        // it), read with the result, its length first, as every text's is.
         let kept = digest_of(&json);
         if digest.as_deref() != Some(kept.as_str()) {
             let says = digest.map_or("more than any digest holds".to_owned(), |d| quoted(&d));
@@ -886,18 +880,31 @@ impl ResultsDb {
     /// database of 300 MB in one result made `results export` take 1.77 GB and 11 s before
     /// it refused the result as larger than 1024 KiB.
     pub fn result_json(&self, id: i64) -> Result<String> {
+        self.result_read(id, false).map(|(json, _)| json)
+    }
+
+    /// Run `id`'s result JSON (as `result_json` reads it) and, `with_digest`, its digest in
+    /// the same query (None where it is longer than any text an import writes): the check
+    /// of a run (`agrees_with_its_result`) read the digest in a query of its own.
+    fn result_read(&self, id: i64, with_digest: bool) -> Result<(String, Option<String>)> {
         // `octet_length` of a column reads the length the record gives, not the text.
         let mut stmt = self.conn.prepare(
             "SELECT octet_length(result),
-                    CASE WHEN octet_length(result) <= ?2 THEN result END AS result
+                    CASE WHEN octet_length(result) <= ?2 THEN result END AS result,
+                    CASE WHEN octet_length(digest) <= ?3 THEN digest END AS digest
              FROM runs WHERE id = ?1",
         )?;
-        let read = stmt.query_row(params![id, MAX_RESULT_BYTES], |r| {
-            Ok((r.get::<_, Option<i64>>(0)?, r.get::<_, Option<String>>(1)?))
+        let read = stmt.query_row(params![id, MAX_RESULT_BYTES, MAX_TEXT_BYTES], |r| {
+            let digest = if with_digest { r.get(2)? } else { None };
+            Ok((
+                r.get::<_, Option<i64>>(0)?,
+                r.get::<_, Option<String>>(1)?,
+                digest,
+            ))
         });
         match read.map_err(|e| self.unreadable(Some(id), &stmt, e))? {
-            (_, Some(json)) => Ok(json),
-            (bytes, None) => bail!(self.unsound(
+            (_, Some(json), digest) => Ok((json, digest)),
+            (bytes, None, _) => bail!(self.unsound(
                 id,
                 format!(
                     "result is {} bytes, more than any result tessera keeps ({} KiB)",
