@@ -166,6 +166,55 @@ fn bench_records_every_run_and_list_shows_and_filters_them() {
     assert_eq!(listed(&dir, &db, &["--commit", "%"]).len(), 0);
 }
 
+/// `bench` made its database (and its directory) before it rendered: a bench stopped or
+/// killed while it rendered left a database of no runs, beside a -wal and -shm file. It
+/// makes one now only when it has a result to add: here a bench is killed once its renders
+/// run (its thread pool's threads are there), and nothing is left where its database would
+/// be; one that ends records its run.
+#[test]
+fn a_bench_killed_while_it_renders_leaves_no_database() {
+    let dir = temp_dir("results-bench-killed");
+    let db = dir.join("new").join("r.db");
+    let mut child = tessera()
+        .args(["bench", &cover()])
+        .args("--width 400 --spp 256 --repeat 9 --warmup 0 --no-scaling --threads 2".split(' '))
+        .env("TESSERA_DB", &db)
+        .current_dir(&dir)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    // Its renders run once its pool's two threads are there beside the main one.
+    let tasks = PathBuf::from(format!("/proc/{}/task", child.id()));
+    let mut rendering = false;
+    for _ in 0..60_000 {
+        if std::fs::read_dir(&tasks).map_or(0, Iterator::count) >= 3 {
+            rendering = true;
+            break;
+        }
+        if child.try_wait().unwrap().is_some() {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+    child.kill().unwrap();
+    let status = child.wait().unwrap();
+    assert!(rendering, "the bench never rendered ({status})");
+    let left: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .chain(std::fs::read_dir(dir.join("new")).into_iter().flatten())
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert!(!db.exists(), "a killed bench left a database: {left:?}");
+    assert!(
+        left.iter().all(|name| name == "new"),
+        "a killed bench left {left:?}"
+    );
+    // One that ends makes it, with its run.
+    bench(&dir, Some(&db), "one.json");
+    assert_eq!(listed(&dir, &db, &[]).len(), 1);
+}
+
 #[test]
 fn the_default_database_is_in_the_data_directory() {
     let dir = temp_dir("results-default");

@@ -55,9 +55,10 @@ pub fn save_to(no_save: bool, db: Option<PathBuf>) -> Option<SaveTo> {
 
 /// Measures, reports and records; exit 1 when an image is not the workload's.
 pub fn run(m: Measure) -> Result<ExitCode> {
-    // Opened before the renders, so that a database it cannot use stops it at once.
+    // Opened (or, where there is none, found makeable) before the renders, so that a
+    // database it cannot use stops it at once.
     #[cfg(feature = "results")]
-    let mut db = open_results_db(m.save.as_ref())?;
+    let db = open_results_db(m.save.as_ref())?;
     let report = measure::measure(&m.plan).context("could not start the thread pool")?;
     let json = tessera::text::ascii_json(&serde_json::to_string_pretty(&report)?) + "\n";
     // The measurement took minutes: where --out cannot take its file (another user's file
@@ -77,9 +78,8 @@ pub fn run(m: Measure) -> Result<ExitCode> {
         ));
     }
     #[cfg(feature = "results")]
-    if let Some((db, path)) = &mut db {
-        db.add_all(std::slice::from_ref(&report), "bench")?;
-        note(format_args!("tessera: recorded in {}", path.display()));
+    if let Some(record) = db {
+        record_result(record, &report)?;
     }
     written?;
     #[cfg(not(feature = "results"))]
@@ -100,23 +100,70 @@ pub fn run(m: Measure) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// The results database `save` names, opened; `None` when not saving, or when the default
-/// database cannot be created (said as a warning).
+/// Where `bench` records its result.
 #[cfg(feature = "results")]
-fn open_results_db(save: Option<&SaveTo>) -> Result<Option<(ResultsDb, &std::path::Path)>> {
+enum Record<'a> {
+    /// The database there, opened.
+    Open(ResultsDb, &'a SaveTo),
+    /// None there yet: one is made with the result in it (`ResultsDb::add_to`).
+    New(&'a SaveTo),
+}
+
+/// Where the results database `save` names records the result: the database opened, or
+/// where none is there, its place found makeable (nothing is made before there is a
+/// result: a bench stopped while it rendered left a database of no runs); `None` when not
+/// saving, or when the default database cannot be made (said as a warning).
+#[cfg(feature = "results")]
+fn open_results_db(save: Option<&SaveTo>) -> Result<Option<Record<'_>>> {
     let Some(save) = save else {
         return Ok(None);
     };
-    match ResultsDb::open(&save.path) {
-        Ok(db) => Ok(Some((db, &save.path))),
+    let missing = matches!(std::fs::symlink_metadata(&save.path),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound);
+    let found = if missing {
+        ResultsDb::could_make(&save.path).map(|()| Record::New(save))
+    } else {
+        ResultsDb::open(&save.path).map(|db| Record::Open(db, save))
+    };
+    match found {
+        Ok(record) => Ok(Some(record)),
         Err(e) if !save.chosen && !save.path.exists() => {
-            note(format_args!(
-                "tessera: warning: the result will not be recorded ({e:#}); choose a database with --db or TESSERA_DB, or pass --no-save"
-            ));
+            not_recorded(&e);
             Ok(None)
         }
         Err(e) => Err(e),
     }
+}
+
+/// Records `report` where `record` says. A default database that cannot be made after
+/// all (a disk that filled while it rendered) is a warning, as before the renders.
+#[cfg(feature = "results")]
+fn record_result(record: Record<'_>, report: &BenchResult) -> Result<()> {
+    let one = std::slice::from_ref(report);
+    let save = match record {
+        Record::Open(mut db, save) => {
+            db.add_all(one, "bench")?;
+            save
+        }
+        Record::New(save) => match ResultsDb::add_to(&save.path, one, "bench") {
+            Ok(_) => save,
+            Err(e) if !save.chosen && !save.path.exists() => {
+                not_recorded(&e);
+                return Ok(());
+            }
+            Err(e) => return Err(e),
+        },
+    };
+    note(format_args!("tessera: recorded in {}", save.path.display()));
+    Ok(())
+}
+
+/// Warns that the result is not recorded, the default database being unusable (`e`).
+#[cfg(feature = "results")]
+fn not_recorded(e: &anyhow::Error) {
+    note(format_args!(
+        "tessera: warning: the result will not be recorded ({e:#}); choose a database with --db or TESSERA_DB, or pass --no-save"
+    ));
 }
 
 /// Where the run was confined (a container, a CPU quota, an affinity), as `host`'s last words.

@@ -285,6 +285,55 @@ impl ResultsDb {
         Self::open(path)?.add_all(reports, source)
     }
 
+    /// Checks, making nothing, that a new database could be made at `path`, where none is
+    /// there: `path` is no link to nothing, and the nearest of its directories that exists
+    /// is one this user may add to. `bench` asks this before it renders, so that it does
+    /// not run for nothing, and makes the database only when it has a result to add
+    /// (`add_to`): made before the renders, a bench stopped or failed while it rendered
+    /// left a database of no runs (and, killed, its -wal and -shm files).
+    pub fn could_make(path: &Path) -> Result<()> {
+        use rustix::fs::Access;
+        refuse_dangling_link(path)?;
+        let mut dir = path.parent().unwrap_or(Path::new(""));
+        loop {
+            let at = if dir.as_os_str().is_empty() {
+                Path::new(".")
+            } else {
+                dir
+            };
+            match std::fs::metadata(at) {
+                Ok(meta) if meta.is_dir() => {
+                    return rustix::fs::access(at, Access::WRITE_OK | Access::EXEC_OK)
+                        .with_context(|| {
+                            format!(
+                                "{}: could not create the results database: {} cannot be \
+                                 written",
+                                path.display(),
+                                at.display()
+                            )
+                        });
+                }
+                Ok(_) => bail!(
+                    "{}: could not create the results database: {} is not a directory",
+                    path.display(),
+                    at.display()
+                ),
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound && at != Path::new(".") => {
+                    dir = dir.parent().unwrap_or(Path::new(""));
+                }
+                Err(e) => {
+                    return Err(e).with_context(|| {
+                        format!(
+                            "{}: could not create the results database ({})",
+                            path.display(),
+                            at.display()
+                        )
+                    });
+                }
+            }
+        }
+    }
+
     /// Opens the database at `path` to read it: it is not created, and nothing is written,
     /// so it reads on a read-only disk too. One that needs a migration is opened to write
     /// where it can be, and read as it is where it cannot.
