@@ -16,6 +16,7 @@ use tessera::recipe::{Recipe, Source};
 use tessera::render::RenderOptions;
 use tessera::scene::{Overrides, Scene};
 use tessera::shard::{self, Shard, Split, parse_samples};
+use tessera::text::path_safe;
 
 /// The scene `render` renders when none is named.
 pub const DEFAULT_SCENE: &str = "scenes/cover.toml";
@@ -303,8 +304,8 @@ impl RenderPlan {
                 note(format_args!(
                     "tessera: warning: {}: {why}, so {} carries none (--no-provenance leaves \
                      it out without this warning)",
-                    args.scene.scene.display(),
-                    output.path().display()
+                    path_safe(&args.scene.scene),
+                    path_safe(output.path())
                 ));
             }
             why.is_none()
