@@ -905,15 +905,20 @@ fn results<'py>(
         let read = || -> anyhow::Result<Option<Vec<_>>> {
             let path = db::resolve(db)?;
             let db = db::ResultsDb::open_to_read(&path)?;
-            let mut with_results = Vec::new();
-            for run in db.runs(&filter)? {
-                if stop.load(Ordering::Relaxed) {
-                    return Ok(None);
+            // The results in the read that checked their runs' columns against them: read
+            // after it, a result another process wrote meanwhile could go with a run
+            // checked against another.
+            db.as_one_read(|db| {
+                let mut with_results = Vec::new();
+                for run in db.runs(&filter)? {
+                    if stop.load(Ordering::Relaxed) {
+                        return Ok(None);
+                    }
+                    let json = db.result_json(run.id)?;
+                    with_results.push((run, json));
                 }
-                let json = db.result_json(run.id)?;
-                with_results.push((run, json));
-            }
-            Ok(Some(with_results))
+                Ok(Some(with_results))
+            })
         };
         match db::stopped_by(Arc::clone(stop), read) {
             Ok(Some(runs)) => Ok(runs),

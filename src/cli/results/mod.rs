@@ -317,57 +317,61 @@ fn compare(
     simd: Option<&str>,
 ) -> Result<()> {
     let db = ResultsDb::open_to_read(path)?;
-    let all = db.runs(&Filter::default())?;
-    let (side_a, a_is_run) = select(&all, a)?;
-    let (side_b, b_is_run) = select(&all, b)?;
-    let workload_id = match workload {
-        Some(name) => match all.iter().find(|r| r.workload == name) {
-            Some(r) => r.workload_id.clone(),
-            None => bail!("no runs of workload `{}`", terminal_safe(name, 32)),
-        },
-        None => side_a[0].workload_id.clone(),
-    };
-    let side_a = of_workload(side_a, &workload_id, &all, a)?;
-    let side_b = of_workload(side_b, &workload_id, &all, b)?;
-    // Like with like: a machine's or a commit's runs are taken on one SIMD path, --simd's
-    // or that of A's newest run; a single run is what it is.
-    let path_of_sets = simd.map_or_else(|| side_a[0].simd.clone(), str::to_owned);
-    let on_path = |runs: Vec<&Run>, is_run: bool, what: &str| -> Result<(Scaling, String)> {
-        let runs: Vec<&Run> = if is_run {
-            runs
-        } else {
-            let on: Vec<&Run> = (runs.into_iter())
-                .filter(|r| r.simd == path_of_sets)
-                .collect();
-            if on.is_empty() {
-                bail!(
-                    "{}: no runs of that workload on SIMD path {} (--simd chooses another)",
-                    terminal_safe(what, 40),
-                    terminal_safe(&path_of_sets, 16)
-                );
-            }
-            on
-        };
-        let rows = (runs.iter())
-            .map(|r| db.scaling(r.id))
-            .collect::<Result<Vec<_>>>()?;
-        let name = format!(
-            "{what} ({}, {})",
-            if is_run {
-                format!("run on {}", runs[0].simd)
-            } else {
-                format!("{} on {}", count(runs.len() as u64, "run"), path_of_sets)
+    // One read: the runs checked against their results, and the scaling rows read after,
+    // are of one state of the database, whatever another process writes meanwhile.
+    db.as_one_read(|db| {
+        let all = db.runs(&Filter::default())?;
+        let (side_a, a_is_run) = select(&all, a)?;
+        let (side_b, b_is_run) = select(&all, b)?;
+        let workload_id = match workload {
+            Some(name) => match all.iter().find(|r| r.workload == name) {
+                Some(r) => r.workload_id.clone(),
+                None => bail!("no runs of workload `{}`", terminal_safe(name, 32)),
             },
-            analysis::cpu(runs[0])
-        );
-        Ok((stats::pool_scaling(&rows), name))
-    };
-    let (pa, name_a) = on_path(side_a, a_is_run, a)?;
-    let (pb, name_b) = on_path(side_b, b_is_run, b)?;
-    match stats::side_by_side(&name_a, &pa, &name_b, &pb) {
-        Some(text) => out(&text),
-        None => bail!("the two share no thread count"),
-    }
+            None => side_a[0].workload_id.clone(),
+        };
+        let side_a = of_workload(side_a, &workload_id, &all, a)?;
+        let side_b = of_workload(side_b, &workload_id, &all, b)?;
+        // Like with like: a machine's or a commit's runs are taken on one SIMD path, --simd's
+        // or that of A's newest run; a single run is what it is.
+        let path_of_sets = simd.map_or_else(|| side_a[0].simd.clone(), str::to_owned);
+        let on_path = |runs: Vec<&Run>, is_run: bool, what: &str| -> Result<(Scaling, String)> {
+            let runs: Vec<&Run> = if is_run {
+                runs
+            } else {
+                let on: Vec<&Run> = (runs.into_iter())
+                    .filter(|r| r.simd == path_of_sets)
+                    .collect();
+                if on.is_empty() {
+                    bail!(
+                        "{}: no runs of that workload on SIMD path {} (--simd chooses another)",
+                        terminal_safe(what, 40),
+                        terminal_safe(&path_of_sets, 16)
+                    );
+                }
+                on
+            };
+            let rows = (runs.iter())
+                .map(|r| db.scaling(r.id))
+                .collect::<Result<Vec<_>>>()?;
+            let name = format!(
+                "{what} ({}, {})",
+                if is_run {
+                    format!("run on {}", runs[0].simd)
+                } else {
+                    format!("{} on {}", count(runs.len() as u64, "run"), path_of_sets)
+                },
+                analysis::cpu(runs[0])
+            );
+            Ok((stats::pool_scaling(&rows), name))
+        };
+        let (pa, name_a) = on_path(side_a, a_is_run, a)?;
+        let (pb, name_b) = on_path(side_b, b_is_run, b)?;
+        match stats::side_by_side(&name_a, &pa, &name_b, &pb) {
+            Some(text) => out(&text),
+            None => bail!("the two share no thread count"),
+        }
+    })
 }
 
 /// The runs among `runs` (which `what` selected) of the workload `id`.
@@ -393,76 +397,80 @@ fn history(
     simd: Option<&str>,
 ) -> Result<()> {
     let db = ResultsDb::open_to_read(path)?;
-    let all = db.runs(&Filter::default())?;
-    let machine = match machine {
-        Some(m) => m.to_owned(),
-        None => {
-            // This machine when it has runs, else the newest run's.
-            let here = Host::this().machine_id.unwrap_or_default();
-            match all.iter().find(|r| r.machine_id == here).or(all.first()) {
-                Some(r) => r.machine_id.clone(),
-                None => return out(&nothing_yet(None)),
+    // One read: the runs checked against their results, and the scaling rows read after,
+    // are of one state of the database, whatever another process writes meanwhile.
+    db.as_one_read(|db| {
+        let all = db.runs(&Filter::default())?;
+        let machine = match machine {
+            Some(m) => m.to_owned(),
+            None => {
+                // This machine when it has runs, else the newest run's.
+                let here = Host::this().machine_id.unwrap_or_default();
+                match all.iter().find(|r| r.machine_id == here).or(all.first()) {
+                    Some(r) => r.machine_id.clone(),
+                    None => return out(&nothing_yet(None)),
+                }
             }
+        };
+        let mut runs = db.runs(&Filter {
+            workload: workload.map(str::to_owned),
+            machine: Some(machine.clone()),
+            ..Filter::default()
+        })?;
+        // A machine spelt out whole is that machine, as `compare` takes one: the filter also
+        // matches every id that begins so and every CPU model that holds it, and an imported
+        // result may claim any such id or model, which made the user's own machine "match 2
+        // machines" however much of its id was given.
+        if runs.iter().any(|r| r.machine_id == machine) {
+            runs.retain(|r| r.machine_id == machine);
         }
-    };
-    let mut runs = db.runs(&Filter {
-        workload: workload.map(str::to_owned),
-        machine: Some(machine.clone()),
-        ..Filter::default()
-    })?;
-    // A machine spelt out whole is that machine, as `compare` takes one: the filter also
-    // matches every id that begins so and every CPU model that holds it, and an imported
-    // result may claim any such id or model, which made the user's own machine "match 2
-    // machines" however much of its id was given.
-    if runs.iter().any(|r| r.machine_id == machine) {
-        runs.retain(|r| r.machine_id == machine);
-    }
-    let mut machines: Vec<&str> = runs.iter().map(|r| r.machine_id.as_str()).collect();
-    machines.sort_unstable();
-    machines.dedup();
-    let id = match machines[..] {
-        [] => bail!(
-            "no runs{} on a machine matching `{}`",
-            workload.map_or(String::new(), |w| format!(" of `{}`", terminal_safe(w, 32))),
-            terminal_safe(&machine, 40)
-        ),
-        [one] => one.to_owned(),
-        _ => bail!(
-            "`{}` matches {} machines ({}): give more of a machine id",
-            terminal_safe(&machine, 40),
-            machines.len(),
-            machines
-                .iter()
-                .map(|m| terminal_safe(m, 48))
-                .collect::<Vec<_>>()
-                .join(", ")
-        ),
-    };
-    // The workload of the machine's newest run (its scene and settings), unless named.
-    let newest = &runs[0];
-    let runs: Vec<Run> = (runs.iter())
-        .filter(|r| r.workload_id == newest.workload_id)
-        .cloned()
-        .collect();
-    let threads = threads.unwrap_or(newest.threads);
-    let simd = simd.map_or_else(|| newest.simd.clone(), str::to_owned);
-    let steps = analysis::history(&runs, threads, &simd);
-    if steps.is_empty() {
-        bail!(
-            "no runs of {} at {} on SIMD path {} on {}",
-            terminal_safe(&newest.workload, 32),
-            count(threads.max(0) as u64, "thread"),
-            terminal_safe(&simd, 16),
-            terminal_safe(&id, 18)
-        );
-    }
-    out(&analysis::history_text(
-        &steps,
-        &id,
-        &newest.workload,
-        threads,
-        &simd,
-    ))
+        let mut machines: Vec<&str> = runs.iter().map(|r| r.machine_id.as_str()).collect();
+        machines.sort_unstable();
+        machines.dedup();
+        let id = match machines[..] {
+            [] => bail!(
+                "no runs{} on a machine matching `{}`",
+                workload.map_or(String::new(), |w| format!(" of `{}`", terminal_safe(w, 32))),
+                terminal_safe(&machine, 40)
+            ),
+            [one] => one.to_owned(),
+            _ => bail!(
+                "`{}` matches {} machines ({}): give more of a machine id",
+                terminal_safe(&machine, 40),
+                machines.len(),
+                machines
+                    .iter()
+                    .map(|m| terminal_safe(m, 48))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        };
+        // The workload of the machine's newest run (its scene and settings), unless named.
+        let newest = &runs[0];
+        let runs: Vec<Run> = (runs.iter())
+            .filter(|r| r.workload_id == newest.workload_id)
+            .cloned()
+            .collect();
+        let threads = threads.unwrap_or(newest.threads);
+        let simd = simd.map_or_else(|| newest.simd.clone(), str::to_owned);
+        let steps = analysis::history(&runs, threads, &simd);
+        if steps.is_empty() {
+            bail!(
+                "no runs of {} at {} on SIMD path {} on {}",
+                terminal_safe(&newest.workload, 32),
+                count(threads.max(0) as u64, "thread"),
+                terminal_safe(&simd, 16),
+                terminal_safe(&id, 18)
+            );
+        }
+        out(&analysis::history_text(
+            &steps,
+            &id,
+            &newest.workload,
+            threads,
+            &simd,
+        ))
+    })
 }
 
 /// `results report`: one HTML page, a section for each workload (or the one named).
@@ -477,79 +485,83 @@ fn report(path: &Path, output: &Path, workload: Option<&str>, all: bool) -> Resu
         );
     }
     let db = ResultsDb::open_to_read(path)?;
-    let total_runs = db.count()?;
-    let groups = workloads(&db, workload)?;
-    let mut sections = Vec::new();
-    for (group, title) in groups.iter().zip(titles(&groups)) {
-        let runs: Vec<Run> = (group.runs.iter())
-            .filter(|r| all || analysis::counts(r))
-            .cloned()
-            .collect();
-        // Each machine's runs, gathered once: looking through every run for each ranked
-        // machine took minutes for 50,000 runs of as many machines.
-        let by_machine: HashMap<&str, Vec<Run>> = grouped(&runs, |&r| r.machine_id.as_str())
-            .into_iter()
-            .map(|mine| {
-                let machine = mine[0].machine_id.as_str();
-                (machine, mine.into_iter().cloned().collect())
-            })
-            .collect();
-        let ranked = analysis::rank(&runs, all);
-        let scaling = (ranked.iter())
-            .map(|line| {
-                let rows = (line.ids.iter())
-                    .map(|&id| db.scaling(id))
-                    .collect::<Result<Vec<_>>>()?;
-                Ok(stats::pool_scaling(&rows))
-            })
-            .collect::<Result<Vec<_>>>()?;
-        let mut histories = Vec::new();
-        let mut seen = std::collections::BTreeSet::new();
-        for line in &ranked {
-            let machine = &line.example.machine_id;
-            if !seen.insert(machine.clone()) {
-                continue;
+    // One read: the runs checked against their results, and the scaling rows read after,
+    // are of one state of the database, whatever another process writes meanwhile.
+    db.as_one_read(|db| {
+        let total_runs = db.count()?;
+        let groups = workloads(db, workload)?;
+        let mut sections = Vec::new();
+        for (group, title) in groups.iter().zip(titles(&groups)) {
+            let runs: Vec<Run> = (group.runs.iter())
+                .filter(|r| all || analysis::counts(r))
+                .cloned()
+                .collect();
+            // Each machine's runs, gathered once: looking through every run for each ranked
+            // machine took minutes for 50,000 runs of as many machines.
+            let by_machine: HashMap<&str, Vec<Run>> = grouped(&runs, |&r| r.machine_id.as_str())
+                .into_iter()
+                .map(|mine| {
+                    let machine = mine[0].machine_id.as_str();
+                    (machine, mine.into_iter().cloned().collect())
+                })
+                .collect();
+            let ranked = analysis::rank(&runs, all);
+            let scaling = (ranked.iter())
+                .map(|line| {
+                    let rows = (line.ids.iter())
+                        .map(|&id| db.scaling(id))
+                        .collect::<Result<Vec<_>>>()?;
+                    Ok(stats::pool_scaling(&rows))
+                })
+                .collect::<Result<Vec<_>>>()?;
+            let mut histories = Vec::new();
+            let mut seen = std::collections::BTreeSet::new();
+            for line in &ranked {
+                let machine = &line.example.machine_id;
+                if !seen.insert(machine.clone()) {
+                    continue;
+                }
+                let mine = by_machine
+                    .get(machine.as_str())
+                    .map_or(&[][..], Vec::as_slice);
+                // At the thread count and SIMD path of the machine's best line.
+                let (threads, simd) = (line.threads, line.example.simd.clone());
+                let steps = analysis::history(mine, threads, &simd);
+                histories.push(html::History {
+                    machine: machine.clone(),
+                    threads,
+                    simd,
+                    steps,
+                });
             }
-            let mine = by_machine
-                .get(machine.as_str())
-                .map_or(&[][..], Vec::as_slice);
-            // At the thread count and SIMD path of the machine's best line.
-            let (threads, simd) = (line.threads, line.example.simd.clone());
-            let steps = analysis::history(mine, threads, &simd);
-            histories.push(html::History {
-                machine: machine.clone(),
-                threads,
-                simd,
-                steps,
+            sections.push(html::Section {
+                title,
+                runs: group.runs.len(),
+                ranked: ranked.iter().map(html::Line::of).collect(),
+                scaling,
+                histories,
             });
         }
-        sections.push(html::Section {
-            title,
-            runs: group.runs.len(),
-            ranked: ranked.iter().map(html::Line::of).collect(),
-            scaling,
-            histories,
+        let generated_unix_s = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_secs() as i64);
+        let page = html::render(&html::ReportPage {
+            generated_unix_s,
+            total_runs,
+            all,
+            sections: &sections,
         });
-    }
-    let generated_unix_s = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_secs() as i64);
-    let page = html::render(&html::ReportPage {
-        generated_unix_s,
-        total_runs,
-        all,
-        sections: &sections,
-    });
-    tessera::atomic_file::write_atomically(output, page.as_bytes())?;
-    let lines: usize = sections.iter().map(|s| s.ranked.len()).sum();
-    note(format_args!(
-        "{}: {} of {}, {} in the database",
-        output.display(),
-        count(lines as u64, "machine and build line"),
-        count(sections.len() as u64, "workload"),
-        count(total_runs as u64, "run")
-    ));
-    Ok(())
+        tessera::atomic_file::write_atomically(output, page.as_bytes())?;
+        let lines: usize = sections.iter().map(|s| s.ranked.len()).sum();
+        note(format_args!(
+            "{}: {} of {}, {} in the database",
+            output.display(),
+            count(lines as u64, "machine and build line"),
+            count(sections.len() as u64, "workload"),
+            count(total_runs as u64, "run")
+        ));
+        Ok(())
+    })
 }
 
 /// `results export --jsonl`: every result, oldest first. A database tessera did not write may
