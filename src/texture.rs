@@ -279,6 +279,9 @@ pub struct ImageTexture {
     pub width: u32,
     pub height: u32,
     rgb: Arc<Vec<u8>>,
+    /// `pixel_digest` of `rgb`, taken once as the image is made: clones share the pixels,
+    /// and a scene's fingerprint reads this for each texture that names the image.
+    digest: u64,
 }
 
 impl ImageTexture {
@@ -289,13 +292,14 @@ impl ImageTexture {
         (expected > 0 && rgb.len() as u64 == expected).then(|| ImageTexture {
             width,
             height,
+            digest: pixel_digest(&rgb),
             rgb: Arc::new(rgb),
         })
     }
 
-    /// The pixels, for the scene's fingerprint.
-    pub fn pixels(&self) -> &[u8] {
-        &self.rgb
+    /// The XXH3-64 of the pixels, for the scene's fingerprint.
+    pub fn digest(&self) -> u64 {
+        self.digest
     }
 
     /// The colour at texture coordinates `(u, v)`, clamped to `[0, 1]`, `v` counted up from
@@ -314,6 +318,19 @@ impl ImageTexture {
             scale * f32::from(self.rgb[at + 2]),
         )
     }
+}
+
+/// The XXH3-64 of an image's pixels.
+fn pixel_digest(rgb: &[u8]) -> u64 {
+    #[cfg(test)]
+    PIXEL_BYTES_HASHED.with(|n| n.set(n.get() + rgb.len() as u64));
+    xxhash_rust::xxh3::xxh3_64(rgb)
+}
+
+#[cfg(test)]
+thread_local! {
+    /// The pixel bytes `pixel_digest` has hashed on this thread, for tests that bound it.
+    pub static PIXEL_BYTES_HASHED: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
 }
 
 #[cfg(test)]
