@@ -13,7 +13,7 @@ use crate::geometry::MaterialId;
 use crate::material::{Material, Refraction};
 use crate::math::{Color, PixelRect, Vec3, cross, unit};
 use crate::texture::{ImageTexture, Noise, Texture, TextureId};
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::ops::Range;
 use std::path::Path;
 use toml::Spanned;
@@ -210,6 +210,9 @@ struct Textures {
     table: Vec<Texture>,
     names: BTreeMap<String, TextureId>,
     files: Vec<TextureFile>,
+    /// The names in `files`, looked up as each texture is built: a scene may spell one file
+    /// a hundred thousand ways (`./a.png`, `.//a.png`), each a name the recipe lists.
+    file_names: BTreeSet<String>,
     /// The image files read so far with their hashes, by file (`textures::identity`): one
     /// named by many textures, however spelt, is read once.
     images: BTreeMap<String, (ImageTexture, u128)>,
@@ -236,6 +239,7 @@ impl Textures {
             table: Vec::with_capacity(names.len()),
             names,
             files: Vec::new(),
+            file_names: BTreeSet::new(),
             images: BTreeMap::new(),
             pixels_left: MAX_SCENE_TEXTURE_PIXELS,
             noises: 0,
@@ -368,7 +372,7 @@ impl Textures {
                 let key = identity(name, source);
                 if let Some((image, hash)) = key.as_ref().and_then(|k| self.images.get(k)) {
                     // The recipe lists every name given, each with its file's hash.
-                    if !self.files.iter().any(|f| &f.name == name) {
+                    if self.file_names.insert(name.clone()) {
                         self.files.push(TextureFile {
                             name: name.clone(),
                             hash: *hash,
@@ -384,6 +388,7 @@ impl Textures {
                 if let Some(key) = key {
                     self.images.insert(key, (image.clone(), loaded.file.hash));
                 }
+                self.file_names.insert(name.clone());
                 self.files.push(loaded.file);
                 Texture::Image(image)
             }
