@@ -3,7 +3,7 @@
 
 use super::flags::{self, SimdArg};
 use super::output::{self, count, note, out, progress_bar};
-use super::writable::check_output;
+use super::writable::{check_output, same_file};
 use anyhow::{Result, bail};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -170,6 +170,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let image = &args.image;
     let (header, recipe) = recipe_of(image)?;
     let same = |a: &Path, b: &Path| matches!((a.canonicalize(), b.canonicalize()), (Ok(a), Ok(b)) if a == b);
+    let dirs = recipe::texture_dirs(args.textures.as_deref(), image);
     if let Some(file) = &args.extract_scene {
         if same(file, image) {
             bail!(
@@ -178,6 +179,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 file.display()
             );
         }
+        refuse_texture("--extract-scene", file, &recipe, &dirs)?;
         check_output(file)?;
         tessera::atomic_file::write_atomically_with(file, &mut |w| {
             w.write_all(recipe.scene.text.as_bytes())
@@ -197,6 +199,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 file.display()
             );
         }
+        refuse_texture("-o", file, &recipe, &dirs)?;
         check_output(file)?;
     }
     let options = RenderOptions {
@@ -220,7 +223,6 @@ pub fn run(args: Args) -> Result<ExitCode> {
         }
         Unrendered::Render(checked) => checked,
     };
-    let dirs = recipe::texture_dirs(args.textures.as_deref(), image);
     let mut scene = checked.scene(&dirs)?;
     let window = recipe.window();
     let s = &scene.settings;
@@ -287,6 +289,28 @@ pub fn run(args: Args) -> Result<ExitCode> {
             Ok(differs)
         }
     }
+}
+
+/// Refuses `file`, named by `flag` to be written, where it is a texture file the recipe's
+/// scene reads: the first of `dirs` that holds a file of the texture's name, as the scene's
+/// build looks (`recipe::texture_dirs`, next to the image as a rule: a file that came with
+/// it, not tessera's output). Written over, it would be lost, and the image would no longer
+/// reproduce; `render -o` refuses the same.
+fn refuse_texture(flag: &str, file: &Path, recipe: &Recipe, dirs: &[PathBuf]) -> Result<()> {
+    // A name that is not plain is refused when the scene is built, and is not looked for.
+    let plain = (recipe.textures.iter()).filter(|t| tessera::scene::is_plain_name(&t.name));
+    for texture in plain {
+        let read = (dirs.iter().map(|dir| dir.join(&texture.name))).find(|path| path.exists());
+        if read.is_some_and(|read| same_file(file, &read)) {
+            bail!(
+                "{flag} {} names the texture file `{}` the recipe's scene reads: give the \
+                 output a name of its own",
+                file.display(),
+                terminal_safe(&texture.name, 80)
+            );
+        }
+    }
+    Ok(())
 }
 
 /// The verdict `differs`: its summary, then each difference indented.

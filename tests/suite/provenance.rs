@@ -737,3 +737,51 @@ fn a_textured_scenes_recipe_names_its_texture_and_reproduce_checks_it() {
         stderr(&other)
     );
 }
+
+/// `reproduce -o` and `--extract-scene` naming a texture file the recipe's scene reads (next
+/// to the image: a file that came with it) are refused before anything is written, as
+/// `render -o` refuses it: they replaced the texture, and the image no longer reproduced.
+#[test]
+fn reproduce_writes_over_no_texture_its_recipe_reads() {
+    let dir = temp_dir("recipe-texture-output");
+    // A texture that is a PNG, as `-o` may write: a small render of tessera's own.
+    let first = scene_path("img-1.07-first-diffuse.toml");
+    let args = [
+        "render",
+        first.to_str().unwrap(),
+        "--width",
+        "16",
+        "--spp",
+        "1",
+        "-q",
+        "-o",
+    ];
+    ok(&[&args[..], &["tex.png"]].concat(), &dir);
+    let text = std::fs::read_to_string(scene_path("img-2.15-earth-sphere.toml")).unwrap();
+    std::fs::write(
+        dir.join("earth.toml"),
+        text.replace("earthmap.jpg", "tex.png"),
+    )
+    .unwrap();
+    let args = ["render", "earth.toml", "--width", "20", "--spp", "1", "-q"];
+    ok(&[&args[..], &["-o", "earth.png"]].concat(), &dir);
+    let texture = std::fs::read(dir.join("tex.png")).unwrap();
+    for (flag, name) in [("-o", "tex.png"), ("--extract-scene", "./tex.png")] {
+        let o = run(&["reproduce", "earth.png", "-q", flag, name], &dir);
+        assert_eq!(o.status.code(), Some(2), "{flag}: {}", out_text(&o));
+        assert!(
+            stderr(&o).contains("names the texture file `tex.png` the recipe's scene reads"),
+            "{flag}: {}",
+            stderr(&o)
+        );
+        assert_eq!(
+            std::fs::read(dir.join("tex.png")).unwrap(),
+            texture,
+            "{flag}"
+        );
+    }
+    // Written elsewhere, and the texture unchanged: the image still reproduces.
+    let o = run(&["reproduce", "earth.png", "-q", "-o", "again.png"], &dir);
+    assert_eq!(o.status.code(), Some(0), "{}{}", out_text(&o), stderr(&o));
+    assert_identical(&dir.join("earth.png"), &dir);
+}
