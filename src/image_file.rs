@@ -96,7 +96,7 @@ impl Film {
         // A recipe no reader takes is not written: the caller leaves it out, and says so.
         if let Some(why) = recipe
             .filter(|_| format != Format::Ppm)
-            .and_then(Recipe::too_long_to_carry)
+            .and_then(Recipe::why_not_carried)
         {
             return Err(std::io::Error::new(std::io::ErrorKind::InvalidInput, why));
         }
@@ -578,8 +578,8 @@ mod tests {
         assert!(Format::from_path(Path::new("a")).is_err());
     }
 
-    /// A recipe no reader takes is never written: `written_len` foretells its length, and
-    /// writing one is an error, whatever the format with metadata.
+    /// A recipe no reader takes is never written: `unrendered` foretells it, and writing one
+    /// is an error, whatever the format with metadata.
     #[test]
     fn a_recipe_too_long_for_its_readers_is_not_written() {
         use crate::scene::{Overrides, Scene};
@@ -590,8 +590,10 @@ mod tests {
             let scene = Scene::parse(&text, Path::new("s.toml"), &Overrides::default()).unwrap();
             let source = recipe::Source::new(Path::new("s.toml"), &text, Overrides::default());
             let recipe = Recipe::new(&source, &scene, &film);
-            assert_eq!(Recipe::written_len(&source, &scene), recipe.to_json().len());
-            assert_eq!(recipe.too_long_to_carry().is_none(), fits);
+            let unrendered = Recipe::unrendered(&source, &scene);
+            assert_eq!(unrendered.to_json().len(), recipe.to_json().len());
+            assert_eq!(unrendered.why_not_carried().is_none(), fits);
+            assert_eq!(recipe.why_not_carried().is_none(), fits);
             for format in [Format::Png, Format::Exr] {
                 let written = film.write(format, 2.0, Some(&recipe), &mut Vec::new());
                 match written {

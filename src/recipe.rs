@@ -188,25 +188,17 @@ pub fn sums_hash(film: &Film) -> String {
     format!("xxh3-128:{:032x}", film.content_hash())
 }
 
-/// Why an image cannot carry a recipe of `len` bytes, if it cannot: one over `MAX_BYTES`
-/// is refused by every reader of recipes, `info`, `compare` and `reproduce` among them.
-pub fn too_long_to_carry(len: usize) -> Option<String> {
-    (len > MAX_BYTES).then(|| {
-        format!("its recipe would be {len} bytes, more than the {MAX_BYTES} an image may carry")
-    })
-}
-
 impl Recipe {
     /// The recipe of `film`, rendered from `scene`, which `source` describes.
     pub fn new(source: &Source, scene: &Scene, film: &Film) -> Self {
         Self::with_sums(source, scene, sums_hash(film))
     }
 
-    /// The bytes the recipe of a render of `scene` from `source` takes once written: known
-    /// before the render, as the sums' hash is of a fixed length.
-    pub fn written_len(source: &Source, scene: &Scene) -> usize {
-        let unrendered = sums_hash(&Film::new(0, 0, 0));
-        Self::with_sums(source, scene, unrendered).to_json().len()
+    /// The recipe a render of `scene` from `source` will have, but for its sums' hash (a
+    /// hash of none, of the same length): known before the render, to be checked as the
+    /// image's will be (`why_not_carried`).
+    pub fn unrendered(source: &Source, scene: &Scene) -> Self {
+        Self::with_sums(source, scene, sums_hash(&Film::new(0, 0, 0)))
     }
 
     fn with_sums(source: &Source, scene: &Scene, sums: String) -> Self {
@@ -225,9 +217,17 @@ impl Recipe {
     }
 
     /// Why an image cannot carry this recipe, if it cannot: its readers, tessera's own
-    /// first, refuse a recipe over `MAX_BYTES`, so one that long is left out, not written.
-    pub fn too_long_to_carry(&self) -> Option<String> {
-        too_long_to_carry(self.to_json().len())
+    /// first, refuse a recipe over `MAX_BYTES` or one that fails their other checks (more
+    /// than `MAX_TEXTURES` texture files, a name over `MAX_NAME` bytes), so such a recipe is
+    /// left out, not written. The same checks as `parse`'s, on what this build writes.
+    pub fn why_not_carried(&self) -> Option<String> {
+        let len = self.to_json().len();
+        if len > MAX_BYTES {
+            return Some(format!(
+                "its recipe would be {len} bytes, more than the {MAX_BYTES} an image may carry"
+            ));
+        }
+        self.check().err().map(|why| format!("its recipe {why}"))
     }
 
     /// The recipe as JSON, every character beyond ASCII escaped (`\uXXXX`), so that formats

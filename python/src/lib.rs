@@ -213,7 +213,7 @@ impl NativeImage {
         if format == Format::Ppm {
             return Ok(None);
         }
-        let Some(why) = py.detach(|| self.recipe.too_long_to_carry()) else {
+        let Some(why) = py.detach(|| self.recipe.why_not_carried()) else {
             return Ok(Some(&self.recipe));
         };
         let message = std::ffi::CString::new(format!("{why}, so the image carries none"))

@@ -139,8 +139,8 @@ fn merged_recipe(
             };
     if describes {
         let recipe = Recipe::new(source, &scene, film);
-        match recipe.too_long_to_carry() {
-            Some(why) => Err(format!("the parts' scene is too long: {why}")),
+        match recipe.why_not_carried() {
+            Some(why) => Err(format!("of the parts' scene, {why}")),
             None => Ok(recipe),
         }
     } else {

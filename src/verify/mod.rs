@@ -24,7 +24,8 @@ pub fn read_recipe(path: &Path) -> Result<(ImageHeader, Recipe)> {
         return Err(Error::Image {
             path: path.to_owned(),
             message: "no recipe (the image was written with --no-provenance, of a scene \
-                      too long to carry, by another program, or its metadata was stripped)"
+                      too large for a recipe, by another program, or its metadata was \
+                      stripped)"
                 .into(),
         });
     };

@@ -298,7 +298,7 @@ impl RenderPlan {
         // before the render, with a word, rather than refused once the render is done.
         // A PPM carries none in any case.
         let recipe = (!args.no_provenance).then_some(source).filter(|source| {
-            let why = tessera::recipe::too_long_to_carry(Recipe::written_len(source, &scene));
+            let why = Recipe::unrendered(source, &scene).why_not_carried();
             let carries = !matches!(&output, Output::Image(p) if Format::from_path(p).ok() == Some(Format::Ppm));
             if let Some(why) = why.as_ref().filter(|_| carries) {
                 note(format_args!(
