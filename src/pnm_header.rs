@@ -59,6 +59,20 @@ pub fn check_length<R: BufRead + std::io::Seek>(mut reader: R, len: u64) -> Resu
                 .to_owned(),
         );
     }
+    // A PAM without a TUPLTYPE line is read by the decoder one byte a sample whatever its
+    // MAXVAL, scaled down by it, where Netpbm and every other reader read two bytes a sample
+    // of a MAXVAL past 255: a PAM of MAXVAL 65535 whose samples are all 0x7f7f, which they
+    // show mid-grey, was `identical` to a black PPM.
+    if let Some(pam) = header
+        .as_arbitrary()
+        .filter(|pam| pam.tupltype.is_none() && pam.maxval > 255)
+    {
+        return Err(format!(
+            "is a PAM without a TUPLTYPE line of MAXVAL {}, whose samples the decoder reads \
+             as one byte each where Netpbm reads two: tessera does not read it",
+            pam.maxval
+        ));
+    }
     let raster = match (subtype, subtype.sample_encoding()) {
         // Rows of bits, each row rounded up to a whole byte.
         (PnmSubtype::Bitmap(_), SampleEncoding::Binary) => {
@@ -250,6 +264,32 @@ mod tests {
             check_length(Cursor::new(&one[..]), one.len() as u64),
             Ok(())
         );
+    }
+
+    /// The decoder reads a PAM without a TUPLTYPE line one byte a sample whatever its
+    /// MAXVAL, scaling each by 255 over it: a PAM of MAXVAL 65535 whose samples are all
+    /// 0x7f7f (mid-grey to Netpbm, which reads two bytes a sample) decoded black, and
+    /// `compare` called it identical to a black PPM. Such a PAM is refused; one of a
+    /// MAXVAL of at most 255, or with a TUPLTYPE, is read as before.
+    #[test]
+    fn a_pam_without_a_tuple_type_of_two_byte_samples_is_refused() {
+        let check = |bytes: &[u8]| check_length(Cursor::new(bytes), bytes.len() as u64);
+        let pam = |maxval: &str, tupltype: &str| {
+            let head =
+                format!("P7\nWIDTH 2\nHEIGHT 2\nDEPTH 3\nMAXVAL {maxval}\n{tupltype}ENDHDR\n");
+            [head.as_bytes(), &[0x7f; 24]].concat()
+        };
+        for maxval in ["65535", "256"] {
+            let e = check(&pam(maxval, "")).unwrap_err();
+            assert!(
+                e.starts_with(&format!(
+                    "is a PAM without a TUPLTYPE line of MAXVAL {maxval}"
+                )),
+                "{e}"
+            );
+        }
+        assert_eq!(check(&pam("255", "")), Ok(()));
+        assert_eq!(check(&pam("65535", "TUPLTYPE RGB\n")), Ok(()));
     }
 
     #[test]
