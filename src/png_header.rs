@@ -420,8 +420,11 @@ const WINDOW: usize = 32 << 10;
 /// what it gives: the PNG decoder stops once it has every row, so a stream cut after them
 /// (without its end or its Adler-32 checksum) decodes there, where libpng refuses it ("Not
 /// enough image data": Firefox, GIMP, pngfix). Says why a stream does not end as a stream
-/// must, or gives more than `most` bytes (more than the image's rows take: the time it
-/// takes is bounded by the image's size, not by what a small stream can inflate to).
+/// must, gives more than `most` bytes (more than the image's rows take: the time it
+/// takes is bounded by the image's size, not by what a small stream can inflate to), or
+/// ends before the rows its IHDR chunk claims (`row_bytes`): the decoder is handed room
+/// for every row before it finds them missing, and a file of 65 bytes claiming 4096x4096
+/// 16-bit RGBA pixels once had 137 MB filled for them.
 pub fn check_zlib_stream_ends<R: Read>(r: R, most: u64) -> Result<(), String> {
     let mut r = std::io::BufReader::new(r);
     let io = |e: std::io::Error| format!("could not be read: {e}");
@@ -430,6 +433,9 @@ pub fn check_zlib_stream_ends<R: Read>(r: R, most: u64) -> Result<(), String> {
     let mut inflater = fdeflate::Decompressor::new();
     let mut output = vec![0u8; 4 * WINDOW];
     let (mut filled, mut idat_seen, mut made_in_all) = (0, false, 0u64);
+    // The bytes the rows take, once the IHDR chunk is read (none where it says what no
+    // decoder reads: the decoder is then the judge).
+    let mut least = 0u128;
     let mut input = vec![0u8; 64 << 10];
     for _ in 0..MAX_PNG_CHUNKS {
         let mut head = [0u8; 8];
@@ -437,6 +443,12 @@ pub fn check_zlib_stream_ends<R: Read>(r: R, most: u64) -> Result<(), String> {
             break;
         }
         let length = u64::from(u32::from_be_bytes(head[..4].try_into().expect("4 bytes")));
+        if &head[4..] == b"IHDR" && length == 13 {
+            let mut ihdr = [0u8; 13 + 4];
+            r.read_exact(&mut ihdr).map_err(io)?;
+            least = row_bytes(&ihdr[..13]);
+            continue;
+        }
         if &head[4..] != b"IDAT" {
             if idat_seen {
                 break;
@@ -475,6 +487,11 @@ pub fn check_zlib_stream_ends<R: Read>(r: R, most: u64) -> Result<(), String> {
     }
     if !idat_seen {
         Err("no IDAT chunk, where a PNG keeps them".to_owned())
+    } else if inflater.is_done() && u128::from(made_in_all) < least {
+        Err(format!(
+            "a zlib stream that inflates to {made_in_all} bytes, fewer than the {least} its \
+             image's rows take, which libpng refuses (\"Not enough image data\")"
+        ))
     } else if inflater.is_done() {
         Ok(())
     } else {
@@ -483,6 +500,34 @@ pub fn check_zlib_stream_ends<R: Read>(r: R, most: u64) -> Result<(), String> {
              (\"Not enough image data\")"
                 .to_owned(),
         )
+    }
+}
+
+/// The bytes the rows of the image an IHDR chunk's data `ihdr` describes take inflated: each
+/// row of each Adam7 pass (of an interlaced image) or of the image, its filter byte and its
+/// pixels' bits in whole bytes; 0 for a bit depth or colour type PNG does not have.
+fn row_bytes(ihdr: &[u8]) -> u128 {
+    let side = |at: usize| u128::from(u32::from_be_bytes([0, 1, 2, 3].map(|i| ihdr[at + i])));
+    let (width, height, depth) = (side(0), side(4), u128::from(ihdr[8]));
+    let samples = match (ihdr[9], ihdr[8]) {
+        (0, 1 | 2 | 4 | 8 | 16) => 1,
+        (3, 1 | 2 | 4 | 8) => 1,
+        (2 | 6, 8 | 16) => 3 + u128::from(ihdr[9] == 6),
+        (4, 8 | 16) => 2,
+        _ => return 0,
+    };
+    let rows = |(x0, y0, dx, dy): (usize, usize, usize, usize)| {
+        let pixels = width.saturating_sub(x0 as u128).div_ceil(dx as u128);
+        let lines = height.saturating_sub(y0 as u128).div_ceil(dy as u128);
+        if pixels == 0 {
+            return 0;
+        }
+        lines * (1 + (pixels * samples * depth).div_ceil(8))
+    };
+    if ihdr[12] == 1 {
+        ADAM7_PASSES.into_iter().map(rows).sum()
+    } else {
+        rows((0, 0, 1, 1))
     }
 }
 
