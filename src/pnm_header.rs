@@ -40,6 +40,7 @@ pub const MIN_TEXT_SAMPLE_BYTES: u64 = 2;
 pub fn check_length<R: BufRead + std::io::Seek>(mut reader: R, len: u64) -> Result<(), String> {
     use image::ImageDecoder;
     use image::codecs::pnm::{PnmDecoder, PnmSubtype, SampleEncoding};
+    use std::io::Read;
     let decoder = PnmDecoder::new(&mut reader)
         .map_err(|e| format!("is not a PNM file tessera reads: {e}"))?;
     let (width, height) = decoder.dimensions();
@@ -73,6 +74,41 @@ pub fn check_length<R: BufRead + std::io::Seek>(mut reader: R, len: u64) -> Resu
             pam.maxval
         ));
     }
+    let header = reader
+        .stream_position()
+        .map_err(|e| format!("could not be read: {e}"))?;
+    // A comment that begins right after a number's digits ends the number for Netpbm (its
+    // line end the one separator before a binary raster), where the decoder reads on past
+    // the comment into the next bytes: `255#c` and a line end, then a space, read as the
+    // maxval and a separator, so that the decoder's raster began a byte after Netpbm's and a
+    // file Netpbm shows otherwise was `identical`.
+    if !matches!(subtype, PnmSubtype::ArbitraryMap) {
+        reader
+            .seek(std::io::SeekFrom::Start(0))
+            .map_err(|e| format!("could not be read: {e}"))?;
+        let mut bytes = Vec::new();
+        (&mut reader)
+            .take(header)
+            .read_to_end(&mut bytes)
+            .map_err(|e| format!("could not be read: {e}"))?;
+        let (mut in_comment, mut after_digit) = (false, false);
+        for &b in &bytes {
+            if in_comment {
+                in_comment = !matches!(b, b'\n' | b'\r');
+                continue;
+            }
+            if b == b'#' && after_digit {
+                return Err(
+                    "has a PNM header comment right after a number, which Netpbm and the \
+                     decoder read differently (where the number ends, where the pixels \
+                     begin): tessera does not read it"
+                        .to_owned(),
+                );
+            }
+            in_comment = b == b'#';
+            after_digit = b.is_ascii_digit();
+        }
+    }
     let raster = match (subtype, subtype.sample_encoding()) {
         // Rows of bits, each row rounded up to a whole byte.
         (PnmSubtype::Bitmap(_), SampleEncoding::Binary) => {
@@ -84,9 +120,6 @@ pub fn check_length<R: BufRead + std::io::Seek>(mut reader: R, len: u64) -> Resu
             (samples * u128::from(MIN_TEXT_SAMPLE_BYTES)).saturating_sub(1)
         }
     };
-    let header = reader
-        .stream_position()
-        .map_err(|e| format!("could not be read: {e}"))?;
     let least = u128::from(header) + raster;
     if u128::from(len) < least {
         return Err(format!(
@@ -290,6 +323,30 @@ mod tests {
         }
         assert_eq!(check(&pam("255", "")), Ok(()));
         assert_eq!(check(&pam("65535", "TUPLTYPE RGB\n")), Ok(()));
+    }
+
+    /// Netpbm ends a number where a comment begins, and takes the comment's line end as the
+    /// one separator before a binary raster; the decoder read on past the comment, so that
+    /// `P5 2 1 255#c`, a line end and the bytes 20 20 80 was `identical` to a PGM of the
+    /// bytes 20 80 (Netpbm reads 20 20). A comment right after a number is refused; one
+    /// after a separator, or holding digits and `#`, is not.
+    #[test]
+    fn a_comment_right_after_a_number_is_refused() {
+        let check = |bytes: &[u8]| check_length(Cursor::new(bytes), bytes.len() as u64);
+        for after in [
+            &b"P5\n2 1\n255#c\n\x20\x20\x80"[..],
+            b"P5\n2#c\n0 1\n255\n\x20\x80",
+        ] {
+            let e = check(after).unwrap_err();
+            assert!(e.contains("comment right after a number"), "{e}");
+        }
+        for fine in [
+            &b"P5\n2 1\n255\n\x20\x80"[..],
+            b"P5\n# made by v1#2\n2 1 #c\n255\n\x20\x80",
+            b"P3\n1 1\n255\n1 2 3\n",
+        ] {
+            assert_eq!(check(fine), Ok(()), "{}", String::from_utf8_lossy(fine));
+        }
     }
 
     #[test]
