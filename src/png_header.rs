@@ -434,7 +434,8 @@ pub fn check_zlib_stream_ends<R: Read>(r: R, most: u64) -> Result<(), String> {
     let mut output = vec![0u8; 4 * WINDOW];
     let (mut filled, mut idat_seen, mut made_in_all) = (0, false, 0u64);
     // The bytes the rows take, once the IHDR chunk is read (none where it says what no
-    // decoder reads: the decoder is then the judge).
+    // decoder reads: the decoder is then the judge). Rows of more than `most` bytes are an
+    // image larger than the caller reads, which it refuses by its size, as such.
     let mut least = 0u128;
     let mut input = vec![0u8; 64 << 10];
     for _ in 0..MAX_PNG_CHUNKS {
@@ -487,7 +488,7 @@ pub fn check_zlib_stream_ends<R: Read>(r: R, most: u64) -> Result<(), String> {
     }
     if !idat_seen {
         Err("no IDAT chunk, where a PNG keeps them".to_owned())
-    } else if inflater.is_done() && u128::from(made_in_all) < least {
+    } else if inflater.is_done() && u128::from(made_in_all) < least && least <= u128::from(most) {
         Err(format!(
             "a zlib stream that inflates to {made_in_all} bytes, fewer than the {least} its \
              image's rows take, which libpng refuses (\"Not enough image data\")"

@@ -471,8 +471,8 @@ fn a_repeat_whose_runs_no_result_holds_is_refused_before_rendering() {
 /// `--out`'s name while the bench runs, after the check before it: the rename at the end
 /// failed, and the measurement (6.6 s for the default workload, minutes for `cover`) was
 /// lost whole: not shown, not recorded, no file, exit 2. Here a directory takes the name
-/// once the bench has opened its database (after the check): the result is shown,
-/// recorded and kept under the name the error gives, and the exit is still 2.
+/// once the bench renders (after the check): the result is shown, recorded and kept under
+/// the name the error gives, and the exit is still 2.
 #[test]
 fn a_result_whose_out_file_is_taken_while_it_runs_is_shown_recorded_and_kept() {
     let dir = temp_dir("bench-out-taken");
@@ -492,7 +492,12 @@ fn a_result_whose_out_file_is_taken_while_it_runs_is_shown_recorded_and_kept() {
             .spawn()
             .unwrap();
         let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
-        while !db.exists() && std::time::Instant::now() < deadline {
+        // It renders, past the check of --out, once its pool's thread is there beside the
+        // main one (a new database is made only at the end, with the result).
+        let tasks = std::path::PathBuf::from(format!("/proc/{}/task", bench.id()));
+        while std::fs::read_dir(&tasks).map_or(0, Iterator::count) < 2
+            && std::time::Instant::now() < deadline
+        {
             std::thread::sleep(std::time::Duration::from_millis(1));
         }
         let taken = std::fs::create_dir(&res).is_ok();
