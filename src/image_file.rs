@@ -94,12 +94,15 @@ impl Film {
     ) -> std::io::Result<()> {
         let (w, h) = (self.width, self.height);
         // A recipe no reader takes is not written: the caller leaves it out, and says so.
-        if let Some(why) = recipe
-            .filter(|_| format != Format::Ppm)
-            .and_then(Recipe::why_not_carried)
-        {
-            return Err(std::io::Error::new(std::io::ErrorKind::InvalidInput, why));
-        }
+        // Its JSON is made once, checked and written.
+        let recipe = match recipe.filter(|_| format != Format::Ppm) {
+            Some(recipe) => Some(
+                recipe
+                    .carried_json()
+                    .map_err(|why| std::io::Error::new(std::io::ErrorKind::InvalidInput, why))?,
+            ),
+            None => None,
+        };
         match format {
             Format::Ppm => {
                 write!(out, "P3\n{w} {h}\n255\n")?;
@@ -116,8 +119,7 @@ impl Film {
                 let mut writer = encoder.write_header().map_err(png_error)?;
                 if let Some(recipe) = recipe {
                     // iTXt: UTF-8 and compressed; before the pixels, where readers look.
-                    let mut chunk =
-                        png::text_metadata::ITXtChunk::new(recipe::KEY, recipe.to_json());
+                    let mut chunk = png::text_metadata::ITXtChunk::new(recipe::KEY, recipe);
                     chunk.compressed = true;
                     writer.write_text_chunk(&chunk).map_err(png_error)?;
                 }
@@ -137,7 +139,7 @@ impl Film {
                 let mut image = Image::from_channels((width, h as usize), channels);
                 if let Some(recipe) = recipe {
                     // The recipe's JSON is ASCII, which EXR text holds byte for byte.
-                    let text = Text::new_or_none(recipe.to_json())
+                    let text = Text::new_or_none(recipe)
                         .ok_or_else(|| std::io::Error::other("recipe is not ASCII"))?;
                     image
                         .attributes
