@@ -26,6 +26,8 @@ pub enum RunState {
     Rendering,
     Finished,
     Interrupted,
+    /// Rendered, but its output (image, part or checkpoint) could not be written.
+    Failed,
 }
 
 /// What a render is, as the viewer shows it: fixed for the run.
@@ -285,7 +287,7 @@ impl Previewer {
         self.last_publish = Instant::now();
     }
 
-    /// Publishes the end of the run: `Finished` or `Interrupted`, with the final frame (and
+    /// Publishes the end of the run: `Finished`, `Interrupted` or `Failed`, with the final frame (and
     /// the image to download, if one was offered).
     pub fn finish(&mut self, state: &JobState, run: RunState) {
         self.publish(state, None, run);

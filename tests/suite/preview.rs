@@ -27,8 +27,15 @@ struct Viewer {
 impl Viewer {
     /// Starts tessera with `args` in `dir` and waits for it to print the viewer's address.
     fn start(args: &[&str], dir: &Path) -> Viewer {
-        let mut child = tessera()
-            .args(args)
+        let mut command = tessera();
+        command.args(args);
+        Viewer::start_command(command, dir)
+    }
+
+    /// Starts `command` (tessera, or a shell that runs it) in `dir` and waits for it to print
+    /// the viewer's address.
+    fn start_command(mut command: std::process::Command, dir: &Path) -> Viewer {
+        let mut child = command
             .current_dir(dir)
             .stdout(Stdio::null())
             .stderr(Stdio::piped())
@@ -411,6 +418,53 @@ fn the_page_its_assets_and_the_event_stream_are_served() {
     );
     drop(stream);
     assert_eq!(viewer.interrupt_held().0, 0);
+}
+
+/// A render whose output cannot be written (here past the file size limit, as on a full
+/// disk) tells its viewer it failed before the viewer goes: the page was left showing a
+/// render at 100% "rendering", its stream cut, waiting for an image that never came.
+#[test]
+fn a_render_whose_output_cannot_be_written_tells_its_viewer_it_failed() {
+    for output in ["a.png", "a.part"] {
+        let dir = temp_dir("preview-failed-output");
+        let mut args = cover_args(160, 64);
+        args.extend(["--threads", "1", "-o", output, "--preview"].map(String::from));
+        if output.ends_with(".part") {
+            args.extend(["--shard", "0/1"].map(String::from));
+        }
+        let mut command = std::process::Command::new("sh");
+        command
+            .args(["-c", "ulimit -f 0 && exec \"$0\" \"$@\""])
+            .arg(env!("CARGO_BIN_EXE_tessera"))
+            .args(&args);
+        let mut viewer = Viewer::start_command(command, &dir);
+        let mut stream = TcpStream::connect(viewer.addr).unwrap();
+        stream.set_read_timeout(Some(PATIENCE)).unwrap();
+        write!(
+            stream,
+            "GET /{}/events HTTP/1.1\r\nHost: {}\r\n\r\n",
+            viewer.key, viewer.addr
+        )
+        .unwrap();
+        // The stream to its end: the server goes after the last status.
+        let mut seen = Vec::new();
+        let _ = stream.read_to_end(&mut seen);
+        let text = String::from_utf8_lossy(&seen);
+        let last = text
+            .rsplit("event: status\ndata: ")
+            .next()
+            .and_then(|data| data.lines().next())
+            .expect("a status");
+        let last: serde_json::Value = serde_json::from_str(last).expect("a status is JSON");
+        assert_eq!(last["state"], "failed", "{output}: {text}");
+        assert_eq!(last["percent"], 100.0, "{output}");
+        assert!(last["download"].is_null(), "{output}: {last}");
+        let code = viewer.wait();
+        let stderr = viewer.stderr.lock().unwrap().clone();
+        assert_eq!(code, 2, "{output}: {stderr}");
+        assert!(stderr.contains("File too large"), "{output}: {stderr}");
+        assert!(!dir.join(output).exists(), "{output}");
+    }
 }
 
 /// A scene file's name and an output's are text a stranger may choose (a scene handed over

@@ -282,7 +282,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         preview.end(&state, RunState::Interrupted).close();
     }
     if let Some(saver) = &saver {
-        saved.transpose()?;
+        failed_if(saved.transpose(), &mut preview, &state)?;
         if !state.is_complete() {
             note(format_args!(
                 "tessera: interrupted at {:.1}%; progress is saved in {}. Run the same command again to resume.",
@@ -293,20 +293,27 @@ pub fn run(args: Args) -> Result<ExitCode> {
         }
     }
     let what = describe(&scene, &state, &output);
-    // The output first, so that a viewer told the render has finished finds it written.
+    // The output first, so that a viewer told the render has finished finds it written, and
+    // one told it has failed when it could not be written.
     let preview = match (&output, preview) {
-        (Output::Part(path), preview) => {
-            partial::save_result(path, &render, &state)?;
+        (Output::Part(path), mut preview) => {
+            let saved = partial::save_result(path, &render, &state).map_err(Into::into);
+            failed_if(saved, &mut preview, &state)?;
             preview.map(|p| p.end(&state, RunState::Finished))
         }
         // The viewer's final frame comes from the state: the image gets a copy.
-        (Output::Image(path), Some(mut p)) => {
+        (Output::Image(path), Some(session)) => {
             let film = state.clone().into_film();
-            let png = write_image(path, &film, &scene, &render, quiet, p.has_viewer())?;
-            if let Some(png) = png {
-                p.previewer.offer_download(download_name(path), png);
-            }
-            Some(p.end(&state, RunState::Finished))
+            let as_png = session.has_viewer();
+            let mut preview = Some(session);
+            let written = write_image(path, &film, &scene, &render, quiet, as_png);
+            let png = failed_if(written, &mut preview, &state)?;
+            preview.map(|mut p| {
+                if let Some(png) = png {
+                    p.previewer.offer_download(download_name(path), png);
+                }
+                p.end(&state, RunState::Finished)
+            })
         }
         (Output::Image(path), None) => {
             write_image(path, &state.into_film(), &scene, &render, quiet, false)?;
@@ -320,6 +327,18 @@ pub fn run(args: Args) -> Result<ExitCode> {
         preview.close();
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Gives `result` back; where it is an error, first tells a watched render's viewer and
+/// preview file that the render failed (the error itself goes to the terminal, as ever), so
+/// that a page left showing 100% "rendering" does not wait for an image that never comes.
+fn failed_if<T>(result: Result<T>, preview: &mut Option<Session>, state: &JobState) -> Result<T> {
+    if result.is_err()
+        && let Some(session) = preview.take()
+    {
+        session.end(state, RunState::Failed).close();
+    }
+    result
 }
 
 /// Writes `film` of `scene` to `path` with the recipe of `render`, if it keeps one. With

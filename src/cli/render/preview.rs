@@ -45,7 +45,7 @@ impl Session {
         })
     }
 
-    /// Publishes the end of the render, `Finished` or `Interrupted`, and writes the final
+    /// Publishes the end of the render, `Finished`, `Interrupted` or `Failed`, and writes the final
     /// preview file.
     pub fn end(mut self, state: &JobState, run: RunState) -> Self {
         self.previewer.finish(state, run);
