@@ -5,7 +5,7 @@ use super::{Args, PreviewArgs, SceneArgs, SplitArg};
 use crate::cli::output::note;
 use crate::cli::writable::{check_output, same_file};
 use anyhow::{Result, bail};
-use std::net::{SocketAddr, TcpListener};
+use std::net::{Ipv6Addr, SocketAddr, SocketAddrV6, TcpListener};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 use tessera::image_file::Format;
@@ -16,7 +16,7 @@ use tessera::recipe::{Recipe, Source};
 use tessera::render::RenderOptions;
 use tessera::scene::{Overrides, Scene};
 use tessera::shard::{self, Shard, Split, parse_samples};
-use tessera::text::path_safe;
+use tessera::text::{path_safe, terminal_safe};
 
 /// The scene `render` renders when none is named.
 pub const DEFAULT_SCENE: &str = "scenes/cover.toml";
@@ -111,8 +111,9 @@ fn seconds(flag: &str, secs: f64) -> Result<Duration> {
     Ok(Duration::try_from_secs_f64(secs).unwrap_or(Duration::MAX))
 }
 
-/// The address `--preview=SPEC` names: `ADDR:PORT` or `[IPv6]:PORT` with an IP address,
-/// `localhost:PORT`, or a bare `PORT` (on 127.0.0.1). Names are not looked up: a viewer
+/// The address `--preview=SPEC` names: `ADDR:PORT` or `[IPv6]:PORT` with an IP address (a
+/// link-local one with its zone as an interface's name or index, `[fe80::1%eth0]:8080`),
+/// `localhost:PORT`, or a bare `PORT` (on 127.0.0.1). Host names are not looked up: a viewer
 /// listens on this machine's own addresses.
 pub fn preview_address(spec: &str) -> Result<SocketAddr> {
     let spec = spec.trim();
@@ -120,6 +121,9 @@ pub fn preview_address(spec: &str) -> Result<SocketAddr> {
         return Ok(SocketAddr::from(([127, 0, 0, 1], port)));
     }
     if let Ok(addr) = spec.parse::<SocketAddr>() {
+        return Ok(addr);
+    }
+    if let Some(addr) = zoned_by_name(spec)? {
         return Ok(addr);
     }
     match spec.rsplit_once(':') {
@@ -134,6 +138,49 @@ pub fn preview_address(spec: &str) -> Result<SocketAddr> {
         "--preview: `{spec}` is not an address; write ADDR:PORT (127.0.0.1:8080), \
          [::1]:8080, localhost:8080 or a port alone"
     )
+}
+
+/// `[IPv6%NAME]:PORT`, an IPv6 address whose zone is a network interface's name (`ip addr`
+/// shows link-local addresses so; the standard parser takes only an index), with the name
+/// looked up as this machine's interface. `None` for anything else.
+fn zoned_by_name(spec: &str) -> Result<Option<SocketAddr>> {
+    let Some((inside, port)) = spec
+        .strip_prefix('[')
+        .and_then(|rest| rest.split_once("]:"))
+    else {
+        return Ok(None);
+    };
+    let Some((ip, zone)) = inside.split_once('%') else {
+        return Ok(None);
+    };
+    let (Ok(ip), Ok(port)) = (ip.parse::<Ipv6Addr>(), port.parse::<u16>()) else {
+        return Ok(None);
+    };
+    let index = interface_index(zone).map_err(|why| {
+        anyhow::anyhow!(
+            "--preview: the zone `{}` of {} is not a network interface of this machine \
+             ({why}); `ip addr` lists them",
+            terminal_safe(zone, 64),
+            ip
+        )
+    })?;
+    Ok(Some(SocketAddr::V6(SocketAddrV6::new(ip, port, 0, index))))
+}
+
+/// The index of the network interface named `name` (SIOCGIFINDEX).
+fn interface_index(name: &str) -> std::io::Result<u32> {
+    use rustix::net::{AddressFamily, SocketType, netdevice};
+    // The kernel's interface names are at most 15 bytes, with no `/` or whitespace.
+    if name.is_empty()
+        || name.len() > 15
+        || name
+            .bytes()
+            .any(|b| b == b'/' || b.is_ascii_whitespace() || b < 0x20)
+    {
+        return Err(std::io::ErrorKind::InvalidInput.into());
+    }
+    let socket = rustix::net::socket(AddressFamily::INET, SocketType::DGRAM, None)?;
+    Ok(netdevice::name_to_index(&socket, name)?)
 }
 
 /// Binds the viewer's listener now, so that an address in use, one that is not this
@@ -460,5 +507,32 @@ mod tests {
         // Lengths too unlike for the distance to be within the bound are not measured.
         assert_eq!(nearness("cvoer-and-more", "cover"), None);
         assert_eq!(nearness("abxdefg", "abcdef"), Some(3));
+    }
+
+    /// A link-local address's zone, as `ip addr` names it: the interface's name (or its
+    /// index, which the standard parser takes) gives the listener's scope. Named, it was
+    /// refused as "not an address".
+    #[test]
+    fn a_zone_may_be_an_interface_s_name_or_index() {
+        let by_name = preview_address("[fe80::1%lo]:8080").unwrap();
+        let by_index = preview_address("[fe80::1%1]:8080").unwrap();
+        let SocketAddr::V6(v6) = by_name else {
+            panic!("{by_name}")
+        };
+        assert_eq!(v6.scope_id(), interface_index("lo").unwrap());
+        assert_eq!(v6.port(), 8080);
+        assert_eq!(by_index.to_string(), "[fe80::1%1]:8080");
+        for (spec, why) in [
+            ("[fe80::1%no-such-if]:8080", "not a network interface"),
+            ("[fe80::1%a/b]:8080", "not a network interface"),
+            ("[fe80::1%\u{1b}[2J]:8080", "\\u{1b}"),
+            ("[fe80::1%]:8080", "not a network interface"),
+            ("[fe80::1%lo]:99999", "is not an address"),
+            ("[nonsense%lo]:8080", "is not an address"),
+        ] {
+            let e = preview_address(spec).unwrap_err().to_string();
+            assert!(e.contains(why), "{spec}: {e}");
+            assert!(!e.contains('\u{1b}'), "{spec}: {e}");
+        }
     }
 }
