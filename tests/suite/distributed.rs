@@ -627,6 +627,74 @@ fn an_output_named_as_standard_input_is_refused_and_the_input_untouched() {
     }
 }
 
+/// `--checkpoint /dev/stdin < own.ckpt`, or a link to `/dev/stdin` as the checkpoint: the
+/// checkpoint is read to resume and saved over as the render goes, and standard input is
+/// open only for reading, so it is refused before the render as `-o /dev/stdin` is. It was
+/// resumed, each save refused with a warning, and the render went on with no checkpoint
+/// saved, exit 0. The checkpoint the shell opened is left as it was.
+#[test]
+fn a_checkpoint_named_as_standard_input_is_refused_before_the_render() {
+    let dir = temp_dir("checkpoint-to-stdin");
+    let scene = cover();
+    ok(
+        &small(&scene, &["--checkpoint", "own.ckpt", "-o", "own.png"]),
+        &dir,
+    );
+    let own = bytes(&dir, "own.ckpt");
+    std::os::unix::fs::symlink("/dev/stdin", dir.join("ck")).unwrap();
+    for checkpoint in ["/dev/stdin", "ck"] {
+        let o = tessera()
+            .args(small(
+                &scene,
+                &["--checkpoint", checkpoint, "-o", "out.png"],
+            ))
+            .current_dir(&dir)
+            .stdin(std::fs::File::open(dir.join("own.ckpt")).unwrap())
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{checkpoint}: {err}");
+        let said = format!("{checkpoint}: leads to standard input (file descriptor 0)");
+        assert!(
+            err.contains(&said) && err.contains("only for reading"),
+            "{err}"
+        );
+        assert!(
+            !err.contains("resuming") && !err.contains("warning"),
+            "{err}"
+        );
+        assert!(!dir.join("out.png").exists(), "{checkpoint}");
+        assert_eq!(bytes(&dir, "own.ckpt"), own, "{checkpoint}");
+    }
+}
+
+/// `--preview-file` leading to standard input (a link `p.png` to `/dev/stdin`: the flag
+/// takes only a `.png` name) is refused before the render, as `-o` is.
+#[test]
+fn a_preview_file_named_as_standard_input_is_refused_before_the_render() {
+    let dir = temp_dir("preview-to-stdin");
+    let input = dir.join("in.txt");
+    std::fs::write(&input, b"hello input\n").unwrap();
+    std::os::unix::fs::symlink("/dev/stdin", dir.join("p.png")).unwrap();
+    let o = tessera()
+        .args(small(
+            &cover(),
+            &["--preview-file", "p.png", "-o", "out.png"],
+        ))
+        .current_dir(&dir)
+        .stdin(std::fs::File::open(&input).unwrap())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("p.png: leads to standard input (file descriptor 0)"),
+        "{err}"
+    );
+    assert!(!dir.join("out.png").exists());
+    assert_eq!(bytes(&dir, "in.txt"), b"hello input\n");
+}
+
 /// An output's name is one line in the notes that name it, as in errors: `-o
 /// "r\nfake: line.png"` printed its summary on two lines, the second one starting with what
 /// the name chose (`render`, with or without `--shard`, and `merge`).

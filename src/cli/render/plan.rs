@@ -287,9 +287,11 @@ impl RenderPlan {
         let checkpoint = args
             .checkpoint
             .map(|path| CheckpointSettings { path, every });
-        if let Some(c) = &checkpoint
-            && !c.path.exists()
-        {
+        // A checkpoint that exists is read to resume and then saved over, so it is checked
+        // as an output too: one that leads to a descriptor held only for reading
+        // (`--checkpoint /dev/stdin < own.ckpt`) was resumed, then each save failed with a
+        // warning and the render went on with none saved, exit 0.
+        if let Some(c) = &checkpoint {
             check_output(&c.path)?;
         }
         // No two of the render's files may be one: a preview written where the image goes
