@@ -16,6 +16,7 @@ mod values;
 
 pub use build::{MAX_PIXELS, Overrides};
 pub use check::{MAX_LENGTH, MIN_RADIUS};
+pub use cover::MAX_KEEP_CLEAR;
 pub use textures::{
     MAX_TEXTURE_BYTES, MAX_TEXTURE_PIXELS, TextureSource, is_plain_name, open_texture, read_texture,
 };

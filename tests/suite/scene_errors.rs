@@ -478,6 +478,32 @@ fn a_bad_random_spheres_generator_is_rejected_with_its_line() {
     );
 }
 
+/// A grid keeps at most `MAX_KEEP_CLEAR` points clear: each of its spheres (up to 2^20) is
+/// tested against every point before the first pixel, and 10,000 points (a 129 KB file) took
+/// 27 s, the most a file's values allow some ten minutes. One point past the bound is
+/// refused at that point, by line and field; the bound itself renders.
+#[test]
+fn a_grid_keeping_more_points_clear_than_the_bound_is_refused() {
+    use tessera::scene::MAX_KEEP_CLEAR;
+    let with = |n: usize| {
+        let points = vec!["[100.0, 0.0, 100.0]"; n].join(", ");
+        format!("{GOOD}\n[random_spheres]\ngrid = 1\nkeep_clear = [{points}]\n")
+    };
+    assert_rejected(
+        "keep-clear-past-the-bound",
+        &with(MAX_KEEP_CLEAR + 1),
+        &[
+            "scene.toml:18:",
+            "random_spheres.keep_clear",
+            &format!("holds {} points", MAX_KEEP_CLEAR + 1),
+            &format!("the {MAX_KEEP_CLEAR} a grid may keep clear"),
+        ],
+    );
+    let dir = dir_with_scene("keep-clear-at-the-bound", with(MAX_KEEP_CLEAR));
+    let o = run(&["render", "scene.toml", "-o", "out.png", "-q"], &dir);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
 /// The bound on coordinates is on where a primitive ends up: a still sphere's centre within
 /// it, rotated 45° and moved by the most a translation may, lay at 2.4e18 and was rendered
 /// (a moving sphere's placed centre was already refused so). Each kind of placed primitive
