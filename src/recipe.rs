@@ -107,6 +107,23 @@ pub struct Maker {
     pub commit: String,
 }
 
+impl Maker {
+    /// This build of tessera: its version and the commit it was built from (`-dirty` where
+    /// the tree had changes).
+    pub fn this_build() -> Self {
+        Maker {
+            version: env!("CARGO_PKG_VERSION").to_owned(),
+            commit: env!("TESSERA_GIT_COMMIT").to_owned(),
+        }
+    }
+}
+
+impl std::fmt::Display for Maker {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        write!(f, "tessera {} (commit {})", self.version, self.commit)
+    }
+}
+
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SceneText {
@@ -204,10 +221,7 @@ impl Recipe {
     fn with_sums(source: &Source, scene: &Scene, sums: String) -> Self {
         Recipe {
             schema: SCHEMA.to_owned(),
-            tessera: Maker {
-                version: env!("CARGO_PKG_VERSION").to_owned(),
-                commit: env!("TESSERA_GIT_COMMIT").to_owned(),
-            },
+            tessera: Maker::this_build(),
             scene: source.scene.clone(),
             overrides: source.overrides,
             image: Effective::of(scene),

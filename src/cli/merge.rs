@@ -127,6 +127,16 @@ fn merged_recipe(
     part: &Path,
     textures: Option<&Path>,
 ) -> std::result::Result<Recipe, String> {
+    // A recipe names the build that renders its image: parts of another build's (all of
+    // one, or `check_set` refuses them) may hold other sums than this one renders.
+    let this = tessera::recipe::Maker::this_build();
+    if render.tessera != this {
+        return Err(format!(
+            "the parts were rendered by {}, not by this {this}, which may render other sums; \
+             merge them with that build for a recipe",
+            render.tessera
+        ));
+    }
     let dirs = tessera::recipe::texture_dirs(textures, part);
     let scene = source
         .parse(part, &dirs)

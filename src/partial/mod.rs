@@ -16,8 +16,9 @@ use crate::scene::Scene;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
-/// The version of the file layout this build writes and reads.
-const VERSION: u32 = 3;
+/// The version of the file layout this build writes and reads. 4: the header names the
+/// build that rendered the part (`RenderId::tessera`).
+const VERSION: u32 = 4;
 
 /// Which render a part belongs to: parts merge, and checkpoints resume, only within one.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -35,6 +36,11 @@ pub struct RenderId {
     /// Samples per pixel of the finished image: a merge must cover sample indices
     /// `0..target` of every pixel of `window`.
     pub target: u32,
+    /// The build that rendered the part. Builds of other commits may render other sums for
+    /// one scene and settings (a change of the integrator's arithmetic changes an image's
+    /// bytes), and a merge or a resume of parts of two builds made an image that neither
+    /// renders, its recipe naming the one that merged.
+    pub tessera: crate::recipe::Maker,
     /// The scene file and settings, for the recipe of the image a merge writes; none when
     /// the render was told to leave its recipe out.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -54,6 +60,7 @@ impl RenderId {
             gamma: s.gamma,
             window: s.window,
             target,
+            tessera: crate::recipe::Maker::this_build(),
             recipe: None,
         }
     }
@@ -80,6 +87,8 @@ impl RenderId {
             || self.gamma.to_bits() != other.gamma.to_bits()
         {
             pair("scene or settings", &self.fingerprint, &other.fingerprint)
+        } else if self.tessera != other.tessera {
+            pair("tessera build", &self.tessera, &other.tessera)
         } else {
             None
         }
@@ -260,6 +269,7 @@ pub(crate) mod tests {
                 gamma: 2.0,
                 window: PixelRect::full(8, 6),
                 target: 9,
+                tessera: crate::recipe::Maker::this_build(),
                 recipe: None,
             },
             state,

@@ -548,20 +548,101 @@ fn a_part_claiming_a_huge_image_is_refused_before_anything_is_allocated() {
     assert_eq!(bytes(&dir, "out.png"), b"precious");
 }
 
+/// This build, as a part's header names it.
+fn this_build() -> tessera::recipe::Maker {
+    tessera::recipe::Maker::this_build()
+}
+
+/// `part` as if rendered by the build of `commit`: its header's commit replaced, its length
+/// and checksum made right.
+fn made_by(part: &[u8], commit: &str) -> Vec<u8> {
+    let len = u64::from_le_bytes(part[16..24].try_into().unwrap()) as usize;
+    let header = std::str::from_utf8(&part[24..24 + len]).unwrap();
+    let ours = format!("\"commit\":\"{}\"", this_build().commit);
+    assert!(
+        header.contains(&ours),
+        "the header names no build: {header}"
+    );
+    let header = header.replace(&ours, &format!("\"commit\":\"{commit}\""));
+    let mut bytes = part[..16].to_vec();
+    bytes.extend_from_slice(&(header.len() as u64).to_le_bytes());
+    bytes.extend_from_slice(header.as_bytes());
+    bytes.extend_from_slice(&part[24 + len..part.len() - 8]);
+    let sum = xxhash_rust::xxh3::xxh3_64(&bytes);
+    bytes.extend_from_slice(&sum.to_le_bytes());
+    bytes
+}
+
+/// Builds of other commits may render other sums for one scene and settings, and parts
+/// named no build: a shard of one build merged with a shard of another made an image that
+/// neither renders, its recipe naming the build that merged, and a checkpoint of an older
+/// build was resumed by a newer one. Parts of two builds are refused, naming both; parts all
+/// of another build merge to an image without a recipe (this build's would not be its); a
+/// checkpoint of another build is not resumed.
+#[test]
+fn parts_and_checkpoints_of_another_tessera_build_do_not_mix() {
+    let dir = temp_dir("another-build");
+    let scene = cover();
+    let other = "0123456789abcdef0123456789abcdef01234567";
+    for i in 0..2 {
+        let (spec, name) = (format!("{i}/2"), format!("p{i}.part"));
+        ok(&small(&scene, &["--shard", &spec, "-o", &name]), &dir);
+        let theirs = made_by(&bytes(&dir, &name), other);
+        std::fs::write(dir.join(format!("q{i}.part")), theirs).unwrap();
+    }
+    let o = run(&["merge", "p0.part", "q1.part", "-o", "mixed.png"], &dir);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("q1.part: belongs to another render than p0.part: different tessera build")
+            && err.contains(other)
+            && err.contains(&this_build().commit),
+        "{err}"
+    );
+    assert!(!dir.join("mixed.png").exists());
+
+    let o = run(&["merge", "q0.part", "q1.part", "-o", "theirs.png"], &dir);
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains(&format!(
+            "the parts were rendered by tessera {}",
+            this_build().version
+        )) && err.contains(other)
+            && err.contains("theirs.png carries no recipe"),
+        "{err}"
+    );
+    let o = run(&["info", "theirs.png"], &dir);
+    assert!(stderr(&o).contains("no recipe"), "{}", stderr(&o));
+
+    let args = small(&scene, &["--checkpoint", "c.ckpt", "-o", "c.png"]);
+    ok(&args, &dir);
+    std::fs::write(dir.join("c.ckpt"), made_by(&bytes(&dir, "c.ckpt"), other)).unwrap();
+    let o = run(&args, &dir);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("c.ckpt: was rendered with a different tessera build") && err.contains(other),
+        "{err}"
+    );
+}
+
 /// A part of the image `width`×`height` holding one finished pixel at (`x`, `y`), sample 0
 /// of 1: its header passes every check of its own.
 fn one_pixel_part(width: u32, height: u32, x: u32, y: u32) -> Vec<u8> {
     let header = format!(
         concat!(
-            r#"{{"version":3,"render":{{"fingerprint":"00","seed":1,"width":{w},"height":{h},"#,
+            r#"{{"version":4,"render":{{"fingerprint":"00","seed":1,"width":{w},"height":{h},"#,
             r#""max_depth":5,"gamma":2.0,"window":{{"x0":0,"y0":0,"width":{w},"height":{h}}},"#,
-            r#""target":1}},"state":{{"job":{{"region":{{"x0":{x},"y0":{y},"width":1,"#,
+            r#""target":1,"tessera":{{"version":"{v}","commit":"{c}"}}}},"state":{{"job":{{"region":{{"x0":{x},"y0":{y},"width":1,"#,
             r#""height":1}},"samples":{{"start":0,"end":1}}}},"tile":1,"done":[1]}}}}"#
         ),
         w = width,
         h = height,
         x = x,
-        y = y
+        y = y,
+        v = this_build().version,
+        c = this_build().commit,
     );
     let mut bytes = b"TESSERA-PARTIAL\n".to_vec();
     bytes.extend_from_slice(&(header.len() as u64).to_le_bytes());
