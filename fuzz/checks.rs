@@ -500,13 +500,13 @@ pub fn result(bytes: &[u8]) -> Result<(), String> {
 
 #[cfg(feature = "results")]
 fn imported(accepted: &BenchResult) -> Result<(), String> {
-    use tessera::record::db::{Added, Filter, ResultsDb};
+    use tessera::record::db::{Filter, ResultsDb, Tally};
     let dir = tempfile::tempdir().map_err(|e| format!("no temporary directory: {e}"))?;
     let mut db = ResultsDb::open(&dir.path().join("results.db"))
         .map_err(|e| format!("a new database does not open: {e:#}"))?;
     let added = (db.add_all(std::slice::from_ref(accepted), "fuzz"))
         .map_err(|e| format!("an accepted result is not added: {e:#}"))?;
-    if !matches!(added[..], [Added::New(_)]) {
+    if added != (Tally { new: 1, present: 0 }) {
         return Err(format!("one result added to a new database gave {added:?}"));
     }
     let runs = (db.runs(&Filter::default())).map_err(|e| format!("runs unread: {e:#}"))?;

@@ -2592,3 +2592,55 @@ fn a_run_s_text_longer_than_any_import_takes_is_refused_unread() {
         }
     }
 }
+
+/// `results import` gathered every result of its files, and then each one's JSON, before
+/// it added any: 100 MB of results of 1,024 one-letter image hashes each took 1.1 GB, and a
+/// file may hold a million results (and an import names any number of files). Each result
+/// is added as it is read now, in the import's one transaction, so memory follows one
+/// result. Here 4,000 such results (24 MB) in 128 MiB of address space, which held about
+/// 280 MB of them before ("out of memory"); and a bad line after them still adds nothing.
+#[test]
+fn an_import_keeps_one_result_at_a_time_in_memory() {
+    let dir = temp_dir("results-import-memory");
+    let db = dir.join("r.db");
+    let base = json(&root().join("fuzz/corpus/result/quick-one-thread.json"));
+    let started = base["method"]["started_unix_s"].as_u64().unwrap();
+    // 4,000 results, the first `first` seconds before the corpus's.
+    let results_from = |first: u64| {
+        let mut lines = String::new();
+        for i in first..first + 4_000 {
+            let mut v = base.clone();
+            v["method"]["started_unix_s"] = Value::from(started - i);
+            v["validation"]["status"] = "invalid".into();
+            v["validation"]["images"] = vec![Value::from("a"); 1024].into();
+            lines.push_str(&serde_json::to_string(&v).unwrap());
+            lines.push('\n');
+        }
+        lines
+    };
+    std::fs::write(dir.join("many.jsonl"), results_from(0)).unwrap();
+    let o = results_capped(&dir, &db, &["import", "many.jsonl"], 128);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(stdout(&o), "imported 4000 new results, 0 already present\n");
+    let o = results(&dir, &db, &["import", "many.jsonl"]);
+    assert_eq!(stdout(&o), "imported 0 new results, 4000 already present\n");
+
+    // 4,000 others, then a line that is no result: nothing is added, and a first import of
+    // them makes no database.
+    std::fs::write(
+        dir.join("bad.jsonl"),
+        format!("{}{{}}\n", results_from(10_000)),
+    )
+    .unwrap();
+    for target in [&db, &dir.join("new.db")] {
+        let o = results(&dir, target, &["import", "many.jsonl", "bad.jsonl"]);
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(stderr(&o).contains("bad.jsonl:4001"), "{}", stderr(&o));
+    }
+    assert!(
+        !dir.join("new.db").exists(),
+        "a refused import made a database"
+    );
+    let o = results(&dir, &db, &["export", "--jsonl"]);
+    assert_eq!(stdout(&o).lines().count(), 4000, "a bad file let others in");
+}

@@ -18,7 +18,7 @@ use std::collections::{HashMap, HashSet};
 use std::hash::Hash;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use tessera::record::db::{self, Added, Filter, ResultsDb, Run};
+use tessera::record::db::{self, Filter, ResultsDb, Run};
 use tessera::record::host::Host;
 use tessera::record::result::BenchResult;
 use tessera::record::stats::{self, Scaling};
@@ -177,18 +177,21 @@ fn list(path: &Path, filter: &Filter) -> Result<()> {
 }
 
 /// `results import`: every file is read and checked before anything is added, so one bad
-/// file adds nothing.
+/// file adds nothing, and the database is not touched for a file it refuses. Both reads
+/// keep one result at a time, not the files': gathering every result before adding them
+/// took 1.1 GB for a file of 100 MB (and there are as many files as the user names). The
+/// second read checks each result again as it adds it, in one transaction, so a file
+/// changed between the two adds nothing either.
 fn import(path: &Path, files: &[PathBuf]) -> Result<()> {
-    let mut results = Vec::new();
-    for file in files {
-        results.extend(BenchResult::read_all(file)?);
-    }
-    let added = ResultsDb::add_to(path, &results, "import")?;
-    let new = added.iter().filter(|a| matches!(a, Added::New(_))).count();
+    let feed = |add: &mut dyn FnMut(&BenchResult) -> Result<()>| {
+        (files.iter()).try_for_each(|file| BenchResult::read_each(file, |r| add(&r)))
+    };
+    feed(&mut |_| Ok(()))?;
+    let tally = ResultsDb::add_fed_to(path, "import", feed)?;
     out(&format!(
         "imported {}, {} already present\n",
-        count(new as u64, "new result"),
-        added.len() - new
+        count(tally.new as u64, "new result"),
+        tally.present
     ))
 }
 

@@ -248,6 +248,14 @@ pub enum Added {
     Duplicate(i64),
 }
 
+/// What adding results did: how many were new, and how many were there already (by their
+/// digest).
+#[derive(Debug, Default, PartialEq)]
+pub struct Tally {
+    pub new: usize,
+    pub present: usize,
+}
+
 #[derive(Clone, Copy, PartialEq)]
 enum Access {
     Read,
@@ -269,20 +277,30 @@ impl ResultsDb {
     }
 
     /// Adds `reports` (from `source`) to the database at `path` in one transaction, as
-    /// `add_all` does, creating it where it does not exist: then they are written into the
-    /// new database before it is published, so that an import that fails (a full disk)
-    /// leaves no database of no runs behind, as one did.
-    pub fn add_to(path: &Path, reports: &[BenchResult], source: &str) -> Result<Vec<Added>> {
+    /// `add_fed_to` does.
+    pub fn add_to(path: &Path, reports: &[BenchResult], source: &str) -> Result<Tally> {
+        Self::add_fed_to(path, source, |add| reports.iter().try_for_each(add))
+    }
+
+    /// Adds the results `feed` hands over (from `source`) to the database at `path` in one
+    /// transaction, as `add_fed` does, creating it where it does not exist: then they are
+    /// written into the new database before it is published, so that an import that fails
+    /// (a full disk) leaves no database of no runs behind, as one did. `feed` is asked
+    /// again where another process published a new database first.
+    pub fn add_fed_to<F>(path: &Path, source: &str, feed: F) -> Result<Tally>
+    where
+        F: Fn(&mut dyn FnMut(&BenchResult) -> Result<()>) -> Result<()>,
+    {
         let missing = matches!(std::fs::symlink_metadata(path),
             Err(e) if e.kind() == std::io::ErrorKind::NotFound);
         if missing {
-            let made = create_with(path, |db| db.add_all(reports, source))?;
+            let made = create_with(path, |db| db.add_fed(source, &feed))?;
             if let Some(added) = made {
                 return Ok(added);
             }
         }
         // There already, or published by another process first: added to it.
-        Self::open(path)?.add_all(reports, source)
+        Self::open(path)?.add_fed(source, &feed)
     }
 
     /// Checks, making nothing, that a new database could be made at `path`, where none is
@@ -514,26 +532,38 @@ impl ResultsDb {
     }
 
     /// Adds `reports` (from `source`: `bench` or `import`) in one transaction: all or none.
-    pub fn add_all(&mut self, reports: &[BenchResult], source: &str) -> Result<Vec<Added>> {
+    pub fn add_all(&mut self, reports: &[BenchResult], source: &str) -> Result<Tally> {
+        self.add_fed(source, |add| reports.iter().try_for_each(add))
+    }
+
+    /// Adds each result `feed` hands over (from `source`: `bench` or `import`) in one
+    /// transaction, as it is handed over: all of them, or none where `feed` or a write
+    /// fails. Memory follows one result: an import that gathered every result (and its
+    /// JSON) before it wrote any took 1.1 GB for a file of 100 MB.
+    pub fn add_fed(
+        &mut self,
+        source: &str,
+        feed: impl FnOnce(&mut dyn FnMut(&BenchResult) -> Result<()>) -> Result<()>,
+    ) -> Result<Tally> {
         let added_unix_s = std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
             .map_or(0, |d| d.as_secs() as i64);
-        let jsons = (reports.iter())
-            .map(serde_json::to_string)
-            .collect::<Result<Vec<_>, _>>()?;
         let started = Instant::now();
-        let written = (|| {
-            let tx = self
-                .conn
-                .transaction_with_behavior(TransactionBehavior::Immediate)?;
-            let mut outcomes = Vec::new();
-            for (report, json) in reports.iter().zip(&jsons) {
-                outcomes.push(insert(&tx, report, json, source, added_unix_s)?);
+        let writing = |e| self.error(e, "could not write the results", started);
+        let tx = rusqlite::Transaction::new_unchecked(&self.conn, TransactionBehavior::Immediate)
+            .map_err(writing)?;
+        let mut tally = Tally::default();
+        feed(&mut |report| {
+            let json = serde_json::to_string(report)?;
+            match insert(&tx, report, &json, source, added_unix_s).map_err(writing)? {
+                Added::New(_) => tally.new += 1,
+                Added::Duplicate(_) => tally.present += 1,
             }
-            tx.commit()?;
-            Ok(outcomes)
-        })();
-        written.map_err(|e| self.error(e, "could not write the results", started))
+            Ok(())
+        })?;
+        // Dropped uncommitted where `feed` failed: rolled back, nothing added.
+        tx.commit().map_err(writing)?;
+        Ok(tally)
     }
 
     /// The runs `filter` selects, newest first, each as its result says (every column
