@@ -2303,6 +2303,21 @@ fn another_user_s_wal_file_beside_the_database_is_refused() {
         );
         assert!(!stdout(&o).contains("m-evil"), "{args:?}");
     }
+    // Through a link to the database, whose -wal SQLite names after the file the link
+    // leads to: the -wal beside the link's name (none) was looked at, and `list` showed
+    // `m-evil`.
+    let link = dir.join("link.db");
+    std::os::unix::fs::symlink("r.db", &link).unwrap();
+    for args in [&["list"][..], &["import", "quick.json"]] {
+        let o = results(&dir, &link, args);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "link {args:?}: {err}");
+        assert!(
+            err.contains("r.db-wal: belongs to another user (uid 65534"),
+            "link {args:?}: {err}"
+        );
+        assert!(!stdout(&o).contains("m-evil"), "link {args:?}");
+    }
     assert_eq!(bytes(&db), before);
     // The user's own -wal file is theirs to keep.
     std::fs::remove_file(&wal).unwrap();

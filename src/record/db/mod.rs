@@ -1033,8 +1033,9 @@ fn refuse_strangers_companions(path: &Path) -> Result<()> {
     let Ok(owner) = std::fs::metadata(path).map(|m| m.uid()) else {
         return Ok(());
     };
+    let real = companions_base(path);
     for suffix in ["-wal", "-shm", "-journal"] {
-        let mut name = path.as_os_str().to_owned();
+        let mut name = real.as_os_str().to_owned();
         name.push(suffix);
         let companion = PathBuf::from(name);
         let Ok(meta) = std::fs::symlink_metadata(&companion) else {
@@ -1102,8 +1103,9 @@ fn read_immutable_as_a_stranger(path: &Path) -> Result<bool> {
     if owner == crate::owner::this_user() {
         return Ok(false);
     }
+    let real = companions_base(path);
     let companion = |suffix: &str| {
-        let mut name = path.as_os_str().to_owned();
+        let mut name = real.as_os_str().to_owned();
         name.push(suffix);
         std::fs::metadata(PathBuf::from(name)).ok()
     };
@@ -1118,6 +1120,14 @@ fn read_immutable_as_a_stranger(path: &Path) -> Result<bool> {
         ),
         _ => Ok(true),
     }
+}
+
+/// The name SQLite gives the -wal, -shm and -journal files of the database at `path`:
+/// that of the file its links lead to, not the link's. Looked for beside a link's name, a
+/// -wal file another user left beside the database itself went unseen, and its rows were
+/// listed. Where the path cannot be resolved, SQLite cannot open it either: `path`.
+fn companions_base(path: &Path) -> PathBuf {
+    std::fs::canonicalize(path).unwrap_or_else(|_| path.to_owned())
 }
 
 /// The digest a result is kept under: the XXH3-128 of its JSON as stored, in hex.
