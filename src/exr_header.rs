@@ -827,13 +827,19 @@ pub fn read<R: Read>(r: R, len: u64) -> Result<ExrHeader, String> {
                 tiles = tile_size(&value);
             }
             (key, "string") if key == recipe::KEY => {
-                recipe = Some(
-                    String::from_utf8(value)
-                        .map_err(|_| "has a recipe that is not UTF-8 text".to_owned())?,
-                );
+                recipe = Some(String::from_utf8(value).map_err(|e| {
+                    format!(
+                        "has a recipe attribute (`{key}`) that is not UTF-8 text (a bad byte \
+                         at {} of its value)",
+                        e.utf8_error().valid_up_to()
+                    )
+                })?);
             }
-            (key, _) if key == recipe::KEY => {
-                return Err("has a recipe attribute that is not text".to_owned());
+            (key, kind) if key == recipe::KEY => {
+                return Err(format!(
+                    "has a recipe attribute (`{key}`) of type `{}`, not `string`",
+                    kind.escape_debug()
+                ));
             }
             ("dataWindow" | "displayWindow" | "channels" | "pixelAspectRatio" | "tiles", kind) => {
                 return Err(format!(

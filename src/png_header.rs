@@ -234,7 +234,7 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
                     if hasher.finalize() != u32::from_be_bytes(crc) {
                         return Err(format!("has a damaged iTXt chunk at byte {at} (bad CRC)"));
                     }
-                    if let Some(text) = recipe_of_itxt(&data)? {
+                    if let Some(text) = recipe_of_itxt(&data, at)? {
                         if found.is_some() {
                             return Err("has two recipes".to_owned());
                         }
@@ -646,44 +646,62 @@ fn read_keyword<R: Read>(r: &mut R, length: u64) -> Result<(Keyword, usize), Str
     })
 }
 
-/// The recipe in an iTXt chunk's `data`, when the chunk is tessera's.
-fn recipe_of_itxt(data: &[u8]) -> Result<Option<String>, String> {
+/// The recipe in an iTXt chunk's `data` (the chunk at byte `at`), when the chunk is
+/// tessera's. One that does not read is refused by the field that is wrong: its compression
+/// flag or method, the zero bytes that end its language tag and translated keyword, its
+/// text (inflated, then UTF-8).
+fn recipe_of_itxt(data: &[u8], at: u64) -> Result<Option<String>, String> {
     let mut fields = data.splitn(2, |&b| b == 0);
     if fields.next() != Some(KEY.as_bytes()) {
         return Ok(None);
     }
     let rest = fields.next().unwrap_or_default();
-    let bad = || "has a malformed recipe chunk".to_owned();
-    let (&compressed, rest) = rest.split_first().ok_or_else(bad)?;
-    let (&method, rest) = rest.split_first().ok_or_else(bad)?;
+    let bad = |what: String| format!("has a recipe chunk (iTXt '{KEY}' at byte {at}) of {what}");
+    let (&compressed, rest) = rest
+        .split_first()
+        .ok_or_else(|| bad("no compression flag".to_owned()))?;
+    let (&method, rest) = rest
+        .split_first()
+        .ok_or_else(|| bad("no compression method".to_owned()))?;
     // Language tag and translated keyword, each ended by a zero byte.
     let mut parts = rest.splitn(3, |&b| b == 0);
     let (_, _, text) = (
         parts.next(),
-        parts.next().ok_or_else(bad)?,
-        parts.next().ok_or_else(bad)?,
+        parts
+            .next()
+            .ok_or_else(|| bad("no zero byte after its language tag".to_owned()))?,
+        parts
+            .next()
+            .ok_or_else(|| bad("no zero byte after its translated keyword".to_owned()))?,
     );
     let bytes = match (compressed, method) {
         (0, _) if text.len() <= MAX_BYTES => text.to_vec(),
         (0, _) => {
-            return Err(format!(
-                "has a recipe of {} bytes, more than {}",
+            return Err(bad(format!(
+                "a recipe of {} bytes, more than {}",
                 text.len(),
                 MAX_BYTES
-            ));
+            )));
         }
         (1, 0) => fdeflate::decompress_to_vec_bounded(text, MAX_BYTES).map_err(|e| match e {
-            fdeflate::BoundedDecompressionError::OutputTooLarge { .. } => format!(
-                "has a compressed recipe that inflates beyond the {} bytes a recipe may have",
-                MAX_BYTES
-            ),
-            _ => "has a compressed recipe that does not inflate".to_owned(),
+            fdeflate::BoundedDecompressionError::OutputTooLarge { .. } => bad(format!(
+                "compressed text that inflates beyond the {MAX_BYTES} bytes a recipe may have"
+            )),
+            _ => bad("compressed text that does not inflate (a damaged zlib stream)".to_owned()),
         })?,
-        _ => return Err(bad()),
+        (1, method) => return Err(bad(format!("compression method {method}: 0 (zlib)"))),
+        (flag, _) => {
+            return Err(bad(format!(
+                "compression flag {flag}: 0 (none) or 1 (zlib)"
+            )));
+        }
     };
-    String::from_utf8(bytes)
-        .map(Some)
-        .map_err(|_| "has a recipe that is not UTF-8 text".to_owned())
+    String::from_utf8(bytes).map(Some).map_err(|e| {
+        bad(format!(
+            "text that is not UTF-8 (a bad byte at {} of its text)",
+            e.utf8_error().valid_up_to()
+        ))
+    })
 }
 
 /// Says where a palette PNG that `r` is at the start of has a pixel whose index lies past

@@ -435,3 +435,24 @@ fn chunks_must_hold_the_bytes_their_compression_stores_the_pixels_in() {
     // DWAB: no floor past 16 bytes a chunk.
     decoded(9).check(u64::MAX, 300, 300 + 16 * 16).unwrap();
 }
+
+/// A recipe attribute that does not read is refused by its name and what is wrong with it:
+/// its type, or the byte at which its text stops being UTF-8.
+#[test]
+fn a_malformed_recipe_attribute_is_refused_by_its_name() {
+    for (kind, value, said) in [
+        (
+            "string",
+            b"{\xff}".to_vec(),
+            "that is not UTF-8 text (a bad byte at 1 of its value)",
+        ),
+        ("int", vec![0; 4], "of type `int`, not `string`"),
+    ] {
+        let mut attributes = chunked(1, 1, 0, None);
+        attributes.push((recipe::KEY, kind, value));
+        let file = header_of(&attributes);
+        let e = read(&file[..], file.len() as u64).err().unwrap_or_default();
+        let named = format!("has a recipe attribute (`{}`) {said}", recipe::KEY);
+        assert!(e.contains(&named), "{e}");
+    }
+}

@@ -605,3 +605,42 @@ fn a_stream_shorter_than_the_rows_it_claims_is_refused() {
     assert_eq!(ends(png(&interlaced, &[0; 20])), Ok(()));
     assert!(ends(png(&interlaced, &[0; 19])).is_err());
 }
+
+/// A recipe chunk that does not read is refused by the field that is wrong, at the chunk's
+/// byte: its compression flag or method, the zero bytes ending its language tag and
+/// translated keyword, a text that does not inflate or is not UTF-8. Each was once "has a
+/// malformed recipe chunk", or a reason that named no chunk.
+#[test]
+fn a_malformed_recipe_chunk_is_refused_by_its_field() {
+    let ihdr = chunk(b"IHDR", &[0, 0, 0, 4, 0, 0, 0, 2, 8, 2, 0, 0, 0]);
+    let end = chunk(b"IEND", &[]);
+    let refused = |after_key: &[u8]| {
+        let itxt = [format!("{KEY}\0").as_bytes(), after_key].concat();
+        let png = [&PNG_SIGNATURE[..], &ihdr, &chunk(b"iTXt", &itxt), &end].concat();
+        read(Cursor::new(&png), png.len() as u64).unwrap_err()
+    };
+    let chunk_at = format!("recipe chunk (iTXt '{KEY}' at byte 33)");
+    for (after_key, field) in [
+        (
+            &b"\x02\0\0\0{}"[..],
+            "compression flag 2: 0 (none) or 1 (zlib)",
+        ),
+        (b"\x01\x05\0\0x", "compression method 5: 0 (zlib)"),
+        (b"", "no compression flag"),
+        (b"\0", "no compression method"),
+        (b"\0\0en", "no zero byte after its language tag"),
+        (b"\0\0en\0x", "no zero byte after its translated keyword"),
+        (
+            b"\x01\0\0\0\x78\x9c\xff",
+            "compressed text that does not inflate",
+        ),
+        (
+            b"\0\0\0\0{\xff}",
+            "text that is not UTF-8 (a bad byte at 1 of its text)",
+        ),
+    ] {
+        let e = refused(after_key);
+        assert!(e.contains(&chunk_at), "{e}");
+        assert!(e.contains(field), "{field}: {e}");
+    }
+}
