@@ -311,6 +311,15 @@ impl RgbImage {
                         if let Some(why) = frame.and_then(|f| f.too_short(after.coded_bytes)) {
                             return Err(why);
                         }
+                        // And so it fills a scan cut short whose end marker is put back: its
+                        // codes are followed to each block, from the file's start.
+                        file.seek(std::io::SeekFrom::Start(0))
+                            .map_err(|e| format!("could not be read: {e}"))?;
+                        if let Some(why) = crate::jpeg_end::sequential_fault(&mut file)
+                            .map_err(|e| format!("could not be read: {e}"))?
+                        {
+                            return Err(why);
+                        }
                         if after.scans > 1 {
                             changes.extend(late_adobe_change(&segments, &after.late_adobe));
                         }

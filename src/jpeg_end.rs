@@ -257,6 +257,353 @@ pub fn after_scan<R: std::io::Read>(
     }
 }
 
+/// A Huffman table of a JPEG (DHT), as F.2.2.3 of the standard decodes with it: for each
+/// code length, the largest code of that length (-1 for none), and where its codes' symbols
+/// begin among `symbols`, less its smallest code.
+#[derive(Clone)]
+struct Huffman {
+    max_code: [i32; 17],
+    offset: [i32; 17],
+    symbols: Vec<u8>,
+}
+
+impl Huffman {
+    /// The table of a DHT segment's 16 counts and the symbols after them, `None` where they
+    /// are more than a table holds (256) or more than its codes of each length can be.
+    fn new(counts: &[u8; 16], symbols: Vec<u8>) -> Option<Huffman> {
+        let (mut max_code, mut offset) = ([-1i32; 17], [0i32; 17]);
+        let (mut code, mut k) = (0i32, 0i32);
+        for len in 1..=16 {
+            let n = i32::from(counts[len - 1]);
+            offset[len] = k - code;
+            code += n;
+            k += n;
+            if n > 0 {
+                max_code[len] = code - 1;
+            }
+            if code > 1 << len {
+                return None;
+            }
+            code <<= 1;
+        }
+        (k as usize == symbols.len() && k <= 256).then_some(Huffman {
+            max_code,
+            offset,
+            symbols,
+        })
+    }
+}
+
+/// The bits of a scan's coded data, read from the bytes after its header: an FF stuffed as
+/// FF 00 is data, fill bytes before a marker are none, and a marker ends the data (kept in
+/// `marker`; FF D9 where the file ends).
+struct Bits<I: Iterator<Item = std::io::Result<u8>>> {
+    bytes: std::iter::Peekable<I>,
+    byte: u8,
+    left: u32,
+    marker: Option<u8>,
+}
+
+impl<I: Iterator<Item = std::io::Result<u8>>> Bits<I> {
+    /// The next byte of the file, `None` at its end.
+    fn next_byte(&mut self) -> std::io::Result<Option<u8>> {
+        self.bytes.next().transpose()
+    }
+
+    /// The next bit of coded data, `None` once the data has met a marker.
+    fn bit(&mut self) -> std::io::Result<Option<u32>> {
+        if self.left == 0 {
+            if self.marker.is_some() {
+                return Ok(None);
+            }
+            let Some(b) = self.next_byte()? else {
+                self.marker = Some(0xd9);
+                return Ok(None);
+            };
+            if b == 0xff {
+                let mut m = 0xff;
+                while m == 0xff {
+                    m = self.next_byte()?.unwrap_or(0xd9);
+                }
+                if m != 0 {
+                    self.marker = Some(m);
+                    return Ok(None);
+                }
+            }
+            (self.byte, self.left) = (b, 8);
+        }
+        self.left -= 1;
+        Ok(Some(u32::from(self.byte >> self.left) & 1))
+    }
+
+    /// The next `n` bits, `None` once the data has met a marker.
+    fn skip(&mut self, n: u8) -> std::io::Result<Option<()>> {
+        for _ in 0..n {
+            if self.bit()?.is_none() {
+                return Ok(None);
+            }
+        }
+        Ok(Some(()))
+    }
+
+    /// The symbol of the next code of `table`, `None` once the data has met a marker;
+    /// `Some(None)` for bits that are no code of it.
+    fn symbol(&mut self, table: &Huffman) -> std::io::Result<Option<Option<u8>>> {
+        let mut code = 0i32;
+        for len in 1..=16 {
+            let Some(bit) = self.bit()? else {
+                return Ok(None);
+            };
+            code = code << 1 | bit as i32;
+            if code <= table.max_code[len] {
+                let at = usize::try_from(code + table.offset[len]).ok();
+                return Ok(Some(at.and_then(|at| table.symbols.get(at).copied())));
+            }
+        }
+        Ok(Some(None))
+    }
+
+    /// Past what is left of the data to the next marker, which is taken (`None` at the end
+    /// of the file).
+    fn next_marker(&mut self) -> std::io::Result<Option<u8>> {
+        self.left = 0;
+        while self.marker.is_none() {
+            let Some(b) = self.next_byte()? else {
+                return Ok(None);
+            };
+            if b == 0xff {
+                let mut m = 0xff;
+                while m == 0xff {
+                    m = self.next_byte()?.unwrap_or(0xd9);
+                }
+                if m != 0 {
+                    self.marker = Some(m);
+                }
+            }
+        }
+        Ok(self.marker.take())
+    }
+}
+
+/// A frame's component: its name and its horizontal and vertical sampling factors.
+type Sampled = (u8, u8, u8);
+
+/// Why the scans of the sequential JPEG (baseline or extended, of Huffman coding: SOF0 or
+/// SOF1) `r` is at the start of do not code each block of its frame once, if they do not:
+/// a scan whose coded data ends (at a marker, or the file's end) before its last block,
+/// which the decoder and libjpeg fill with grey without failing (the file cut short, and an
+/// end marker put back: a texture with a grey band); a component coded by a second scan,
+/// whose blocks libjpeg takes from the last and the decoder (past a scan of every
+/// component) from the first; or a component no scan codes, grey. Their codes are followed
+/// through each block, the work bounded by the file's bits. A file of another kind, or
+/// whose tables or scans the walk cannot follow (a table it names missing, bits that are
+/// no code), is not judged here: the decoder's to read or refuse.
+pub fn sequential_fault<R: std::io::Read>(r: R) -> std::io::Result<Option<String>> {
+    use std::io::Read;
+    let mut bits = Bits {
+        bytes: std::io::BufReader::new(r).bytes().peekable(),
+        byte: 0,
+        left: 0,
+        marker: None,
+    };
+    // The frame's size and its components (name, sampling), its tables (DC 0-3, AC 4-7),
+    // its restart interval, and which scan coded each component.
+    let mut frame: Option<(u32, u32, Vec<Sampled>)> = None;
+    let mut tables: [Option<Huffman>; 8] = Default::default();
+    let mut interval = 0u32;
+    let mut coded: Vec<Option<usize>> = Vec::new();
+    let mut scans = 0usize;
+    let mut marker = bits.next_marker()?;
+    loop {
+        let Some(m) = marker else {
+            return Ok(None);
+        };
+        if matches!(m, 0xd0..=0xd8 | 0x01) {
+            marker = bits.next_marker()?;
+            continue;
+        }
+        if m == 0xd9 {
+            break;
+        }
+        // A segment: its length, then its body (at most 64 KiB).
+        let (Some(hi), Some(lo)) = (bits.next_byte()?, bits.next_byte()?) else {
+            return Ok(None);
+        };
+        let length = usize::from(u16::from_be_bytes([hi, lo])).saturating_sub(2);
+        let mut body = Vec::with_capacity(length);
+        for _ in 0..length {
+            let Some(b) = bits.next_byte()? else {
+                return Ok(None);
+            };
+            body.push(b);
+        }
+        match m {
+            0xc0 | 0xc1 if frame.is_none() => {
+                let (Some(&count), Some(h), Some(w)) =
+                    (body.get(5), body.get(1..3), body.get(3..5))
+                else {
+                    return Ok(None);
+                };
+                let Some(list) = body.get(6..6 + 3 * usize::from(count)) else {
+                    return Ok(None);
+                };
+                let components: Vec<Sampled> = list
+                    .chunks_exact(3)
+                    .map(|c| (c[0], (c[1] >> 4).max(1), (c[1] & 0xf).max(1)))
+                    .collect();
+                let (h, w) = (
+                    u16::from_be_bytes([h[0], h[1]]),
+                    u16::from_be_bytes([w[0], w[1]]),
+                );
+                if h == 0 || w == 0 || components.is_empty() {
+                    return Ok(None);
+                }
+                coded = vec![None; components.len()];
+                frame = Some((u32::from(w), u32::from(h), components));
+            }
+            // Another kind of frame: not judged here.
+            m if is_frame(m) => return Ok(None),
+            0xc4 => {
+                let mut rest = &body[..];
+                while let Some((&class_id, after)) = rest.split_first() {
+                    let Some(counts) = after.get(..16) else {
+                        return Ok(None);
+                    };
+                    let counts: [u8; 16] = counts.try_into().expect("16 bytes");
+                    let n: usize = counts.iter().map(|&c| usize::from(c)).sum();
+                    let Some(symbols) = after.get(16..16 + n) else {
+                        return Ok(None);
+                    };
+                    let slot = usize::from(class_id >> 4 & 1) * 4 + usize::from(class_id & 3);
+                    tables[slot] = Huffman::new(&counts, symbols.to_vec());
+                    rest = &after[16 + n..];
+                }
+            }
+            0xdd => {
+                let Some(i) = body.get(..2) else {
+                    return Ok(None);
+                };
+                interval = u32::from(u16::from_be_bytes([i[0], i[1]]));
+            }
+            0xda => {
+                let Some((w, h, components)) = &frame else {
+                    return Ok(None);
+                };
+                scans += 1;
+                let count = usize::from(*body.first().unwrap_or(&0));
+                let Some(list) = body.get(1..1 + 2 * count) else {
+                    return Ok(None);
+                };
+                // Each of the scan's components: its place in the frame and its tables.
+                let mut in_scan = Vec::new();
+                for c in list.chunks_exact(2) {
+                    let Some(i) = components.iter().position(|f| f.0 == c[0]) else {
+                        return Ok(None);
+                    };
+                    let (Some(dc), Some(ac)) = (
+                        tables[usize::from(c[1] >> 4 & 3)].clone(),
+                        tables[4 + usize::from(c[1] & 3)].clone(),
+                    ) else {
+                        return Ok(None);
+                    };
+                    if let Some(first) = coded[i] {
+                        return Ok(Some(format!(
+                            "codes its component {} in scan {first} and again in scan \
+                             {scans}: libjpeg takes its blocks from the last, the decoder from \
+                             the first where that scan held every component",
+                            c[0]
+                        )));
+                    }
+                    coded[i] = Some(scans);
+                    in_scan.push((i, dc, ac));
+                }
+                if in_scan.is_empty() {
+                    return Ok(None);
+                }
+                let h_most = u32::from(components.iter().map(|c| c.1).max().unwrap_or(1));
+                let v_most = u32::from(components.iter().map(|c| c.2).max().unwrap_or(1));
+                // An interleaved scan's MCUs hold each component's blocks of its sampling; a
+                // scan of one component codes each of its blocks alone.
+                let (mcus, per_mcu): (u64, Vec<u32>) = if in_scan.len() == 1 {
+                    let (_, hs, vs) = components[in_scan[0].0];
+                    let cols = (w * u32::from(hs)).div_ceil(h_most).div_ceil(8);
+                    let rows = (h * u32::from(vs)).div_ceil(v_most).div_ceil(8);
+                    (u64::from(cols) * u64::from(rows), vec![1])
+                } else {
+                    let cols = w.div_ceil(8 * h_most);
+                    let rows = h.div_ceil(8 * v_most);
+                    let per = in_scan
+                        .iter()
+                        .map(|&(i, _, _)| u32::from(components[i].1) * u32::from(components[i].2))
+                        .collect();
+                    (u64::from(cols) * u64::from(rows), per)
+                };
+                let blocks_per_mcu: u64 = per_mcu.iter().map(|&n| u64::from(n)).sum();
+                let mut block = 0u64;
+                for mcu in 0..mcus {
+                    if interval > 0 && mcu > 0 && mcu % u64::from(interval) == 0 {
+                        match bits.next_marker()? {
+                            Some(0xd0..=0xd7) => {}
+                            _ => return Ok(Some(ends_early(scans, block, mcus * blocks_per_mcu))),
+                        }
+                    }
+                    for ((_, dc, ac), &n) in in_scan.iter().zip(&per_mcu) {
+                        for _ in 0..n {
+                            let ended =
+                                || Ok(Some(ends_early(scans, block, mcus * blocks_per_mcu)));
+                            let Some(s) = bits.symbol(dc)? else {
+                                return ended();
+                            };
+                            let Some(s) = s else { return Ok(None) };
+                            if bits.skip(s & 15)?.is_none() {
+                                return ended();
+                            }
+                            let mut k = 1;
+                            while k < 64 {
+                                let Some(rs) = bits.symbol(ac)? else {
+                                    return ended();
+                                };
+                                let Some(rs) = rs else { return Ok(None) };
+                                let (run, size) = (rs >> 4, rs & 15);
+                                if size == 0 && run != 15 {
+                                    break;
+                                }
+                                k += usize::from(run) + 1;
+                                if bits.skip(size)?.is_none() {
+                                    return ended();
+                                }
+                            }
+                            block += 1;
+                        }
+                    }
+                }
+                marker = bits.next_marker()?;
+                continue;
+            }
+            _ => {}
+        }
+        marker = bits.next_marker()?;
+    }
+    if let Some(i) = coded.iter().position(Option::is_none) {
+        let name = frame.map_or(0, |f| f.2[i].0);
+        return Ok(Some(format!(
+            "codes its component {name} in none of its {scans} scan(s): the decoder and \
+             libjpeg show it grey (a truncated file?)"
+        )));
+    }
+    Ok(None)
+}
+
+/// What is said of a scan (the `scan`th) whose coded data ends at its block `block` of
+/// `blocks`.
+fn ends_early(scan: usize, block: u64, blocks: u64) -> String {
+    format!(
+        "has a scan (scan {scan}) whose coded data ends at its block {block} of {blocks}: the \
+         decoder and libjpeg fill the rest with grey (a truncated file, its end marker put \
+         back?)"
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -346,5 +693,115 @@ mod tests {
         // A frame the decoder does not read, or cut short, is none.
         assert_eq!(Frame::parse(0xc3, &[8, 0, 64, 0, 64, 1, 1, 0x11, 0]), None);
         assert_eq!(Frame::parse(0xc0, &[8, 0, 64, 0, 64, 2, 1, 0x11, 0]), None);
+    }
+    /// A baseline JPEG of `width`x`height` pixels and `components` components sampled 1x1,
+    /// of the scans `scans` (the components each codes, its coded data), its tables those of
+    /// `thin_jpeg`: each block takes two bits.
+    fn scanned_jpeg(width: u16, height: u16, components: u8, scans: &[(&[u8], &[u8])]) -> Vec<u8> {
+        let segment = |marker: u8, body: &[u8]| {
+            let length = (body.len() as u16 + 2).to_be_bytes();
+            [&[0xff, marker][..], &length, body].concat()
+        };
+        let mut frame = vec![8];
+        frame.extend(height.to_be_bytes());
+        frame.extend(width.to_be_bytes());
+        frame.push(components);
+        for c in 1..=components {
+            frame.extend([c, 0x11, 0]);
+        }
+        let one_code = |class: u8| [&[class, 1][..], &[0; 15], &[0]].concat();
+        let mut jpeg = [
+            &[0xff, 0xd8][..],
+            &segment(0xdb, &[&[0][..], &[1; 64]].concat()),
+            &segment(0xc0, &frame),
+            &segment(0xc4, &one_code(0x00)),
+            &segment(0xc4, &one_code(0x10)),
+        ]
+        .concat();
+        for (coded, data) in scans {
+            let mut scan = vec![coded.len() as u8];
+            for &c in *coded {
+                scan.extend([c, 0]);
+            }
+            scan.extend([0, 63, 0]);
+            jpeg.extend(segment(0xda, &scan));
+            jpeg.extend(*data);
+        }
+        jpeg.extend([0xff, 0xd9]);
+        jpeg
+    }
+
+    fn fault(jpeg: &[u8]) -> Option<String> {
+        sequential_fault(jpeg).unwrap()
+    }
+
+    /// A baseline JPEG cut within its scan and its end marker put back was decoded with the
+    /// rest grey, as a texture and by `compare`, without a word: the earth map cut at half
+    /// its coded data holds more than `too_short` asks. Its codes are followed through each
+    /// block, and the scan found to end at block 20,164 of 49,152 (of 4:2:0, six blocks an
+    /// MCU); the whole file codes them all.
+    #[test]
+    fn a_scan_whose_coded_data_ends_before_its_blocks_is_found() {
+        let whole = include_bytes!("../scenes/earthmap.jpg");
+        assert_eq!(fault(whole), None);
+        let scan = whole.windows(2).position(|w| w == [0xff, 0xda]).unwrap();
+        let cut = [&whole[..scan + (whole.len() - scan) / 2], &[0xff, 0xd9]].concat();
+        let why = fault(&cut).unwrap_or_default();
+        assert!(
+            why.starts_with("has a scan (scan 1) whose coded data ends at its block "),
+            "{why}"
+        );
+        // Two bits a block: 32 blocks of 8x8 want 8 bytes, 7 end at block 28.
+        assert_eq!(fault(&scanned_jpeg(64, 32, 1, &[(&[1], &[0; 8])])), None);
+        let why = fault(&scanned_jpeg(64, 32, 1, &[(&[1], &[0; 7])])).unwrap_or_default();
+        assert!(why.contains("ends at its block 28 of 32"), "{why}");
+        // A restart where the interval is not over ends the data too.
+        // Intervals of 4 blocks, a byte each, 8 of them: 7 restarts.
+        let data: Vec<u8> = (0..8u8)
+            .flat_map(|i| {
+                if i == 0 {
+                    vec![0]
+                } else {
+                    vec![0xff, 0xcf + i, 0]
+                }
+            })
+            .collect();
+        let mut restarted = scanned_jpeg(64, 32, 1, &[(&[1], &data)]);
+        let sos = restarted
+            .windows(2)
+            .position(|w| w == [0xff, 0xda])
+            .unwrap();
+        restarted.splice(sos..sos, [0xff, 0xdd, 0, 4, 0, 4]);
+        assert_eq!(fault(&restarted), None);
+        let mut early = scanned_jpeg(64, 32, 1, &[(&[1], &data[1..])]);
+        early.splice(sos..sos, [0xff, 0xdd, 0, 4, 0, 8]);
+        let why = fault(&early).unwrap_or_default();
+        assert!(why.contains("ends at its block 0 of 32"), "{why}");
+    }
+
+    /// Sequential scans of one component each are followed; a component coded by a second
+    /// scan (libjpeg takes the last, the decoder the first past a scan of all of them), or by
+    /// none, is found.
+    #[test]
+    fn a_component_coded_twice_or_never_is_found() {
+        let one = &[0u8][..];
+        let apart = scanned_jpeg(8, 8, 3, &[(&[1], one), (&[2], one), (&[3], one)]);
+        assert_eq!(fault(&apart), None);
+        assert_eq!(fault(&scanned_jpeg(8, 8, 3, &[(&[1, 2, 3], one)])), None);
+        let twice = scanned_jpeg(8, 8, 3, &[(&[1, 2, 3], one), (&[1], one)]);
+        let why = fault(&twice).unwrap_or_default();
+        assert!(
+            why.starts_with("codes its component 1 in scan 1 and again in scan 2"),
+            "{why}"
+        );
+        let never = scanned_jpeg(8, 8, 3, &[(&[1], one), (&[2], one)]);
+        let why = fault(&never).unwrap_or_default();
+        assert!(
+            why.starts_with("codes its component 3 in none of its 2 scan(s)"),
+            "{why}"
+        );
+        // A progressive file is not judged here.
+        let progressive = include_bytes!("../tests/data/progressive-8x8.jpg");
+        assert_eq!(fault(progressive), None);
     }
 }

@@ -630,6 +630,27 @@ fn a_jpeg_cut_short_is_refused() {
     assert_eq!(after.unwrap().rmse, 0.0);
 }
 
+/// The earth map cut at half its coded data and its end marker put back was measured with
+/// its lower half grey (as libjpeg shows it, with a warning), and so called identical to a
+/// picture of that grey: it holds more coded data than `too_short` asks. It is refused as
+/// a texture is, by the scan whose data ends and the block it ends at.
+#[test]
+fn a_jpeg_whose_scan_ends_before_its_blocks_is_refused() {
+    let jpeg = include_bytes!("../../scenes/earthmap.jpg");
+    let scan = jpeg.windows(2).position(|w| w == [0xff, 0xda]).unwrap();
+    let cut = [&jpeg[..scan + (jpeg.len() - scan) / 2], &[0xff, 0xd9]].concat();
+    let dir = std::env::temp_dir().join(format!("tessera-jpeg-scan-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("cut.jpg"), &cut).unwrap();
+    let e = difference_of_files(&dir.join("cut.jpg"), &dir.join("cut.jpg")).err();
+    std::fs::remove_dir_all(&dir).unwrap();
+    let e = e.map(|e| e.to_string()).unwrap_or_default();
+    assert!(
+        e.contains("has a scan (scan 1) whose coded data ends at its block"),
+        "{e}"
+    );
+}
+
 /// The decoder reads frames of Huffman coding, baseline, extended and progressive (SOF0 to
 /// SOF2), and skips a frame header of another kind as an unknown segment: the earth map's
 /// frame header marked arithmetic-coded (SOF9), lossless (SOF3) or hierarchical (SOF5) was

@@ -293,9 +293,19 @@ pub fn decode(bytes: &[u8], pixels_left: u64) -> Result<ImageTexture, String> {
              files leave of the {MAX_SCENE_TEXTURE_PIXELS} all of them may have"
         ));
     }
+    let is_jpeg = jpeg.is_some();
     // The decoder fills what the scans lack, as large as the frame claims.
     if let Some(why) = jpeg.and_then(|a| a.frame.and_then(|f| f.too_short(a.coded_bytes))) {
         return Err(format!("is a JPEG that {why}"));
+    }
+    // And so it fills a scan cut short whose end marker is put back, with grey: its codes
+    // are followed to each block (the file held whole in memory already, read once more).
+    if is_jpeg {
+        match crate::jpeg_end::sequential_fault(bytes) {
+            Ok(Some(why)) => return Err(format!("is a JPEG that {why}")),
+            Ok(None) => {}
+            Err(e) => return Err(format!("could not be read: {e}")),
+        }
     }
     // The decoder makes room for every sample a PNM's header claims before it reads one.
     if pnm {
@@ -399,6 +409,30 @@ mod tests {
         let mut appended = whole.to_vec();
         appended.extend(b"appended");
         assert!(decode(&appended, MAX_TEXTURE_PIXELS).is_ok());
+    }
+
+    /// The earth map cut at half its coded data and its end marker put back decoded, its
+    /// lower half grey, without a word (it holds more coded data than `too_short` asks); a
+    /// second scan of a component, or a component no scan codes, went unchecked. Each is
+    /// refused by what its scans lack.
+    #[test]
+    fn a_jpeg_whose_scans_do_not_code_each_block_once_is_refused() {
+        let whole = include_bytes!("../../scenes/earthmap.jpg");
+        let scan = whole.windows(2).position(|w| w == [0xff, 0xda]).unwrap();
+        let cut = [&whole[..scan + (whole.len() - scan) / 2], &[0xff, 0xd9]].concat();
+        let e = decode(&cut, MAX_TEXTURE_PIXELS).err().unwrap_or_default();
+        assert!(
+            e.starts_with("is a JPEG that has a scan (scan 1) whose coded data ends at its block"),
+            "{e}"
+        );
+        // The scan again, after the first: its three components coded twice.
+        let (pixels, end) = whole.split_at(whole.len() - 2);
+        let twice = [pixels, &whole[scan..whole.len() - 2], end].concat();
+        let e = decode(&twice, MAX_TEXTURE_PIXELS).err().unwrap_or_default();
+        assert!(
+            e.starts_with("is a JPEG that codes its component 1 in scan 1 and again in scan 2"),
+            "{e}"
+        );
     }
 
     /// A frame header of a kind the decoder does not read (arithmetic coding, SOF9) was
