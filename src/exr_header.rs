@@ -404,6 +404,23 @@ struct Tiles {
     mode: u8,
 }
 
+/// The longest side of a tile: OpenEXR keeps it in an `int`.
+const MAX_TILE_SIDE: u32 = i32::MAX as u32;
+
+/// Refuses a `tiledesc` value of tiles with a side of no pixels, or past an `int`'s: no
+/// tile OpenEXR makes, which the decoder refuses in its own words ("invalid: tile size").
+fn tile_fault(value: &[u8]) -> Result<(), String> {
+    match tile_size(value) {
+        Some((w, h)) if !(1..=MAX_TILE_SIDE).contains(&w) || !(1..=MAX_TILE_SIDE).contains(&h) => {
+            Err(format!(
+                "has a tiles attribute of tiles of {w}x{h} pixels: each side must be from 1 \
+                 to {MAX_TILE_SIDE}"
+            ))
+        }
+        _ => Ok(()),
+    }
+}
+
 /// The tile description of a `tiledesc` value, None where it is cut short.
 fn tiles(value: &[u8]) -> Option<Tiles> {
     let (width, height) = tile_size(value)?;
@@ -628,6 +645,7 @@ pub fn display_changes<R: Read + std::io::Seek>(
                 list = Some(value.clone());
             }
             ("tiles", "tiledesc") => {
+                tile_fault(&value)?;
                 tiles = tile_size(&value);
                 // Levels past the first are the picture again at smaller sizes, which a
                 // viewer may show zoomed out (and the decoder here never reads).
@@ -825,6 +843,7 @@ pub fn read<R: Read>(r: R, len: u64) -> Result<ExrHeader, String> {
                     );
                 }
                 tiles = tile_size(&value);
+                tile_fault(&value)?;
             }
             (key, "string") if key == recipe::KEY => {
                 recipe = Some(String::from_utf8(value).map_err(|e| {

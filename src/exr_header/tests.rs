@@ -456,3 +456,20 @@ fn a_malformed_recipe_attribute_is_refused_by_its_name() {
         assert!(e.contains(&named), "{e}");
     }
 }
+
+/// Tiles of a side of 0 pixels, or past an `int`'s, were refused in the decoder's words
+/// ("Format error decoding OpenExr: invalid: tile size"); they are refused by the
+/// attribute, with the sizes it gives.
+#[test]
+fn tiles_of_no_pixels_or_past_an_int_are_refused_by_the_attribute() {
+    for (w, h) in [(0, 16), (16, 0), (1 << 31, 16)] {
+        let file = header_of(&chunked(4, 4, 0, Some((w, h, 0))));
+        let e = read(&file[..], file.len() as u64).err().unwrap_or_default();
+        let said = format!("has a tiles attribute of tiles of {w}x{h} pixels");
+        assert!(e.starts_with(&said), "{e}");
+        let e = display_changes(Cursor::new(&file), file.len() as u64, 1 << 20);
+        assert!(e.unwrap_err().starts_with(&said));
+    }
+    let file = header_of(&chunked(4, 4, 0, Some((16, 16, 0))));
+    assert!(read(&file[..], file.len() as u64).is_ok());
+}
