@@ -34,6 +34,7 @@ pub const TARGETS: &[&str] = &[
     "part",
     "request",
     "result",
+    "image",
 ];
 
 /// The largest single allocation each target's input may cause, in bytes.
@@ -51,6 +52,11 @@ pub const CEILINGS: &[(&str, usize)] = &[
     // A result is at most 1 MiB of JSON (`record::result::MAX_FILE`), its value tree a few
     // times that.
     ("result", 64 << 20),
+    // An image of at most `MAX_COMPARED_PIXELS` (2^24) pixels compared, its decoded bytes
+    // (16 a pixel, RGBA floats) and floats (12) each one allocation; a texture of at most
+    // `MAX_TEXTURE_PIXELS` (2^25), 16 bytes a pixel decoded. A few dozen kilobytes of
+    // zeros may well deflate to that much.
+    ("image", 1 << 30),
 ];
 
 /// The largest input each target is run on (libFuzzer's `-max_len`, given by ci.sh), in
@@ -63,6 +69,7 @@ pub const MAX_LEN: &[(&str, usize)] = &[
     // Past the server's 8 KiB limit on a request's head (answered 431).
     ("request", 12 << 10),
     ("result", 64 << 10),
+    ("image", 64 << 10),
 ];
 
 /// A target's check of one input: `Err` says what contract it broke.
@@ -78,6 +85,7 @@ pub fn check_of(name: &str) -> Option<Check> {
         #[cfg(feature = "preview")]
         "request" => request::request,
         "result" => result,
+        "image" => image,
         _ => return None,
     })
 }
@@ -529,4 +537,45 @@ fn imported(accepted: &BenchResult) -> Result<(), String> {
 #[cfg(not(feature = "results"))]
 fn imported(_: &BenchResult) -> Result<(), String> {
     Ok(())
+}
+
+/// 7. An image file a stranger made, whatever its kind (PNG, JPEG, EXR, PNM, … found by its
+///    content), as `compare` reads it and as a scene's image texture: decoded, or refused
+///    naming the file, each within its bounds (`MAX_COMPARED_PIXELS`, `MAX_TEXTURE_PIXELS`),
+///    which the target's ceiling holds it to; and its bytes walked as a sequential JPEG's
+///    scans (`jpeg_end::sequential_fault`), which must end without a panic whatever they are.
+pub fn image(bytes: &[u8]) -> Result<(), String> {
+    let _ = tessera::jpeg_end::sequential_fault(bytes);
+    let dir = tempfile::tempdir().map_err(|e| format!("no temporary directory: {e}"))?;
+    // Without an extension, so that the kind is found from the bytes, as for a file whose
+    // extension says nothing.
+    let file = dir.path().join("fuzz-image");
+    std::fs::write(&file, bytes).map_err(|e| format!("the input is not written: {e}"))?;
+    if let Err(e) = tessera::image_diff::RgbImage::load(&file) {
+        names(&e, &file.display().to_string())?;
+    }
+    // As the texture of a scene beside it.
+    let scene = r#"[textures.stranger]
+type = "image"
+file = "fuzz-image"
+
+[materials.m]
+type = "lambertian"
+albedo = "stranger"
+
+[[spheres]]
+center = [0.0, 0.0, -1.0]
+radius = 0.5
+material = "m"
+"#;
+    let textures = tessera::scene::TextureSource::Dirs(vec![dir.path().to_owned()]);
+    match Scene::parse_with(
+        scene,
+        Path::new("fuzz.toml"),
+        &Overrides::default(),
+        &textures,
+    ) {
+        Ok(_) => Ok(()),
+        Err(e) => located(&e, "fuzz.toml"),
+    }
 }

@@ -6,7 +6,7 @@
 # executions and coverage. Exits 1 if any target crashed (a panic, an abort, an allocation
 # above its ceiling, a timeout), naming and keeping the input under fuzz/artifacts/TARGET/.
 #
-#   fuzz/ci.sh                      every target, FUZZ_SECONDS (default 20) each
+#   fuzz/ci.sh                      every target, FUZZ_SECONDS (default 17) each
 #   FUZZ_SECONDS=300 fuzz/ci.sh part request
 #   FUZZ_FINDINGS=0 fuzz/ci.sh      without fuzz/findings as seeds (a known finding not yet
 #                                   fixed crashes its target at once)
@@ -29,11 +29,11 @@ cd "$(dirname "$0")"
 started=$(date +%s)
 say() { echo "fuzz/ci.sh: $* (at $(($(date +%s) - started)) s)" >&2; }
 
-seconds=${FUZZ_SECONDS:-20}
-all=(scene png_recipe exr_header part request result)
+seconds=${FUZZ_SECONDS:-17}
+all=(scene png_recipe exr_header part request result image)
 if [ $# -gt 0 ]; then targets=("$@"); else targets=("${all[@]}"); fi
 # The largest input of each target (bytes): checks.rs's MAX_LEN.
-declare -A max_len=([scene]=65536 [png_recipe]=65536 [exr_header]=65536 [part]=65536 [request]=12288 [result]=65536)
+declare -A max_len=([scene]=65536 [png_recipe]=65536 [exr_header]=65536 [part]=65536 [request]=12288 [result]=65536 [image]=65536)
 for t in "${targets[@]}"; do
   [ -n "${max_len[$t]:-}" ] || { echo "fuzz/ci.sh: no target $t (targets: ${all[*]})" >&2; exit 2; }
 done

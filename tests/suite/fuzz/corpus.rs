@@ -86,6 +86,11 @@ fn fuzz_corpus_of_bench_results_replays_cleanly() {
 }
 
 #[test]
+fn fuzz_corpus_of_images_replays_cleanly() {
+    replay("image");
+}
+
+#[test]
 fn every_fuzz_target_has_a_check_and_a_corpus() {
     for target in checks::TARGETS {
         let fuzz = Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz");
