@@ -41,7 +41,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         textures,
     } = args;
     Format::from_path(&output)?;
-    check_output(&output)?;
+    check_output("-o", &output)?;
     let paths = part_files(&parts)?;
     // The image replaces whatever file it is written to: a part it adds up would be lost.
     if let Some(part) = paths.iter().find(|p| same_file(&output, p)) {

@@ -180,7 +180,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
             );
         }
         refuse_texture("--extract-scene", file, &recipe, &dirs)?;
-        check_output(file)?;
+        check_output("--extract-scene", file)?;
         tessera::atomic_file::write_atomically_with(file, &mut |w| {
             w.write_all(recipe.scene.text.as_bytes())
         })?;
@@ -200,7 +200,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
             );
         }
         refuse_texture("-o", file, &recipe, &dirs)?;
-        check_output(file)?;
+        check_output("-o", file)?;
     }
     let options = RenderOptions {
         threads: args.threads,

@@ -8,9 +8,10 @@ use std::path::{Path, PathBuf};
 use tessera::atomic_file::{check_writable, directory_named};
 use tessera::confinement;
 
-/// Checks that `path` can be written whole (`atomic_file::check_writable`), explaining a
-/// failure.
-pub fn check_output(path: &Path) -> Result<()> {
+/// Checks that `path`, given with the flag `flag` (`-o`, `--checkpoint`), can be written
+/// whole (`atomic_file::check_writable`), explaining a failure: the advice names the flag
+/// that gave the path, not always `-o`.
+pub fn check_output(flag: &str, path: &Path) -> Result<()> {
     let Err(e) = check_writable(path) else {
         return Ok(());
     };
@@ -54,7 +55,7 @@ pub fn check_output(path: &Path) -> Result<()> {
                     mount_advice(c, &dir)
                 ),
                 None => format!(
-                    "{}: {what}; choose another directory with -o",
+                    "{}: {what}; choose another directory with {flag}",
                     path.display()
                 ),
             }

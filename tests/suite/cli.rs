@@ -493,6 +493,38 @@ fn an_output_the_current_directory_cannot_take_names_that_directory() {
     );
 }
 
+/// A checkpoint or preview file that cannot be written is refused with advice naming the
+/// flag that gave it: the advice once said "choose another directory with -o" for a
+/// `--checkpoint` or `--preview-file` path, where `-o` would change nothing.
+#[test]
+fn an_unwritable_checkpoint_or_preview_names_its_own_flag() {
+    let test = "an_unwritable_checkpoint_or_preview_names_its_own_flag";
+    let dir = dir_with_scene("read-only-side-files", GOOD);
+    let tessera = env!("CARGO_BIN_EXE_tessera");
+    for (flag, file) in [("--checkpoint", "c.ckpt"), ("--preview-file", "p.png")] {
+        let script = format!(
+            "mount -o remount,ro small && {tessera} render scene.toml -o a.png -q \
+             {flag} small/{file}; echo \"status=$?\""
+        );
+        let Some(o) = in_a_small_filesystem(&dir, 16, &script) else {
+            return skip(
+                test,
+                "this machine cannot make a private filesystem (unshare -rm)",
+            );
+        };
+        let (out, err) = (String::from_utf8_lossy(&o.stdout), stderr(&o));
+        assert!(out.contains("status=2"), "{flag}: {out}{err}");
+        assert!(
+            err.contains(&format!(
+                "small/{file}: small is on a read-only file system; choose another \
+                 directory with {flag}"
+            )),
+            "{flag}: {err}"
+        );
+        assert!(!dir.join("a.png").exists(), "{flag}: rendered anyway");
+    }
+}
+
 #[test]
 fn a_closed_pipe_ends_quietly() {
     let dir = dir_with_scene("closed-pipe", GOOD);

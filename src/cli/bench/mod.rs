@@ -192,7 +192,7 @@ impl BenchMode {
         }
         if let Some(mut files) = args.chart {
             let out = files.remove(0);
-            check_output(&out)?;
+            check_output("--chart", &out)?;
             // The chart replaces whatever file it is written to: a result it draws would be lost.
             if let Some(result) = files.iter().find(|r| same_file(&out, r)) {
                 bail!(
@@ -224,7 +224,7 @@ impl BenchMode {
         let threads = args.threads.unwrap_or(cpus);
         let simd = args.simd.path()?;
         if let Some(path) = args.write_workloads {
-            check_output(&path)?;
+            check_output("--write-workloads", &path)?;
             // The workloads file replaces whatever file it is written to.
             if let Some(save) = measure::save_to(false, args.db.db.clone())
                 && let Some(what) = names_database_file(&path, &save.path)
@@ -275,7 +275,7 @@ impl BenchMode {
             }
         };
         if let Some(out) = &args.out {
-            check_output(out)?;
+            check_output("--out", out)?;
             // The result replaces whatever file it is written to: the scene measured would be
             // lost.
             if let Some(scene) = args.scene.as_deref().filter(|s| same_file(out, s)) {

@@ -71,7 +71,7 @@ impl PreviewSettings {
                 if Format::from_path(path)? != Format::Png {
                     bail!("--preview-file must name a .png file");
                 }
-                check_output(path)?;
+                check_output("--preview-file", path)?;
                 let every = seconds(
                     "--preview-every",
                     args.preview_every.unwrap_or(PREVIEW_EVERY_SECS),
@@ -283,7 +283,7 @@ impl RenderPlan {
             Output::Image(path)
         };
         // Refuse an output that cannot be written before spending minutes on the render.
-        check_output(output.path())?;
+        check_output("-o", output.path())?;
         let checkpoint = args
             .checkpoint
             .map(|path| CheckpointSettings { path, every });
@@ -292,7 +292,7 @@ impl RenderPlan {
         // (`--checkpoint /dev/stdin < own.ckpt`) was resumed, then each save failed with a
         // warning and the render went on with none saved, exit 0.
         if let Some(c) = &checkpoint {
-            check_output(&c.path)?;
+            check_output("--checkpoint", &c.path)?;
         }
         // No two of the render's files may be one: a preview written where the image goes
         // would replace an earlier image with part of a render, and leave it so if the render

@@ -478,7 +478,7 @@ fn history(
 
 /// `results report`: one HTML page, a section for each workload (or the one named).
 fn report(path: &Path, output: &Path, workload: Option<&str>, all: bool) -> Result<()> {
-    check_output(output)?;
+    check_output("-o", output)?;
     // The page replaces whatever file it is written to: the database would be lost, or
     // its write-ahead log and the runs not yet in the database.
     if let Some(what) = names_database_file(output, path) {
