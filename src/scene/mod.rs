@@ -340,6 +340,58 @@ mod tests {
         }
     }
 
+    /// An integer past its field's type is said as out of range, with the field, its line
+    /// and the range: it was "invalid type: integer `…` as i128, expected an integer".
+    #[test]
+    fn an_integer_past_its_field_s_type_is_said_out_of_range() {
+        let error = |from: &str, to: &str| {
+            let text = "[image]\nwidth = 4\nheight = 2\nsamples_per_pixel = 1\nmax_depth = 2\n\
+                        seed = 1\n[materials.m]\ntype = \"lambertian\"\nalbedo = [1.0, 1.0, 1.0]\n\
+                        [[spheres]]\ncenter = [0.0, 0.0, -1.0]\nradius = 0.5\nmaterial = \"m\"\n";
+            assert!(text.contains(from));
+            Scene::parse(
+                &text.replace(from, to),
+                Path::new("s.toml"),
+                &Overrides::default(),
+            )
+            .err()
+            .unwrap()
+            .to_string()
+        };
+        let signed = format!("an integer from {} to {}", i64::MIN, i64::MAX);
+        for big in [
+            "99999999999999999999999",
+            "9999999999999999999",
+            "-99999999999999999999",
+        ] {
+            assert_eq!(
+                error("width = 4", &format!("width = {big}")),
+                format!(
+                    "s.toml:2:9: field `image.width`: integer `{big}` is out of range: this \
+                     field is {signed}"
+                )
+            );
+        }
+        for seed in ["99999999999999999999", "-1"] {
+            assert_eq!(
+                error("seed = 1", &format!("seed = {seed}")),
+                format!(
+                    "s.toml:6:8: field `image.seed`: integer `{seed}` is out of range: this \
+                     field is an integer from 0 to {}",
+                    u64::MAX
+                )
+            );
+        }
+        let radius = error("radius = 0.5", "radius = 99999999999999999999999");
+        assert!(
+            radius.starts_with(
+                "s.toml:12:10: field `spheres[0].radius`: integer `99999999999999999999999` \
+                 is out of range"
+            ) && radius.contains("(`1e23`)"),
+            "{radius}"
+        );
+    }
+
     #[test]
     fn a_missing_key_names_its_table_at_the_tables_line() {
         let error = |text: &str| {

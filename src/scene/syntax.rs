@@ -102,11 +102,44 @@ pub(super) fn name_the_table(text: &str, start: usize, message: &str) -> String 
     format!("{table}: missing key `{key}`{hint}; docs/scene-format.md lists every key")
 }
 
-/// Serde names Rust types in its messages; a scene author knows TOML's.
+/// Serde names Rust types in its messages; a scene author knows TOML's. An integer past
+/// what its field's type holds is said as such, with the range (serde says "invalid type:
+/// integer `1e23…` as i128, expected i64", which reads as a complaint about its type).
 pub(super) fn plain_types(message: &str) -> String {
+    if let Some(said) = out_of_range(message) {
+        return said;
+    }
     message
         .replace("expected i64", "expected an integer")
         .replace("expected u64", "expected a non-negative integer")
         .replace("expected f64", "expected a number")
         .replace("a spanned value", "a value")
+}
+
+/// The message for an integer too large (or, for a non-negative field, negative) for its
+/// field's type, from serde's ("invalid type: integer `N` as i128, expected i64", "invalid
+/// value: integer `N`, expected u64"), or None for any other message. TOML's integers are
+/// 64-bit: a number field takes a larger one written as a float (`1e23`).
+fn out_of_range(message: &str) -> Option<String> {
+    let rest = (message.strip_prefix("invalid type: integer `"))
+        .or_else(|| message.strip_prefix("invalid value: integer `"))?;
+    let (number, after) = rest.split_once('`')?;
+    let expected = (after.strip_prefix(" as i128, expected "))
+        .or_else(|| after.strip_prefix(", expected "))?;
+    let range = match expected {
+        "i64" => format!("an integer from {} to {}", i64::MIN, i64::MAX),
+        "u64" => format!("an integer from 0 to {}", u64::MAX),
+        "f64" => {
+            return Some(format!(
+                "integer `{number}` is out of range: TOML's integers are from {} to {}; \
+                 write a number this large with an exponent (`1e23`)",
+                i64::MIN,
+                i64::MAX
+            ));
+        }
+        _ => return None,
+    };
+    Some(format!(
+        "integer `{number}` is out of range: this field is {range}"
+    ))
 }
