@@ -34,7 +34,7 @@ use crate::texture::{Texture, TextureId};
 use accel::Accelerator;
 pub use accel::{AcceleratorChoice, Primitives};
 use std::path::Path;
-use syntax::{key_path, name_the_table, plain_types};
+use syntax::{key_path, name_the_table, plain_types, too_deep};
 
 /// A validated, ready-to-render scene.
 #[derive(Clone, Debug)]
@@ -256,7 +256,16 @@ impl Described<'_> {
 fn describe(text: &str, path: &Path) -> Result<desc::SceneDesc> {
     let syntax = |e: &toml::de::Error, field: Option<String>| {
         let start = e.span().map_or(0, |s| s.start);
-        let message = name_the_table(text, start, &plain_types(e.message().trim()));
+        // The parser's refusal of what nests too deep names no place (for a key) and no
+        // field: they are found in the text.
+        let (start, field, message) = match too_deep(text, start, e.message().trim()) {
+            Some((at, deep_field, message)) => (at, deep_field.or(field), message),
+            None => (
+                start,
+                field,
+                name_the_table(text, start, &plain_types(e.message().trim())),
+            ),
+        };
         let at = Location::of_offset(text, start);
         match field {
             Some(field) => Error::SceneValue {
@@ -389,6 +398,66 @@ mod tests {
                  is out of range"
             ) && radius.contains("(`1e23`)"),
             "{radius}"
+        );
+    }
+
+    /// A key or value nested deeper than the TOML parser goes is refused at its line, with
+    /// its field: a dotted key of 81 parts was "s.toml:1:1: recursion limit" wherever it
+    /// stood, and arrays nested 81 deep "cannot recurse further; max recursion depth met",
+    /// with no field.
+    #[test]
+    fn what_nests_past_the_parser_s_depth_is_refused_at_its_line_and_field() {
+        let good = "[image]\nwidth = 4\nheight = 2\nsamples_per_pixel = 1\nmax_depth = 2\n\
+                    [materials.m]\ntype = \"lambertian\"\nalbedo = [1.0, 1.0, 1.0]\n";
+        let error = |text: &str| {
+            Scene::parse(text, Path::new("s.toml"), &Overrides::default())
+                .err()
+                .unwrap()
+                .to_string()
+        };
+        let n = syntax::PARSER_NESTING;
+        let key = vec!["k"; n + 1].join(".");
+        // # a comment. with. dots. and a "quoted.key" stay out of the count.
+        let quiet = format!("# {}\n", ".".repeat(n + 5));
+        for (place, text) in [
+            ("a key", format!("{good}{quiet}  {key} = 1\n")),
+            ("a header", format!("{good}{quiet}  [{key}]\n")),
+            (
+                "an inline table",
+                format!("{good}{quiet}x = {{ {key} = 1 }}\n"),
+            ),
+        ] {
+            let e = error(&text);
+            assert!(
+                e.starts_with(&format!(
+                    "s.toml:10:{}: a dotted key of more than {} parts",
+                    if place == "an inline table" {
+                        7
+                    } else {
+                        3 + usize::from(place == "a header")
+                    },
+                    n
+                )),
+                "{place}: {e}"
+            );
+        }
+        // One part fewer is a key the parser takes (and the scene does not know).
+        let within = vec!["k"; n].join(".");
+        assert!(!error(&format!("{good}{within} = 1\n")).contains("more than"));
+        let deep = format!(
+            "{good}[random_spheres]\nclearance = 0.5 # [[\nkeep_clear = [\n  \"[\", {}{}]\n",
+            "[".repeat(n),
+            "]".repeat(n)
+        );
+        let e = error(&deep);
+        assert_eq!(
+            e,
+            format!(
+                "s.toml:12:{}: field `random_spheres.keep_clear`: arrays and inline tables \
+                 nested more than {n} deep, more than the TOML parser takes; a scene's values \
+                 nest a few deep",
+                7 + n
+            )
         );
     }
 

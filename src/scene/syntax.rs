@@ -1,5 +1,8 @@
 //! What the TOML parser says of a scene file, in the scene's own terms: the keys to a value
-//! as the file names them, the table a missing key is missing from, plain type names.
+//! as the file names them, the table a missing key is missing from, plain type names, and
+//! where a key or value nests deeper than the parser goes, and in which field.
+
+use super::values::string_end;
 
 /// The keys to a value as a scene file names them (`spheres[2].center`), without the
 /// wrappers that keep each value's place in the file.
@@ -142,4 +145,133 @@ fn out_of_range(message: &str) -> Option<String> {
     Some(format!(
         "integer `{number}` is out of range: this field is {range}"
     ))
+}
+
+/// How deep the TOML parser (`toml`'s `LIMIT`) lets keys and values nest: a dotted key of
+/// more parts, or arrays and inline tables nested deeper, are refused by it, a key with no
+/// place in the file ("recursion limit", which would read as line 1) and a value with no
+/// field ("cannot recurse further").
+pub(super) const PARSER_NESTING: usize = 80;
+
+/// What the parser's message `message` at `start` says, where it is its refusal of keys or
+/// values nested past `PARSER_NESTING`: where (a key's start; the parser gives none), the
+/// field that holds it where there is one, and the message in the scene's terms.
+pub(super) fn too_deep(
+    text: &str,
+    start: usize,
+    message: &str,
+) -> Option<(usize, Option<String>, String)> {
+    if message == "recursion limit" {
+        let at = long_dotted_key(text).unwrap_or(start);
+        return Some((
+            at,
+            None,
+            format!(
+                "a dotted key of more than {PARSER_NESTING} parts, more than the TOML parser \
+                 takes; a scene's keys need a few"
+            ),
+        ));
+    }
+    if !message.starts_with("cannot recurse further") {
+        return None;
+    }
+    let field = field_holding(text, start);
+    Some((
+        start,
+        (!field.is_empty()).then_some(field),
+        format!(
+            "arrays and inline tables nested more than {PARSER_NESTING} deep, more than the \
+             TOML parser takes; a scene's values nest a few deep"
+        ),
+    ))
+}
+
+/// The start of the first dotted key in `text` of more than `PARSER_NESTING` parts:
+/// a run of words and quoted keys joined by dots (and blanks), outside comments. A number
+/// has one dot at most, so only a key (or what is no TOML at all) makes such a run.
+fn long_dotted_key(text: &str) -> Option<usize> {
+    let bytes = text.as_bytes();
+    let (mut at, mut run_start, mut dots) = (0, None, 0);
+    while at < bytes.len() {
+        match bytes[at] {
+            b'#' => {
+                at = bytes[at..]
+                    .iter()
+                    .position(|&b| b == b'\n')
+                    .map_or(bytes.len(), |n| at + n);
+                (run_start, dots) = (None, 0);
+                continue;
+            }
+            b'"' | b'\'' => {
+                run_start.get_or_insert(at);
+                at = string_end(bytes, at).unwrap_or(bytes.len());
+                continue;
+            }
+            b'.' => {
+                dots += 1;
+                if dots >= PARSER_NESTING {
+                    return run_start;
+                }
+            }
+            b' ' | b'\t' => {}
+            b if b.is_ascii_alphanumeric() || b == b'_' || b == b'-' => {
+                run_start.get_or_insert(at);
+            }
+            _ => (run_start, dots) = (None, 0),
+        }
+        at += 1;
+    }
+    None
+}
+
+/// The field whose value holds the offset `at`: the table whose header is the last before
+/// it at the top level, and the key whose value it is in (`random_spheres.keep_clear`);
+/// empty where there is neither. Strings and comments are passed over.
+fn field_holding(text: &str, at: usize) -> String {
+    let bytes = text.as_bytes();
+    let end = at.min(bytes.len());
+    let (mut i, mut depth, mut in_value) = (0, 0usize, false);
+    let (mut table, mut key, mut key_start) = (String::new(), String::new(), 0);
+    while i < end {
+        match bytes[i] {
+            b'#' => {
+                i = bytes[i..]
+                    .iter()
+                    .position(|&b| b == b'\n')
+                    .map_or(bytes.len(), |n| i + n);
+                continue;
+            }
+            b'"' | b'\'' => {
+                i = string_end(bytes, i).unwrap_or(bytes.len());
+                continue;
+            }
+            b'\n' if depth == 0 => (in_value, key_start) = (false, i + 1),
+            b'=' if depth == 0 && !in_value => {
+                key = text.get(key_start..i).unwrap_or("").trim().to_owned();
+                in_value = true;
+            }
+            b'[' | b'{' if in_value => depth += 1,
+            b']' | b'}' if in_value => depth = depth.saturating_sub(1),
+            b'[' if depth == 0 => {
+                // A table's header: its name, up to its line's end.
+                let line_end = bytes[i..]
+                    .iter()
+                    .position(|&b| b == b'\n')
+                    .map_or(bytes.len(), |n| i + n);
+                let header = text.get(i..line_end).unwrap_or("");
+                let header = header.split('#').next().unwrap_or("").trim();
+                table = header.trim_matches(['[', ']']).trim().to_owned();
+                key.clear();
+                i = line_end;
+                continue;
+            }
+            _ => {}
+        }
+        i += 1;
+    }
+    match (table.is_empty(), key.is_empty()) {
+        (_, true) => table,
+        (true, false) => key,
+        (false, false) => format!("{table}.{key}"),
+    }
 }

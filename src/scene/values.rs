@@ -81,6 +81,24 @@ pub fn past_the_bound(text: &str) -> Option<(usize, Bound)> {
     None
 }
 
+/// The offset just past the string that starts at `at` (at its quote), read as the lexer
+/// reads it (`past_the_bound`), or None where no string starts there.
+pub(super) fn string_end(bytes: &[u8], at: usize) -> Option<usize> {
+    Some(match bytes.get(at)? {
+        b'"' if bytes[at..].starts_with(b"\"\"\"") => multi_line_end(bytes, at + 3, b'"'),
+        b'\'' if bytes[at..].starts_with(b"\'\'\'") => multi_line_end(bytes, at + 3, b'\''),
+        b'"' => basic_string_end(bytes, at + 1),
+        b'\'' => match bytes[at + 1..]
+            .iter()
+            .position(|&b| b == b'\'' || b == b'\n')
+        {
+            Some(n) => at + 1 + n + usize::from(bytes[at + 1 + n] == b'\''),
+            None => bytes.len(),
+        },
+        _ => return None,
+    })
+}
+
 /// The offset of the first byte after `at` for which `ends` holds (or the text's end).
 fn run_end(bytes: &[u8], at: usize, ends: impl Fn(u8) -> bool) -> usize {
     bytes[at + 1..]
