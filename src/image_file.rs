@@ -236,7 +236,21 @@ pub fn read_header(path: &Path) -> Result<ImageHeader> {
 
 /// `read_header` of any size.
 fn read_any_header(path: &Path) -> Result<ImageHeader> {
-    let format = Format::from_path(path)?;
+    // An image to read is named by its extension as one to write is, but refused in a
+    // reader's words: `from_path`'s "unsupported output extension" named no output here.
+    let format = Format::from_path(path).map_err(|_| {
+        let ext = path.extension().map(|e| e.to_string_lossy());
+        image_error(
+            path,
+            format!(
+                "is not a .png or .exr image ({}): a recipe is read from an image tessera \
+                 wrote, PNG or EXR, named by its extension",
+                ext.map_or("it has no extension".to_owned(), |e| format!(
+                    "its extension is `.{e}`"
+                ))
+            ),
+        )
+    })?;
     let io = |cause| Error::Io {
         path: path.to_owned(),
         cause,
@@ -473,6 +487,25 @@ pub fn read_pixels(path: &Path, header: &ImageHeader) -> Result<Pixels> {
 mod tests {
     use super::*;
     use crate::film::to_fixed;
+
+    /// An image to read whose extension is not PNG's or EXR's is refused in a reader's
+    /// words: `tessera info a.jpg` said "unsupported output extension `.jpg`".
+    #[test]
+    fn an_image_to_read_of_another_extension_is_refused_as_an_input() {
+        for (name, said) in [
+            ("a.jpg", "its extension is `.jpg`"),
+            ("/dev/zero", "it has no extension"),
+        ] {
+            let e = read_header(Path::new(name)).unwrap_err().to_string();
+            assert_eq!(
+                e,
+                format!(
+                    "{name}: is not a .png or .exr image ({said}): a recipe is read from an \
+                     image tessera wrote, PNG or EXR, named by its extension"
+                )
+            );
+        }
+    }
 
     #[test]
     fn ppm_is_the_books_plain_text() {
