@@ -26,7 +26,8 @@ pub enum RunState {
     Rendering,
     Finished,
     Interrupted,
-    /// Rendered, but its output (image, part or checkpoint) could not be written.
+    /// Its output could not be written: a finished render's image, part or checkpoint, or
+    /// an interrupted one's checkpoint (its progress lost).
     Failed,
 }
 

@@ -467,6 +467,69 @@ fn a_render_whose_output_cannot_be_written_tells_its_viewer_it_failed() {
     }
 }
 
+/// An interrupted render whose checkpoint cannot be written has lost its progress: its page
+/// said "interrupted", as if the progress were saved, while the terminal said it was not
+/// (exit 2). The page now says it failed, as the docs promise for a checkpoint not written.
+#[test]
+fn an_interrupted_render_whose_checkpoint_cannot_be_written_tells_its_viewer_it_failed() {
+    let dir = temp_dir("preview-failed-checkpoint");
+    let mut args = cover_args(400, 256);
+    args.extend(
+        [
+            "--threads",
+            "1",
+            "-o",
+            "out.png",
+            "--checkpoint",
+            "c.part",
+            "--checkpoint-every",
+            "3600",
+            "--preview",
+        ]
+        .map(String::from),
+    );
+    let mut command = std::process::Command::new("sh");
+    command
+        .args(["-c", "ulimit -f 0 && exec \"$0\" \"$@\""])
+        .arg(env!("CARGO_BIN_EXE_tessera"))
+        .args(&args);
+    let mut viewer = Viewer::start_command(command, &dir);
+    viewer.wait_for("the second pass", |s| s["spp_done"].as_u64() >= Some(4));
+    let mut stream = TcpStream::connect(viewer.addr).unwrap();
+    stream.set_read_timeout(Some(PATIENCE)).unwrap();
+    write!(
+        stream,
+        "GET /{}/events HTTP/1.1\r\nHost: {}\r\n\r\n",
+        viewer.key, viewer.addr
+    )
+    .unwrap();
+    let _ = std::process::Command::new("kill")
+        .args(["-INT", &viewer.child.id().to_string()])
+        .status();
+    // The stream to its end: the server goes after the last status.
+    let mut seen = Vec::new();
+    let _ = stream.read_to_end(&mut seen);
+    let code = viewer.wait();
+    let stderr = viewer.stderr.lock().unwrap().clone();
+    if code == 0 {
+        return skip(
+            "an_interrupted_render_whose_checkpoint_cannot_be_written",
+            "the render ended before Ctrl-C",
+        );
+    }
+    assert_eq!(code, 2, "{stderr}");
+    assert!(stderr.contains("could not be saved"), "{stderr}");
+    let text = String::from_utf8_lossy(&seen);
+    let last = text
+        .rsplit("event: status\ndata: ")
+        .next()
+        .and_then(|data| data.lines().next())
+        .expect("a status");
+    let last: serde_json::Value = serde_json::from_str(last).expect("a status is JSON");
+    assert_eq!(last["state"], "failed", "{text}");
+    assert!(last["download"].is_null(), "{last}");
+}
+
 /// A scene file's name and an output's are text a stranger may choose (a scene handed over
 /// under its name): a right-to-left override (U+202E) in them reached the viewer's page raw
 /// and reversed what it showed of the scene, the title, the output and the download's name

@@ -278,8 +278,14 @@ pub fn run(args: Args) -> Result<ExitCode> {
     // up to 5 s for its clients (a hostile one holds it that long), which would eat into the
     // few seconds a container is given between SIGTERM and SIGKILL.
     let saved = saver.as_ref().map(|saver| saver.save_at_end(&state));
+    // Interrupted, its progress saved; or failed, where the checkpoint could not be written
+    // and the progress is lost (the terminal says why).
     if let Some(preview) = preview.take_if(|_| !state.is_complete()) {
-        preview.end(&state, RunState::Interrupted).close();
+        let run = match &saved {
+            Some(Err(_)) => RunState::Failed,
+            _ => RunState::Interrupted,
+        };
+        preview.end(&state, run).close();
     }
     if let Some(saver) = &saver {
         failed_if(saved.transpose(), &mut preview, &state)?;
