@@ -945,6 +945,55 @@ fn a_public_address_warns_that_anyone_can_see() {
     assert!(err.contains("warning") && err.contains("anyone"), "{err}");
 }
 
+/// A preview file that is a pipe (FIFO) was written in place, and opening a pipe for writing
+/// waits for a reader: with none, the preview's writer waited for ever, and tessera, its
+/// image written, never ended. It is refused before the render.
+#[test]
+fn a_preview_file_that_is_a_pipe_is_refused_before_the_render() {
+    let dir = temp_dir("preview-file-pipe");
+    let made = std::process::Command::new("mkfifo")
+        .arg(dir.join("pipe.png"))
+        .status();
+    if !made.is_ok_and(|s| s.success()) {
+        return skip("a_preview_file_that_is_a_pipe", "no mkfifo");
+    }
+    let mut child = tessera()
+        .args([
+            "render",
+            &cover(),
+            "--width",
+            "32",
+            "--spp",
+            "4",
+            "-o",
+            "x.png",
+            "--preview-file",
+            "pipe.png",
+        ])
+        .current_dir(&dir)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start tessera");
+    let start = Instant::now();
+    let code = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status.code();
+        }
+        if start.elapsed() > PATIENCE {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("tessera did not end: it waits for a reader of the preview's pipe");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let mut err = String::new();
+    let _ = child.stderr.take().unwrap().read_to_string(&mut err);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("is a pipe"), "{err}");
+    assert!(!dir.join("x.png").exists(), "rendered anyway");
+}
+
 #[test]
 fn preview_files_show_the_jobs_own_pixels() {
     let dir = temp_dir("preview-file");

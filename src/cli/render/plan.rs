@@ -72,6 +72,7 @@ impl PreviewSettings {
                     bail!("--preview-file must name a .png file");
                 }
                 check_output("--preview-file", path)?;
+                refuse_pipe(path)?;
                 let every = seconds(
                     "--preview-every",
                     args.preview_every.unwrap_or(PREVIEW_EVERY_SECS),
@@ -100,6 +101,22 @@ impl PreviewSettings {
             file,
         })
     }
+}
+
+/// Refuses a preview file that is a pipe (FIFO), or leads to one. A pipe is written in place,
+/// and opening one for writing waits for a reader: with none, the preview's writer would wait
+/// for ever and tessera, its image written, would never end; with one, it would get a PNG
+/// only when it opened the pipe again for each. The preview is a file rewritten whole.
+fn refuse_pipe(path: &Path) -> Result<()> {
+    use std::os::unix::fs::FileTypeExt;
+    if std::fs::metadata(path).is_ok_and(|m| m.file_type().is_fifo()) {
+        bail!(
+            "--preview-file: {} is a pipe (FIFO), which would hold tessera until something \
+             reads it; the preview is a file rewritten every few seconds: name a file",
+            path_safe(path)
+        );
+    }
+    Ok(())
 }
 
 /// A number of seconds from the command line, checked.
