@@ -256,6 +256,11 @@ fn channels(value: &[u8]) -> Result<Vec<(String, SampleType)>, String> {
 pub fn check_bounds<R: Read>(r: R, len: u64, most_decoded: u64) -> Result<(), String> {
     let mut decoded = Decoded::default();
     let header_len = walk(r, len, &mut |name, kind, value| {
+        // Tiles of a side of no pixels are refused by the attribute here too, not in the
+        // decoder's words ("invalid: tile size"), as `read` and `display_changes` refuse them.
+        if (name, kind) == ("tiles", "tiledesc") {
+            tile_fault(&value)?;
+        }
         decoded.note(name, kind, &value);
         Ok(())
     })?;

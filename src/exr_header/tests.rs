@@ -469,6 +469,9 @@ fn tiles_of_no_pixels_or_past_an_int_are_refused_by_the_attribute() {
         assert!(e.starts_with(&said), "{e}");
         let e = display_changes(Cursor::new(&file), file.len() as u64, 1 << 20);
         assert!(e.unwrap_err().starts_with(&said));
+        // The walk a texture is read through (`check_bounds`) refuses them alike.
+        let e = check_bounds(&file[..], file.len() as u64, 1 << 20);
+        assert!(e.as_ref().unwrap_err().starts_with(&said), "{e:?}");
     }
     let file = header_of(&chunked(4, 4, 0, Some((16, 16, 0))));
     assert!(read(&file[..], file.len() as u64).is_ok());

@@ -511,4 +511,43 @@ mod tests {
         let e = decode(&png, MAX_TEXTURE_PIXELS).unwrap_err();
         assert!(e.contains("100000x100000"), "{e}");
     }
+
+    /// A tiled EXR of tiles 0 pixels wide reached the decoder, which refused it in its own
+    /// words ("cannot read the image's size: Format error decoding OpenExr: invalid: tile
+    /// size"); it is refused by the attribute, as `compare` and `info` refuse it.
+    #[test]
+    fn an_exr_texture_of_tiles_of_no_pixels_is_refused_by_the_attribute() {
+        let attribute = |name: &str, kind: &str, value: &[u8]| {
+            let mut a = [name.as_bytes(), b"\0", kind.as_bytes(), b"\0"].concat();
+            a.extend((value.len() as u32).to_le_bytes());
+            a.extend(value);
+            a
+        };
+        let ints = |v: &[i32]| v.iter().flat_map(|i| i.to_le_bytes()).collect::<Vec<u8>>();
+        let mut channels = Vec::new();
+        for name in [b"B", b"G", b"R"] {
+            channels.extend([&name[..], b"\0", &ints(&[2, 0, 1, 1])].concat());
+        }
+        channels.push(0);
+        let mut exr = vec![0x76, 0x2f, 0x31, 0x01, 2, 2, 0, 0];
+        exr.extend(attribute("channels", "chlist", &channels));
+        exr.extend(attribute("compression", "compression", &[0]));
+        exr.extend(attribute("dataWindow", "box2i", &ints(&[0, 0, 3, 3])));
+        exr.extend(attribute("displayWindow", "box2i", &ints(&[0, 0, 3, 3])));
+        exr.extend(attribute(
+            "tiles",
+            "tiledesc",
+            &[ints(&[0, 16]), vec![0]].concat(),
+        ));
+        exr.push(0);
+        // One tile's offset, and the tile: its coordinates, its length and its pixels.
+        exr.extend((exr.len() as u64 + 8).to_le_bytes());
+        exr.extend(ints(&[0, 0, 0, 0, 4 * 4 * 12]));
+        exr.extend([0; 4 * 4 * 12]);
+        let e = decode(&exr, MAX_TEXTURE_PIXELS).err().unwrap_or_default();
+        assert!(
+            e.starts_with("has a tiles attribute of tiles of 0x16 pixels"),
+            "{e}"
+        );
+    }
 }
