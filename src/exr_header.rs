@@ -123,10 +123,11 @@ fn misfit(name: &str, kind: &str, len: usize) -> Option<String> {
     };
     (!fits).then(|| {
         format!(
-            "an attribute `{}` of type {} of {len} bytes, not the size of its type, which \
-             OpenEXR refuses: viewers built on it refuse the file",
+            "an attribute `{}` of type {} of {}, not the size of its type, which OpenEXR \
+             refuses: viewers built on it refuse the file",
             name.escape_debug(),
-            kind.escape_debug()
+            kind.escape_debug(),
+            crate::text::count(len as u64, "byte")
         )
     })
 }
@@ -158,8 +159,9 @@ impl<R: Read> Bounded<R> {
     fn bytes(&mut self, n: u64, what: &str) -> Result<Vec<u8>, String> {
         if n > self.left {
             return Err(format!(
-                "is truncated: its {what} needs {n} bytes, {} are left",
-                self.left
+                "is truncated: its {what} needs {}, and the file has {} left",
+                crate::text::count(n, "byte"),
+                crate::text::count(self.left, "byte")
             ));
         }
         self.read += n;
@@ -205,7 +207,10 @@ fn i32_at(b: &[u8], at: usize) -> i32 {
 /// A `box2i` value: min x, min y, max x, max y.
 fn box2i(value: &[u8], name: &str) -> Result<[i32; 4], String> {
     if value.len() != 16 {
-        return Err(format!("has a {name} of {} bytes, not 16", value.len()));
+        return Err(format!(
+            "has a {name} of {}, not 16",
+            crate::text::count(value.len() as u64, "byte")
+        ));
     }
     Ok([0, 4, 8, 12].map(|at| i32_at(value, at)))
 }
@@ -351,14 +356,16 @@ impl Decoded {
             if let Some(10 | 11) = self.compression {
                 return Err(format!(
                     "is compressed with HTJ2K, which the decoder reads only where every chunk \
-                     is stored uncompressed: its {chunks} chunks would take at least {least} \
-                     bytes with the header, and the file has {len}"
+                     is stored uncompressed: its {} would take at least {least} bytes with \
+                     the header, and the file has {len}",
+                    crate::text::count(chunks, "chunk")
                 ));
             }
             return Err(format!(
-                "is cut short: its header claims {chunks} chunks (blocks of scan lines or \
-                 tiles of a data window of {width}x{height}), which take at least {least} \
-                 bytes with the header, and the file has {len}"
+                "is cut short: its header claims {} (blocks of scan lines or tiles of a \
+                 data window of {width}x{height}), which take at least {least} bytes with the \
+                 header, and the file has {len}",
+                crate::text::count(chunks, "chunk")
             ));
         }
         Ok(())

@@ -141,13 +141,15 @@ impl Frame {
         let least = (blocks * bits).div_ceil(8);
         (coded_bytes < least).then(|| {
             format!(
-                "claims {}x{} pixels in {} component(s), {blocks} blocks of 8x8, but its scans \
-                 hold {coded_bytes} bytes of coded data, fewer than the {least} any {kind} \
-                 JPEG of that size takes ({bits} bit(s) a block at least): its pixels are not \
-                 decoded (a truncated or made-up file?)",
+                "claims {}x{} pixels in {}, {} of 8x8, but its scans hold {} of coded \
+                 data, fewer than the {least} any {kind} JPEG of that size takes ({} a block \
+                 at least): its pixels are not decoded (a truncated or made-up file?)",
                 self.width,
                 self.height,
-                self.sampling.len()
+                crate::text::count(self.sampling.len() as u64, "component"),
+                crate::text::count(blocks, "block"),
+                crate::text::count(coded_bytes, "byte"),
+                crate::text::count(bits, "bit")
             )
         })
     }
@@ -660,7 +662,7 @@ mod tests {
         let why = frame.too_short(a.coded_bytes).unwrap();
         assert!(
             why.starts_with(
-                "claims 4096x4096 pixels in 3 component(s), 786432 blocks of 8x8, but its \
+                "claims 4096x4096 pixels in 3 components, 786432 blocks of 8x8, but its \
                  scans hold 64 bytes of coded data, fewer than the 196608"
             ),
             "{why}"

@@ -104,8 +104,9 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
         // The data and its CRC must lie inside the file: no length is trusted further.
         if length > (1 << 31) - 1 || at + 12 + length > len {
             return Err(format!(
-                "has {} at byte {at} claiming {length} bytes, past the file's end",
-                a_chunk(&kind)
+                "has {} at byte {at} claiming {}, past the file's end",
+                a_chunk(&kind),
+                crate::text::count(length, "byte")
             ));
         }
         // One IHDR chunk, first, of 13 bytes, as a PNG has: a second one would be another
@@ -122,7 +123,8 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
         }
         if is_ihdr && length != 13 {
             return Err(format!(
-                "has an IHDR chunk of {length} bytes, not the 13 of a PNG"
+                "has an IHDR chunk of {}, not the 13 of a PNG",
+                crate::text::count(length, "byte")
             ));
         }
         // A palette is whole entries of three bytes: libpng refuses a palette image's
@@ -132,8 +134,9 @@ pub fn read<R: Read + Seek>(r: R, len: u64) -> Result<PngHeader, String> {
         // 1").
         if &kind == b"PLTE" && length % 3 != 0 {
             return Err(format!(
-                "has a PLTE chunk of {length} bytes at byte {at}, not whole entries of 3 bytes \
-                 as a palette is (libpng refuses the file)"
+                "has a PLTE chunk of {} at byte {at}, not whole entries of 3 bytes as a \
+                 palette is (libpng refuses the file)",
+                crate::text::count(length, "byte")
             ));
         }
         if &kind == b"PLTE" {
@@ -310,9 +313,10 @@ fn misfit_transparency(length: u64, color: u8, entries: Option<u64>) -> Option<S
             let entries = entries?;
             return (length > entries).then(|| {
                 format!(
-                    "a tRNS chunk of {length} entries, more than the {entries} of its palette: \
+                    "a tRNS chunk of {length} {}, more than the {entries} of its palette: \
                      libpng ignores it (viewers built on it show the picture opaque), the \
-                     decoder here takes the alpha of the entries it has"
+                     decoder here takes the alpha of the entries it has",
+                    if length == 1 { "entry" } else { "entries" }
                 )
             });
         }
@@ -349,8 +353,9 @@ fn misfit_transparency(length: u64, color: u8, entries: Option<u64>) -> Option<S
 fn damaged_end(length: u64, crc: [u8; 4], at: u64) -> Option<String> {
     if length != 0 {
         Some(format!(
-            "an IEND chunk at byte {at} of {length} bytes, where a PNG's holds none: libpng \
-             calls it invalid and refuses the file where its CRC over them is wrong"
+            "an IEND chunk at byte {at} of {}, where a PNG's holds none: libpng calls it \
+             invalid and refuses the file where its CRC over them is wrong",
+            crate::text::count(length, "byte")
         ))
     } else if u32::from_be_bytes(crc) != crc32fast::hash(b"IEND") {
         Some(format!(
@@ -490,8 +495,9 @@ pub fn check_zlib_stream_ends<R: Read>(r: R, most: u64) -> Result<(), String> {
         Err("no IDAT chunk, where a PNG keeps them".to_owned())
     } else if inflater.is_done() && u128::from(made_in_all) < least && least <= u128::from(most) {
         Err(format!(
-            "a zlib stream that inflates to {made_in_all} bytes, fewer than the {least} its \
-             image's rows take, which libpng refuses (\"Not enough image data\")"
+            "a zlib stream that inflates to {}, fewer than the {least} its image's rows \
+             take, which libpng refuses (\"Not enough image data\")",
+            crate::text::count(made_in_all, "byte")
         ))
     } else if inflater.is_done() {
         Ok(())

@@ -476,3 +476,23 @@ fn tiles_of_no_pixels_or_past_an_int_are_refused_by_the_attribute() {
     let file = header_of(&chunked(4, 4, 0, Some((16, 16, 0))));
     assert!(read(&file[..], file.len() as u64).is_ok());
 }
+
+/// Counts of one were said as many ("its header claims 1 chunks", "its attribute name needs
+/// 1 bytes, 0 are left"); they are said in the singular.
+#[test]
+fn counts_of_one_are_said_in_the_singular() {
+    let file = header_of(&chunked(4, 1, 0, None));
+    let e = check_bounds(&file[..], file.len() as u64, 1 << 20).unwrap_err();
+    assert!(
+        e.starts_with("is cut short: its header claims 1 chunk (blocks"),
+        "{e}"
+    );
+    // Cut within the end of the attribute names.
+    let e = read(&file[..file.len() - 1], file.len() as u64 - 1).unwrap_err();
+    assert_eq!(
+        e,
+        "is truncated: its attribute name needs 1 byte, and the file has 0 bytes left"
+    );
+    let e = box2i(&[0], "dataWindow").unwrap_err();
+    assert_eq!(e, "has a dataWindow of 1 byte, not 16");
+}

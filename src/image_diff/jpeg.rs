@@ -302,7 +302,10 @@ fn exif_orientations(tiff: &[u8]) -> std::result::Result<Vec<ExifOrientation>, S
             u32::from_le_bytes(b)
         })
     };
-    let past = |what: String| format!("it ends ({} bytes) before {what}", tiff.len());
+    let past = |what: String| {
+        let len = crate::text::count(tiff.len() as u64, "byte");
+        format!("it ends ({len}) before {what}")
+    };
     let mut found = Vec::new();
     let mut at = u32_at(4).unwrap_or(0) as usize;
     for ifd in 0..2u8 {
@@ -320,7 +323,8 @@ fn exif_orientations(tiff: &[u8]) -> std::result::Result<Vec<ExifOrientation>, S
         let fit = tiff.len().saturating_sub(table) / 12;
         if ifd == 0 && fit < usize::from(entries) {
             return Err(past(format!(
-                "the {entries} entries of its IFD{ifd} (from byte {table})"
+                "the {entries} {} of its IFD{ifd} (from byte {table})",
+                if entries == 1 { "entry" } else { "entries" }
             )));
         }
         let entries = usize::from(entries).min(fit);
@@ -357,7 +361,8 @@ fn exif_orientations(tiff: &[u8]) -> std::result::Result<Vec<ExifOrientation>, S
                         continue;
                     }
                     return Err(past(format!(
-                        "the {count} values of its IFD{ifd}'s orientation (at byte {from})"
+                        "the {} of its IFD{ifd}'s orientation (at byte {from})",
+                        crate::text::count(count, "value")
                     )));
                 }
                 value

@@ -647,7 +647,7 @@ fn a_jpeg_of_less_coded_data_than_its_frame_s_blocks_take_is_refused_undecoded()
     let o = run_capped(&["compare", "thin.jpg", "thin.jpg"], &dir, 256);
     refused(
         &o,
-        "thin.jpg: claims 4096x4096 pixels in 3 component(s), 786432 blocks of 8x8, but its \
+        "thin.jpg: claims 4096x4096 pixels in 3 components, 786432 blocks of 8x8, but its \
          scans hold 64 bytes of coded data, fewer than the 196608",
         "compare",
     );
