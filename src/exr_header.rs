@@ -700,8 +700,7 @@ pub fn display_changes<R: Read + std::io::Seek>(
             compression,
             top: data[1],
         };
-        let misplaced = misplaced_chunk(&mut r, width, height, &layout)
-            .map_err(|e| format!("could not be read: {e}"))?;
+        let misplaced = misplaced_chunk(&mut r, width, height, &layout)?;
         changes.extend(misplaced);
     }
     Ok(changes)
@@ -946,15 +945,44 @@ const INDEX_BITS: u32 = 24;
 /// it shows nothing), where the `exr` crate places each chunk where the chunk itself says,
 /// so that a table of two entries swapped reads as the picture. None when each chunk is
 /// where its entry says, or the table is not one to check (a layout or compression tessera
-/// does not know, an entry past the file's end): the decoder is then the judge. The chunks
-/// are visited in the order they lie in the file, through one buffer: a table of millions
-/// of entries takes a read of the file, not a seek and a read for each.
+/// does not know): the decoder is then the judge. An entry that points where no chunk can
+/// be (into the header or the table, past the file's end) or to a chunk whose data runs
+/// past it is refused, naming the entry, where the decoder said only "invalid: scan line
+/// block sample count" or "reference to missing bytes". The chunks are visited in the order
+/// they lie in the file, through one buffer: a table of millions of entries takes a read of
+/// the file, not a seek and a read for each.
 pub fn misplaced_chunk<R: Read + std::io::Seek>(
+    r: R,
+    width: u32,
+    height: u32,
+    layout: &ExrLayout,
+) -> Result<Option<String>, String> {
+    chunk_places(r, width, height, layout).map_err(|e| match e {
+        Placing::Io(e) => format!("could not be read: {e}"),
+        Placing::Refused(why) => why,
+    })
+}
+
+/// Why the chunks' places were not judged: the file could not be read, or an entry of the
+/// offset table is refused (said in words).
+enum Placing {
+    Io(std::io::Error),
+    Refused(String),
+}
+
+impl From<std::io::Error> for Placing {
+    fn from(e: std::io::Error) -> Self {
+        Placing::Io(e)
+    }
+}
+
+/// `misplaced_chunk`, its refusals and failures apart.
+fn chunk_places<R: Read + std::io::Seek>(
     mut r: R,
     width: u32,
     height: u32,
     layout: &ExrLayout,
-) -> std::io::Result<Option<String>> {
+) -> Result<Option<String>, Placing> {
     use std::io::SeekFrom;
     // Chunks across and down, and the scan lines of a chunk of a file of scan lines.
     let (columns, rows, lines) = match layout.tiles {
@@ -982,30 +1010,69 @@ pub fn misplaced_chunk<R: Read + std::io::Seek>(
     let mut file = std::io::BufReader::new(&mut r);
     // Each entry as its place and its index in one number, sorted: the places in order.
     let mut entries = Vec::with_capacity(count as usize);
+    // Where the table ends, and the first chunk may begin.
+    let table_end = layout.header_len + 8 * count;
     for i in 0..count {
         let mut entry = [0u8; 8];
         if file.read_exact(&mut entry).is_err() {
             return Ok(None);
         }
         let offset = u64::from_le_bytes(entry);
-        if offset >= len || offset >= 1 << (64 - INDEX_BITS) {
+        if offset < table_end {
+            return Err(Placing::Refused(format!(
+                "has an offset table whose entry {i} points to byte {offset}, within its \
+                 header and offset table (its first {}), where no chunk lies",
+                crate::text::count(table_end, "byte")
+            )));
+        }
+        if offset >= len {
+            return Err(Placing::Refused(format!(
+                "has an offset table whose entry {i} points to byte {offset}, past the file's \
+                 end ({})",
+                crate::text::count(len, "byte")
+            )));
+        }
+        // An offset of 2^40 or more, in a file shorter than that, is past its end above.
+        if offset >= 1 << (64 - INDEX_BITS) {
             return Ok(None);
         }
         entries.push(offset << INDEX_BITS | i);
     }
     entries.sort_unstable();
-    let mut at = layout.header_len + 8 * count;
+    let mut at = table_end;
     // The entry of the lowest index that points to another chunk, and what that chunk says.
     let mut first_wrong: Option<(u32, [i32; 4])> = None;
     for entry in entries {
         let (offset, i) = (entry >> INDEX_BITS, (entry & (MAX_CHUNKS - 1)) as u32);
-        let mut said = [0u8; 16];
+        // The chunk's coordinates (a tile's four, a block's first row) and its data's length.
+        let mut said = [0u8; 20];
         let n = if layout.tiles.is_some() { 16 } else { 4 };
         file.seek_relative(offset.wrapping_sub(at) as i64)?;
-        if file.read_exact(&mut said[..n]).is_err() {
-            return Ok(None);
+        let whole = file.read_exact(&mut said[..n + 4]);
+        let data = i64::from(i32::from_le_bytes([0, 1, 2, 3].map(|b| said[n + b])));
+        let end = (offset + n as u64 + 4).saturating_add_signed(data);
+        if whole.is_ok() && data < 0 {
+            return Err(Placing::Refused(format!(
+                "has an offset table whose entry {i} points to a chunk at byte {offset} whose \
+                 data's length is {data} bytes, below zero"
+            )));
         }
-        at = offset + n as u64;
+        if whole.is_err() || end > len {
+            return Err(Placing::Refused(format!(
+                "has an offset table whose entry {i} points to a chunk at byte {offset} that \
+                 runs past the file's end ({}){}",
+                crate::text::count(len, "byte"),
+                if whole.is_ok() {
+                    format!(
+                        ": its data claims {}",
+                        crate::text::count(data as u64, "byte")
+                    )
+                } else {
+                    String::new()
+                }
+            )));
+        }
+        at = offset + n as u64 + 4;
         let said = [0, 1, 2, 3].map(|k| i32::from_le_bytes([0, 1, 2, 3].map(|b| said[4 * k + b])));
         let (column, row) = (i % columns, i / columns);
         let right = match layout.tiles {

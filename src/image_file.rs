@@ -449,7 +449,7 @@ pub fn read_pixels(path: &Path, header: &ImageHeader) -> Result<Pixels> {
                 }
                 let misplaced =
                     exr_header::misplaced_chunk(&mut file, header.width, header.height, layout)
-                        .map_err(io)?;
+                        .map_err(|why| image_error(path, why))?;
                 if let Some(why) = misplaced {
                     return Ok(Pixels::Other(why));
                 }
