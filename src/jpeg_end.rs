@@ -312,6 +312,16 @@ impl<I: Iterator<Item = std::io::Result<u8>>> Bits<I> {
         self.bytes.next().transpose()
     }
 
+    /// The byte after an FF, the fill bytes (more FFs) passed over: 0 where the FF is data
+    /// (stuffed), else a marker's code (D9 where the file ends).
+    fn after_ff(&mut self) -> std::io::Result<u8> {
+        let mut m = 0xff;
+        while m == 0xff {
+            m = self.next_byte()?.unwrap_or(0xd9);
+        }
+        Ok(m)
+    }
+
     /// The next bit of coded data, `None` once the data has met a marker.
     fn bit(&mut self) -> std::io::Result<Option<u32>> {
         if self.left == 0 {
@@ -323,10 +333,7 @@ impl<I: Iterator<Item = std::io::Result<u8>>> Bits<I> {
                 return Ok(None);
             };
             if b == 0xff {
-                let mut m = 0xff;
-                while m == 0xff {
-                    m = self.next_byte()?.unwrap_or(0xd9);
-                }
+                let m = self.after_ff()?;
                 if m != 0 {
                     self.marker = Some(m);
                     return Ok(None);
@@ -374,10 +381,7 @@ impl<I: Iterator<Item = std::io::Result<u8>>> Bits<I> {
                 return Ok(None);
             };
             if b == 0xff {
-                let mut m = 0xff;
-                while m == 0xff {
-                    m = self.next_byte()?.unwrap_or(0xd9);
-                }
+                let m = self.after_ff()?;
                 if m != 0 {
                     self.marker = Some(m);
                 }

@@ -420,6 +420,17 @@ fn the_page_its_assets_and_the_event_stream_are_served() {
     assert_eq!(viewer.interrupt_held().0, 0);
 }
 
+/// tessera with `args` where no file can grow past 0 bytes (`ulimit -f 0`), as on a full
+/// disk: every write of an output fails.
+fn with_no_room_to_write(args: &[String]) -> std::process::Command {
+    let mut command = std::process::Command::new("sh");
+    command
+        .args(["-c", "ulimit -f 0 && exec \"$0\" \"$@\""])
+        .arg(env!("CARGO_BIN_EXE_tessera"))
+        .args(args);
+    command
+}
+
 /// A render whose output cannot be written (here past the file size limit, as on a full
 /// disk) tells its viewer it failed before the viewer goes: the page was left showing a
 /// render at 100% "rendering", its stream cut, waiting for an image that never came.
@@ -432,12 +443,7 @@ fn a_render_whose_output_cannot_be_written_tells_its_viewer_it_failed() {
         if output.ends_with(".part") {
             args.extend(["--shard", "0/1"].map(String::from));
         }
-        let mut command = std::process::Command::new("sh");
-        command
-            .args(["-c", "ulimit -f 0 && exec \"$0\" \"$@\""])
-            .arg(env!("CARGO_BIN_EXE_tessera"))
-            .args(&args);
-        let mut viewer = Viewer::start_command(command, &dir);
+        let mut viewer = Viewer::start_command(with_no_room_to_write(&args), &dir);
         let mut stream = TcpStream::connect(viewer.addr).unwrap();
         stream.set_read_timeout(Some(PATIENCE)).unwrap();
         write!(
@@ -488,12 +494,7 @@ fn an_interrupted_render_whose_checkpoint_cannot_be_written_tells_its_viewer_it_
         ]
         .map(String::from),
     );
-    let mut command = std::process::Command::new("sh");
-    command
-        .args(["-c", "ulimit -f 0 && exec \"$0\" \"$@\""])
-        .arg(env!("CARGO_BIN_EXE_tessera"))
-        .args(&args);
-    let mut viewer = Viewer::start_command(command, &dir);
+    let mut viewer = Viewer::start_command(with_no_room_to_write(&args), &dir);
     viewer.wait_for("the second pass", |s| s["spp_done"].as_u64() >= Some(4));
     let mut stream = TcpStream::connect(viewer.addr).unwrap();
     stream.set_read_timeout(Some(PATIENCE)).unwrap();
