@@ -60,17 +60,7 @@ pub fn past_the_bound(text: &str) -> Option<(usize, Bound)> {
             b'\r' => at + 1,
             b' ' | b'\t' => run_end(bytes, at, |b| b != b' ' && b != b'\t'),
             b'#' => run_end(bytes, at, |b| b == b'\r' || b == b'\n'),
-            b'"' if bytes[at..].starts_with(b"\"\"\"") => multi_line_end(bytes, at + 3, b'"'),
-            b'\'' if bytes[at..].starts_with(b"\'\'\'") => multi_line_end(bytes, at + 3, b'\''),
-            b'"' => basic_string_end(bytes, at + 1),
-            b'\'' => match bytes[at + 1..]
-                .iter()
-                .position(|&b| b == b'\'' || b == b'\n')
-            {
-                // Past the closing quote, or at the line end that cuts the string short.
-                Some(n) => at + 1 + n + usize::from(bytes[at + 1 + n] == b'\''),
-                None => bytes.len(),
-            },
+            b'"' | b'\'' => string_end(bytes, at).unwrap_or(bytes.len()),
             _ => run_end(bytes, at, |b| WORD_ENDS.contains(&b)),
         };
         tokens += 1;
@@ -92,6 +82,7 @@ pub(super) fn string_end(bytes: &[u8], at: usize) -> Option<usize> {
             .iter()
             .position(|&b| b == b'\'' || b == b'\n')
         {
+            // Past the closing quote, or at the line end that cuts the string short.
             Some(n) => at + 1 + n + usize::from(bytes[at + 1 + n] == b'\''),
             None => bytes.len(),
         },
