@@ -261,11 +261,6 @@ fn channels(value: &[u8]) -> Result<Vec<(String, SampleType)>, String> {
 pub fn check_bounds<R: Read>(r: R, len: u64, most_decoded: u64) -> Result<(), String> {
     let mut decoded = Decoded::default();
     let header_len = walk(r, len, &mut |name, kind, value| {
-        // Tiles of a side of no pixels are refused by the attribute here too, not in the
-        // decoder's words ("invalid: tile size"), as `read` and `display_changes` refuse them.
-        if (name, kind) == ("tiles", "tiledesc") {
-            tile_fault(&value)?;
-        }
         decoded.note(name, kind, &value);
         Ok(())
     })?;
@@ -429,6 +424,29 @@ fn tile_fault(value: &[u8]) -> Result<(), String> {
                  to {MAX_TILE_SIDE}"
             ))
         }
+        _ => Ok(()),
+    }
+}
+
+/// The most a `compression` attribute may say: the last of OpenEXR's methods, HTJ2K32.
+const LAST_COMPRESSION: u8 = 11;
+
+/// Refuses the value of an attribute that places or decodes the pixels where it is none
+/// OpenEXR defines, naming the attribute, where the decoder refused it in its own words
+/// ("invalid: line order attribute value", "not supported: unknown compression method",
+/// "invalid: tile size"), and `info` showed the file as sound: tiles of a side of no pixels
+/// or past an `int`'s, a line order other than 0 to 2, a compression past HTJ2K32.
+fn value_fault(name: &str, kind: &str, value: &[u8]) -> Result<(), String> {
+    match (name, kind, value) {
+        ("tiles", "tiledesc", _) => tile_fault(value),
+        ("lineOrder", "lineOrder", &[order]) if order > 2 => Err(format!(
+            "has a lineOrder attribute of {order}: OpenEXR defines 0 (increasing y), 1 \
+             (decreasing y) and 2 (random y)"
+        )),
+        ("compression", "compression", &[method]) if method > LAST_COMPRESSION => Err(format!(
+            "has a compression attribute of {method}: OpenEXR defines 0 (none) to \
+             {LAST_COMPRESSION} (HTJ2K32)"
+        )),
         _ => Ok(()),
     }
 }
@@ -640,6 +658,7 @@ pub fn display_changes<R: Read + std::io::Seek>(
 ) -> Result<Vec<String>, String> {
     let (mut changes, mut attributes) = (Vec::new(), Vec::new());
     let (mut tiles, mut compression, mut data, mut display) = (None, None, None, None);
+    let mut levels = false;
     let mut decoded = Decoded::default();
     let mut list = None;
     let header_len = walk(&mut r, len, &mut |name, kind, value| {
@@ -657,11 +676,11 @@ pub fn display_changes<R: Read + std::io::Seek>(
                 list = Some(value.clone());
             }
             ("tiles", "tiledesc") => {
-                tile_fault(&value)?;
                 tiles = tile_size(&value);
                 // Levels past the first are the picture again at smaller sizes, which a
                 // viewer may show zoomed out (and the decoder here never reads).
-                if value.get(8).is_some_and(|mode| mode & 0xf != 0) {
+                levels = value.get(8).is_some_and(|mode| mode & 0xf != 0);
+                if levels {
                     changes.push(
                         "holds mipmap or ripmap levels (the picture again at smaller sizes, \
                          which viewers show zoomed out), which tessera does not write"
@@ -697,6 +716,7 @@ pub fn display_changes<R: Read + std::io::Seek>(
         let layout = ExrLayout {
             header_len,
             tiles,
+            levels,
             compression,
             top: data[1],
         };
@@ -826,6 +846,7 @@ fn walk<R: Read>(r: R, len: u64, visit: &mut Visit<'_>) -> Result<u64, String> {
                 ));
             }
         }
+        value_fault(&name, &kind, &value)?;
         visit(&name, &kind, value)?;
     }
 }
@@ -854,7 +875,6 @@ pub fn read<R: Read>(r: R, len: u64) -> Result<ExrHeader, String> {
                     );
                 }
                 tiles = tile_size(&value);
-                tile_fault(&value)?;
             }
             (key, "string") if key == recipe::KEY => {
                 recipe = Some(String::from_utf8(value).map_err(|e| {
@@ -911,6 +931,8 @@ pub fn read<R: Read>(r: R, len: u64) -> Result<ExrHeader, String> {
         layout: ExrLayout {
             header_len,
             tiles,
+            // Refused above.
+            levels: false,
             compression,
             top: data[1],
         },
@@ -925,6 +947,9 @@ pub struct ExrLayout {
     pub header_len: u64,
     /// The width and height of a tile, in a tiled file.
     pub tiles: Option<(u32, u32)>,
+    /// Whether the tiles have mipmap or ripmap levels past the first (their chunks say a
+    /// level other than (0, 0)).
+    pub levels: bool,
     /// The compression (as EXR numbers it), which sets the scan lines of a chunk.
     pub compression: Option<u8>,
     /// The data window's first row.
@@ -1074,6 +1099,11 @@ fn chunk_places<R: Read + std::io::Seek>(
         }
         at = offset + n as u64 + 4;
         let said = [0, 1, 2, 3].map(|k| i32::from_le_bytes([0, 1, 2, 3].map(|b| said[4 * k + b])));
+        if let Some(why) = no_chunk_of_the_image(said, columns, rows, lines, layout, height) {
+            return Err(Placing::Refused(format!(
+                "has an offset table whose entry {i} points to a chunk at byte {offset} {why}"
+            )));
+        }
         let (column, row) = (i % columns, i / columns);
         let right = match layout.tiles {
             Some(_) => said.map(i64::from) == [i64::from(column), i64::from(row), 0, 0],
@@ -1103,6 +1133,56 @@ fn chunk_places<R: Read + std::io::Seek>(
     Ok(Some(format!(
         "{wrong}: OpenEXR, and every viewer built on it, refuses such a file"
     )))
+}
+
+/// Why a chunk that says it holds `said` (a tile's column, row and levels; a block's first
+/// scan line) is none of a part of `columns` x `rows` tiles, or of blocks of `lines` scan
+/// lines (0 for tiles) from `layout`'s top row, `height` rows: a tile past the largest
+/// level's, or of a level the part has none of; scan lines outside the data window, or not
+/// where a block begins.
+/// Every reader refuses such a chunk (the decoder in its own words, "invalid: tile index"),
+/// where one for another of the part's chunks is read by the `exr` crate.
+fn no_chunk_of_the_image(
+    said: [i32; 4],
+    columns: u32,
+    rows: u32,
+    lines: u32,
+    layout: &ExrLayout,
+    height: u32,
+) -> Option<String> {
+    if lines == 0 {
+        let [x, y, level_x, level_y] = said.map(i64::from);
+        let level = |l: i64| if layout.levels { l >= 0 } else { l == 0 };
+        return (!(0..i64::from(columns)).contains(&x)
+            || !(0..i64::from(rows)).contains(&y)
+            || !level(level_x)
+            || !level(level_y))
+        .then(|| {
+            format!(
+                "of tile ({x}, {y}) at level ({level_x}, {level_y}), which the image \
+                     ({columns}x{rows} tiles{}) has none of",
+                if layout.levels {
+                    " at its largest level"
+                } else {
+                    ", one level"
+                }
+            )
+        });
+    }
+    let (y, top) = (i64::from(said[0]), i64::from(layout.top));
+    let bottom = top + i64::from(height) - 1;
+    if !(top..=bottom).contains(&y) {
+        return Some(format!(
+            "of the scan lines from {y}, outside the data window's rows ({top} to {bottom})"
+        ));
+    }
+    ((y - top) % i64::from(lines) != 0).then(|| {
+        format!(
+            "of the scan lines from {y}, where no block begins (its compression stores \
+             {} from row {top} on)",
+            crate::text::count(u64::from(lines), "scan line")
+        )
+    })
 }
 
 #[cfg(test)]

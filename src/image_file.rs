@@ -276,19 +276,46 @@ fn header_of(
         Format::Ppm => Err("is a PPM file, which has no metadata to carry a recipe".to_owned()),
         Format::Png => png_header::read(file, len).map(ImageHeader::of_png),
         Format::Exr => {
-            let h = exr_header::read(std::io::BufReader::new(file), len)?;
+            let h = exr_header::read(std::io::BufReader::new(&mut *file), len)?;
+            let mut display_changes = h.display_changes;
+            // Where the offset table points, judged before anything is rendered: a chunk
+            // of none of the image's tiles or scan lines is refused, one of another's is
+            // what changes how it is shown (OpenEXR refuses the file).
+            if too_many_chunks(h.width, h.height, &h.layout).is_none() {
+                file.seek(SeekFrom::Start(0))
+                    .map_err(|e| format!("could not be read: {e}"))?;
+                display_changes.extend(exr_header::misplaced_chunk(
+                    &mut *file, h.width, h.height, &h.layout,
+                )?);
+            }
             Ok(ImageHeader {
                 format,
                 width: h.width,
                 height: h.height,
                 recipe: h.recipe,
-                display_changes: h.display_changes,
+                display_changes,
                 samples: h.samples,
                 zlib_header: None,
                 exr_layout: Some(h.layout),
             })
         }
     }
+}
+
+/// What is said of the chunks of a `width` x `height` EXR file of `layout` when they are
+/// more than its pixels are read from: tessera writes a chunk a row; a file of more, and
+/// more than a file of another program is read with, is not one it wrote, and its decoder
+/// would take some 72 bytes to place each (`exr_header::MAX_CHUNKS_READ`). None where they
+/// are read (and their places judged).
+fn too_many_chunks(width: u32, height: u32, layout: &exr_header::ExrLayout) -> Option<String> {
+    let most = u64::from(height).max(exr_header::MAX_CHUNKS_READ);
+    let chunks = exr_header::chunks_of(width, height, layout)?;
+    (chunks > most).then(|| {
+        format!(
+            "{chunks} chunks (blocks of scan lines or tiles), more than the {most} read of an \
+             image of {height} rows (tessera writes a chunk a row)"
+        )
+    })
 }
 
 /// Opens the image at `path` whose pixels are to be read, and reads its header again from
@@ -434,27 +461,14 @@ pub fn read_pixels(path: &Path, header: &ImageHeader) -> Result<Pixels> {
                 path: path.to_owned(),
                 cause,
             };
-            if let Some(layout) = &header.exr_layout {
-                // tessera writes a chunk a row; a file of more, and more than a file of
-                // another program is read with, is not one it wrote, and its decoder would
-                // take some 72 bytes to place each (`exr_header::MAX_CHUNKS_READ`).
-                let most = u64::from(header.height).max(exr_header::MAX_CHUNKS_READ);
-                let chunks = exr_header::chunks_of(header.width, header.height, layout);
-                if let Some(chunks) = chunks.filter(|&chunks| chunks > most) {
-                    return Ok(Pixels::Other(format!(
-                        "{chunks} chunks (blocks of scan lines or tiles), more than the {most} \
-                         read of an image of {} rows (tessera writes a chunk a row)",
-                        header.height
-                    )));
-                }
-                let misplaced =
-                    exr_header::misplaced_chunk(&mut file, header.width, header.height, layout)
-                        .map_err(|why| image_error(path, why))?;
-                if let Some(why) = misplaced {
-                    return Ok(Pixels::Other(why));
-                }
-                file.seek(SeekFrom::Start(0)).map_err(io)?;
+            // The chunks' places were judged with the header (`header_of`), read again from
+            // this handle.
+            if let Some(too_many) = (header.exr_layout.as_ref())
+                .and_then(|layout| too_many_chunks(header.width, header.height, layout))
+            {
+                return Ok(Pixels::Other(too_many));
             }
+            file.seek(SeekFrom::Start(0)).map_err(io)?;
             let width = header.width as usize;
             let image = read()
                 .no_deep_data()

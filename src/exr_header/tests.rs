@@ -350,6 +350,7 @@ fn uncompressed_scan_lines() -> ExrLayout {
     ExrLayout {
         header_len: 0,
         tiles: None,
+        levels: false,
         compression: Some(0),
         top: 0,
     }
@@ -520,6 +521,7 @@ fn an_offset_table_entry_where_no_chunk_can_be_is_refused_by_its_entry() {
     let layout = ExrLayout {
         header_len: header.len() as u64,
         tiles: None,
+        levels: false,
         compression: Some(0),
         top: 0,
     };
@@ -552,4 +554,105 @@ fn an_offset_table_entry_where_no_chunk_can_be_is_refused_by_its_entry() {
         e.ends_with("whose data's length is -5 bytes, below zero"),
         "{e}"
     );
+}
+
+/// A lineOrder past 2 or a compression past HTJ2K32 was refused in the decoder's words
+/// ("invalid: line order attribute value", "not supported: unknown compression method"),
+/// and `info`, which decodes no pixels, showed the file as sound. Each is refused by its
+/// attribute, by every walk of the header; the values OpenEXR defines are read.
+#[test]
+fn a_line_order_or_compression_openexr_does_not_define_is_refused_by_its_attribute() {
+    let with = |name, kind, value: u8| {
+        let mut attributes = chunked(4, 4, 0, None);
+        attributes.retain(|(n, _, _)| *n != name);
+        attributes.push((name, kind, vec![value]));
+        header_of(&attributes)
+    };
+    for (name, value, said) in [
+        (
+            "lineOrder",
+            3,
+            "has a lineOrder attribute of 3: OpenEXR defines 0 (increasing y)",
+        ),
+        ("lineOrder", 255, "has a lineOrder attribute of 255"),
+        (
+            "compression",
+            12,
+            "has a compression attribute of 12: OpenEXR defines 0 (none) to 11",
+        ),
+        ("compression", 255, "has a compression attribute of 255"),
+    ] {
+        let file = with(name, name, value);
+        let e = read(&file[..], file.len() as u64).unwrap_err();
+        assert!(e.starts_with(said), "{e}");
+        let e = display_changes(Cursor::new(&file), file.len() as u64, 1 << 20).unwrap_err();
+        assert!(e.starts_with(said), "{e}");
+        let e = check_bounds(&file[..], file.len() as u64, 1 << 20).unwrap_err();
+        assert!(e.starts_with(said), "{e}");
+    }
+    for (name, value) in [("lineOrder", 2), ("compression", 11)] {
+        let file = with(name, name, value);
+        assert!(read(&file[..], file.len() as u64).is_ok(), "{name} {value}");
+    }
+}
+
+/// A chunk that says it holds scan lines outside the data window, or from a row where no
+/// block of its compression begins, is none of the image's: the decoder refused it in its
+/// own words ("invalid: tile index"). It is refused by its entry; one that says it is
+/// another block of the image is what changes how the file is shown, as before.
+#[test]
+fn a_chunk_of_none_of_the_image_s_scan_lines_is_refused_by_its_entry() {
+    // ZIP: blocks of 16 scan lines, 40 rows from row 100: blocks from 100, 116 and 132.
+    let header = header_of(&chunked(1, 40, 3, None));
+    let table_end = header.len() as u64 + 24;
+    let file = |firsts: [i32; 3]| {
+        let mut file = header.clone();
+        file.extend((0..3).flat_map(|i| (table_end + 8 * i).to_le_bytes()));
+        file.extend(
+            firsts
+                .iter()
+                .flat_map(|y| [y.to_le_bytes(), [0; 4]].concat()),
+        );
+        file
+    };
+    let layout = ExrLayout {
+        header_len: header.len() as u64,
+        tiles: None,
+        levels: false,
+        compression: Some(3),
+        top: 100,
+    };
+    let judged = |firsts| misplaced_chunk(Cursor::new(file(firsts)), 1, 40, &layout);
+    assert_eq!(judged([100, 116, 132]), Ok(None));
+    let swapped = judged([116, 100, 132]).unwrap().unwrap();
+    assert!(swapped.starts_with("entry 0 of its offset table, for the scan lines from 100"));
+    let at = |i: u64| table_end + 8 * i;
+    for (firsts, said) in [
+        (
+            [100, 116, 148],
+            format!(
+                "entry 2 points to a chunk at byte {} of the scan lines from 148, outside the \
+                 data window's rows (100 to 139)",
+                at(2)
+            ),
+        ),
+        (
+            [99, 116, 132],
+            format!(
+                "entry 0 points to a chunk at byte {} of the scan lines from 99",
+                at(0)
+            ),
+        ),
+        (
+            [100, 117, 132],
+            format!(
+                "entry 1 points to a chunk at byte {} of the scan lines from 117, where no \
+                 block begins (its compression stores 16 scan lines from row 100 on)",
+                at(1)
+            ),
+        ),
+    ] {
+        let e = judged(firsts).unwrap_err();
+        assert!(e.ends_with(&said) || e.contains(&said), "{e}");
+    }
 }

@@ -377,7 +377,8 @@ fn an_exr_whose_offset_table_points_to_other_tiles_differs() {
     swapped[table..table + 8].copy_from_slice(&exr[table + 8..table + 16]);
     swapped[table + 8..table + 16].copy_from_slice(&exr[table..table + 8]);
     std::fs::write(dir.join("swapped.exr"), swapped).unwrap();
-    let o = run(&["reproduce", "swapped.exr", "-q"], &dir);
+    // Said with the header, before anything is rendered.
+    let o = run(&["reproduce", "swapped.exr"], &dir);
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     let said = stdout(&o);
     assert!(
@@ -386,6 +387,32 @@ fn an_exr_whose_offset_table_points_to_other_tiles_differs() {
         ),
         "{said}"
     );
+    assert!(!stderr(&o).contains("rendering"), "{}", stderr(&o));
+    // A chunk that says it is a tile the image has none of is refused by its entry, where
+    // `info` showed the file as sound, `compare` quoted the decoder ("invalid: tile
+    // index") and `reproduce` rendered before it said so.
+    let chunk = u64::from_le_bytes(exr[table..table + 8].try_into().unwrap()) as usize;
+    let mut stray = exr.clone();
+    stray[chunk..chunk + 4].copy_from_slice(&5i32.to_le_bytes());
+    std::fs::write(dir.join("stray.exr"), stray).unwrap();
+    for args in [
+        &["info", "stray.exr"][..],
+        &["compare", "a.exr", "stray.exr"],
+        &["reproduce", "stray.exr"],
+    ] {
+        let o = run(args, &dir);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains(&format!(
+                "stray.exr: has an offset table whose entry 0 points to a chunk at byte \
+                 {chunk} of tile (5, 0) at level (0, 0), which the image (2x1 tiles, one level) \
+                 has none of"
+            )),
+            "{args:?}: {}",
+            stderr(&o)
+        );
+        assert!(!stderr(&o).contains("rendering"), "{}", stderr(&o));
+    }
     // `compare` measures the same values and lists it as what changes how the file is
     // shown: it once called the two files identical.
     let o = run(&["compare", "a.exr", "swapped.exr"], &dir);
