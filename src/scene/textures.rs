@@ -245,7 +245,7 @@ pub fn decode(bytes: &[u8], pixels_left: u64) -> Result<ImageTexture, String> {
     // A JPEG's frame header and coded data, checked against each other once its size is,
     // as a PNM's header and length are.
     let mut jpeg = None;
-    let mut pnm = false;
+    let (mut pnm, mut png) = (false, false);
     match reader.format() {
         None => return Err("is not an image tessera reads (PNG, JPEG, PPM or EXR)".into()),
         Some(image::ImageFormat::Jpeg) => {
@@ -259,6 +259,7 @@ pub fn decode(bytes: &[u8], pixels_left: u64) -> Result<ImageTexture, String> {
         // The PNG decoder keeps every text chunk before the pixels, whatever their count.
         Some(image::ImageFormat::Png) => {
             crate::png_header::read(std::io::Cursor::new(bytes), bytes.len() as u64)?;
+            png = true;
         }
         // The `exr` crate keeps every attribute of a header, whatever its count, and
         // inflates the pixels of its data window, whatever the size read below (its display
@@ -306,6 +307,16 @@ pub fn decode(bytes: &[u8], pixels_left: u64) -> Result<ImageTexture, String> {
             Ok(None) => {}
             Err(e) => return Err(format!("could not be read: {e}")),
         }
+    }
+    // A PNG's decoder is handed room for every row IHDR claims before it finds them
+    // missing: the pixels' stream is inflated to its end first (at most 8 bytes a pixel
+    // and a filter byte a row of each pass, of the most a texture has), and one that
+    // ends before its rows, or without its end, is refused. A file of 170 bytes claiming
+    // 5792x5792 16-bit RGBA pixels had 268 MB asked for them, and ended tessera
+    // ("memory allocation failed") where the system refused it.
+    if png {
+        crate::png_header::check_zlib_stream_ends(bytes, MAX_TEXTURE_PIXELS * 10)
+            .map_err(|why| format!("has pixels that do not decode: {why}"))?;
     }
     // The decoder makes room for every sample a PNM's header claims before it reads one.
     if pnm {

@@ -1705,6 +1705,39 @@ fn a_png_s_profile_and_text_before_its_pixels_are_read_within_bounds() {
     refused(&o, "text.png: has more than 65536 chunks", "compare");
 }
 
+/// A PNG texture of 170 bytes whose IHDR claims 5792x5792 16-bit RGBA pixels (within the
+/// 2^25 a texture may have) and whose pixels' stream holds two rows: its decoder was handed
+/// 268 MB for the rows claimed before it found them missing, and under a cap of 256 MiB
+/// tessera ended there ("memory allocation of 268378112 bytes failed", exit 134). The stream
+/// is inflated first, and one that ends before its rows is refused (exit 2), as `compare`
+/// refuses it.
+#[test]
+fn a_png_texture_claiming_more_rows_than_its_stream_holds_is_refused_undecoded() {
+    let dir = temp_dir("hostile-png-texture-rows");
+    let side = 5792u32;
+    let mut ihdr = side.to_be_bytes().to_vec();
+    ihdr.extend(side.to_be_bytes());
+    ihdr.extend([16, 6, 0, 0, 0]);
+    let rows = vec![0u8; 2 * (1 + side as usize * 8)];
+    let png = [
+        &b"\x89PNG\r\n\x1a\n"[..],
+        &png_chunk(b"IHDR", &ihdr),
+        &png_chunk(b"IDAT", &fdeflate::compress_to_vec(&rows)),
+        &png_chunk(b"IEND", b""),
+    ]
+    .concat();
+    std::fs::write(dir.join("claims.png"), png).unwrap();
+    std::fs::write(dir.join("claims.toml"), textured_scene("claims.png")).unwrap();
+    let o = run_capped(&["render", "claims.toml", "-q", "-o", "out.png"], &dir, 256);
+    refused(
+        &o,
+        "field `textures.t.file`: claims.png: has pixels that do not decode: a zlib stream \
+         that inflates to 92674 bytes, fewer than the 268383904 its image's rows take",
+        "claims.png",
+    );
+    assert!(!dir.join("out.png").exists());
+}
+
 #[test]
 fn texture_files_a_stranger_names_are_refused_with_the_reason_within_bounds() {
     let dir = temp_dir("hostile-textures");
