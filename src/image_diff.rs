@@ -244,15 +244,23 @@ impl RgbImage {
                 image::ImageFormat::Png => crate::png_header::read(&mut file, len).and_then(|h| {
                     file.seek(std::io::SeekFrom::Start(0))
                         .map_err(|e| format!("could not be read: {e}"))?;
-                    crate::png_header::check_zlib_stream_ends(&mut file, MAX_COMPARED_PIXELS * 10)
-                        .map_err(|why| format!("has pixels that do not decode: {why}"))?;
+                    let inflated = crate::png_header::check_zlib_stream_ends(
+                        &mut file,
+                        MAX_COMPARED_PIXELS * 10,
+                    )
+                    .map_err(|why| format!("has pixels that do not decode: {why}"))?;
+                    let narrow = crate::png_header::narrow_window(h.zlib_header, inflated);
                     file.seek(std::io::SeekFrom::Start(0))
                         .map_err(|e| format!("could not be read: {e}"))?;
                     let past = crate::png_header::palette_index_past_its_entries(
                         &mut file,
                         MAX_COMPARED_PIXELS * 2,
                     );
-                    Ok(h.display_changes.into_iter().chain(past).collect())
+                    Ok(h.display_changes
+                        .into_iter()
+                        .chain(narrow)
+                        .chain(past)
+                        .collect())
                 }),
                 // A sample past the maxval is taken as the brightest by the decoder, where
                 // Netpbm refuses the file: the samples are walked for one.

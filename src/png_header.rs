@@ -430,7 +430,7 @@ const WINDOW: usize = 32 << 10;
 /// ends before the rows its IHDR chunk claims (`row_bytes`): the decoder is handed room
 /// for every row before it finds them missing, and a file of 65 bytes claiming 4096x4096
 /// 16-bit RGBA pixels once had 137 MB filled for them.
-pub fn check_zlib_stream_ends<R: Read>(r: R, most: u64) -> Result<(), String> {
+pub fn check_zlib_stream_ends<R: Read>(r: R, most: u64) -> Result<u64, String> {
     let mut r = std::io::BufReader::new(r);
     let io = |e: std::io::Error| format!("could not be read: {e}");
     let mut signature = [0u8; 8];
@@ -500,7 +500,7 @@ pub fn check_zlib_stream_ends<R: Read>(r: R, most: u64) -> Result<(), String> {
             crate::text::count(made_in_all, "byte")
         ))
     } else if inflater.is_done() {
-        Ok(())
+        Ok(made_in_all)
     } else {
         Err(
             "a zlib stream that ends without its end and checksum, which libpng refuses \
@@ -508,6 +508,28 @@ pub fn check_zlib_stream_ends<R: Read>(r: R, most: u64) -> Result<(), String> {
                 .to_owned(),
         )
     }
+}
+
+/// What is said of a PNG whose pixels' zlib stream begins with `header` (its first IDAT
+/// chunk's first two bytes) and inflates to `inflated` bytes, where it declares a window
+/// smaller than what it inflates to: libpng inflates with the window a stream declares, so
+/// a stream reaching further back than it is a broken picture there (Firefox, GIMP), where
+/// the decoder here, which takes no notice of the window, reads it whole. A stream declaring
+/// its window no wider than what it inflates to (as encoders that fit the window to the
+/// data write it) is none.
+pub fn narrow_window(header: Option<[u8; 2]>, inflated: u64) -> Option<String> {
+    let [method, _] = header?;
+    if method & 0x0f != 8 || method >> 4 >= 7 {
+        return None;
+    }
+    let window = 1u64 << ((method >> 4) + 8);
+    (inflated > window).then(|| {
+        format!(
+            "a zlib stream declaring a window of {window} bytes that inflates to {inflated}: \
+             libpng inflates with the window declared and refuses the file where the stream \
+             reaches further back (viewers built on it show a broken picture)"
+        )
+    })
 }
 
 /// The bytes the rows of the image an IHDR chunk's data `ihdr` describes take inflated: each

@@ -598,11 +598,11 @@ fn a_stream_shorter_than_the_rows_it_claims_is_refused() {
     );
     // 9x2 pixels of one bit: two rows of a filter byte and two bytes.
     let bits = [0, 0, 0, 9, 0, 0, 0, 2, 1, 0, 0, 0, 0];
-    assert_eq!(ends(png(&bits, &[0; 6])), Ok(()));
+    assert_eq!(ends(png(&bits, &[0; 6])), Ok(6));
     assert!(ends(png(&bits, &[0; 5])).is_err());
     // 16x1 interlaced, one byte a pixel: passes 1, 2, 4 and 6 hold 2, 2, 4 and 8 pixels.
     let interlaced = [0, 0, 0, 16, 0, 0, 0, 1, 8, 0, 0, 0, 1];
-    assert_eq!(ends(png(&interlaced, &[0; 20])), Ok(()));
+    assert_eq!(ends(png(&interlaced, &[0; 20])), Ok(20));
     assert!(ends(png(&interlaced, &[0; 19])).is_err());
 }
 
