@@ -2659,3 +2659,79 @@ fn an_import_keeps_one_result_at_a_time_in_memory() {
     let o = results(&dir, &db, &["export", "--jsonl"]);
     assert_eq!(stdout(&o).lines().count(), 4000, "a bad file let others in");
 }
+
+/// A database of the user's own that they may not write (made read-only, `chmod a-w`, to
+/// keep it as it is) was read through a -shm file SQLite made with the database's mode,
+/// read-only, and left beside it: once the database was writable again, every import was
+/// refused ("attempt to write a readonly database") until the -shm was removed by hand. In a
+/// directory the user may not write to, where SQLite cannot make one, `results list` was
+/// refused so. Both are read as immutable files now, nothing made beside them. Another
+/// user (65534) is needed, as root writes every file: elsewhere the test is skipped.
+#[test]
+fn a_database_of_one_s_own_that_cannot_be_written_reads_and_leaves_nothing_behind() {
+    use std::os::unix::process::CommandExt;
+    let test = "a_database_of_one_s_own_that_cannot_be_written_reads_and_leaves_nothing_behind";
+    let dir = temp_dir("results-own-read-only");
+    let (db, _) = database_of_one_run(&dir);
+    std::fs::copy(
+        root().join("fuzz/corpus/result/quick-scaling.json"),
+        dir.join("scaling.json"),
+    )
+    .unwrap();
+    if std::os::unix::fs::chown(&db, Some(65534), Some(65534)).is_err() {
+        return skip(test, "changing a file's owner needs root");
+    }
+    let binary = dir.join("tessera");
+    std::fs::copy(env!("CARGO_BIN_EXE_tessera"), &binary).unwrap();
+    // A test beside this one that starts a process while the copy is open to write hands
+    // it the copy's descriptor, and the copy cannot run ("text file busy") until that
+    // process has run its own program: it is tried until it runs.
+    for tries in 1.. {
+        match Command::new(&binary).arg("--version").output() {
+            Err(e) if e.raw_os_error() == Some(26) && tries < 100 => {
+                std::thread::sleep(std::time::Duration::from_millis(50));
+            }
+            ran => {
+                ran.unwrap();
+                break;
+            }
+        }
+    }
+    let mode = |path: &Path, mode: u32| {
+        std::fs::set_permissions(path, std::fs::Permissions::from_mode(mode)).unwrap();
+    };
+    mode(&dir, 0o777);
+    mode(&dir.join("scaling.json"), 0o644);
+    let as_its_owner = |args: &[&str]| {
+        output_within_a_minute(
+            Command::new(&binary)
+                .arg("results")
+                .args(args)
+                .env("TESSERA_DB", &db)
+                .current_dir(&dir)
+                .uid(65534)
+                .gid(65534),
+            "results, as the database's owner",
+        )
+    };
+    let nothing_beside = |when: &str| {
+        for companion in ["r.db-wal", "r.db-shm"] {
+            assert!(!dir.join(companion).exists(), "{companion} made by {when}");
+        }
+    };
+    mode(&db, 0o444);
+    let o = as_its_owner(&["list"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(stdout(&o).lines().count(), 2, "{}", stdout(&o));
+    nothing_beside("a read of a read-only database");
+    mode(&db, 0o644);
+    let o = as_its_owner(&["import", "scaling.json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // Closed by its writer: its -wal and -shm are gone with it.
+    nothing_beside("an import");
+    mode(&dir, 0o755);
+    let o = as_its_owner(&["list"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(stdout(&o).lines().count(), 3, "{}", stdout(&o));
+    nothing_beside("a read in a read-only directory");
+}

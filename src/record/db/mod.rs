@@ -439,7 +439,7 @@ impl ResultsDb {
     /// and a read-only file system cannot hold a new one: there it is read as immutable,
     /// which is true of it, since nobody can write it.
     fn connect_to_read(path: &Path, since: Instant) -> Result<Self> {
-        if read_immutable_as_a_stranger(path)? {
+        if read_as_immutable(path)? {
             let conn = open_immutable(path).with_context(|| {
                 format!("{}: could not open the results database", path.display())
             })?;
@@ -1086,29 +1086,32 @@ fn refuse_a_strangers_database(path: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Whether the database at `path`, where it is another user's, is to be read as an
-/// immutable file. SQLite makes a WAL database's -wal and -shm files where they are
-/// missing, even to read it, and a -wal or -shm of another user's beside a database is
-/// refused by every command (`refuse_strangers_companions`): one `results list` of a
-/// colleague's database, readable by all in a shared directory, left theirs there, which
-/// its owner could neither use nor remove. So another user's database is read through its
-/// -wal and -shm where both are there (its owner's, in use), and as an immutable file where
-/// no -wal holds changes (it holds every row then); a -wal of changes without its -shm
-/// cannot be read without making one, and is refused.
-fn read_immutable_as_a_stranger(path: &Path) -> Result<bool> {
+/// Whether the database at `path` is to be read as an immutable file. SQLite makes a WAL
+/// database's -wal and -shm files where they are missing, even to read it, and a -wal or
+/// -shm of another user's beside a database is refused by every command
+/// (`refuse_strangers_companions`): one `results list` of a colleague's database, readable
+/// by all in a shared directory, left theirs there, which its owner could neither use nor
+/// remove. So another user's database is read through its -wal and -shm where both are
+/// there (its owner's, in use), and as an immutable file where no -wal holds changes (it
+/// holds every row then); a -wal of changes without its -shm cannot be read without making
+/// one, and is refused. This user's own database is read as immutable where neither
+/// companion is there (nor changes in a -wal) and SQLite could not make them for a use
+/// that lasts (`companions_cannot_last`).
+fn read_as_immutable(path: &Path) -> Result<bool> {
     use std::os::unix::fs::MetadataExt;
     let Ok(owner) = std::fs::metadata(path).map(|m| m.uid()) else {
         return Ok(false);
     };
-    if owner == crate::owner::this_user() {
-        return Ok(false);
-    }
     let real = companions_base(path);
     let companion = |suffix: &str| {
         let mut name = real.as_os_str().to_owned();
         name.push(suffix);
         std::fs::metadata(PathBuf::from(name)).ok()
     };
+    if owner == crate::owner::this_user() {
+        let no_changes = companion("-wal").is_none_or(|wal| wal.len() == 0);
+        return Ok(no_changes && companion("-shm").is_none() && companions_cannot_last(&real));
+    }
     match (companion("-wal"), companion("-shm")) {
         (Some(_), Some(_)) => Ok(false),
         (Some(wal), None) if wal.len() > 0 => bail!(
@@ -1120,6 +1123,24 @@ fn read_immutable_as_a_stranger(path: &Path) -> Result<bool> {
         ),
         _ => Ok(true),
     }
+}
+
+/// Whether SQLite, reading the database whose file is `real`, could not make its -shm file
+/// one that its writes use later: this user may not write the file (a database made
+/// read-only, `chmod a-w`), so that a -shm made to read it takes its mode, read-only, and
+/// is left behind, after which every write failed as "read-only" even once the file was
+/// writable again; or may not add to its directory (a read-only one), where SQLite cannot
+/// make one at all and `results list` failed as "attempt to write a readonly database".
+/// Nobody but its owner writes such a file, and its owner's writes need the same
+/// companions, so an immutable read of it reads every row.
+fn companions_cannot_last(real: &Path) -> bool {
+    use rustix::fs::Access;
+    let dir = match real.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => dir,
+        _ => Path::new("."),
+    };
+    rustix::fs::access(real, Access::WRITE_OK).is_err()
+        || rustix::fs::access(dir, Access::WRITE_OK | Access::EXEC_OK).is_err()
 }
 
 /// The name SQLite gives the -wal, -shm and -journal files of the database at `path`:
