@@ -415,8 +415,9 @@ impl BenchResult {
             let at_least = |name: &str, x: f64, least: f64, most: f64| {
                 if !(x.is_finite() && x > 0.0) {
                     Err(format!(
-                        "{} threads: {name} is {x}, not a positive number",
-                        row.threads
+                        "{} threads: {name} is {}, not a positive number",
+                        row.threads,
+                        shown_number(x)
                     ))
                 } else if x < least {
                     Err(format!(
@@ -425,7 +426,7 @@ impl BenchResult {
                     ))
                 } else if x > most {
                     Err(format!(
-                        "{} threads: {name} is {x}, more than any run makes (at most {most:e})",
+                        "{} threads: {name} is {x:e}, more than any run makes (at most {most:e})",
                         row.threads
                     ))
                 } else {
@@ -571,13 +572,27 @@ fn check_busy(busy: &Busy) -> Result<(), String> {
         && !(cpus.is_finite() && (0.0..=MAX_THREADS as f64).contains(&cpus))
     {
         return Err(format!(
-            "busy.others_cpus is {cpus}, not 0 to {MAX_THREADS}"
+            "busy.others_cpus is {}, not 0 to {MAX_THREADS}",
+            shown_number(cpus)
         ));
     }
     if let Some(steal) = busy.steal
         && !(steal.is_finite() && (0.0..=1.0).contains(&steal))
     {
-        return Err(format!("busy.steal is {steal}, not a share from 0 to 1"));
+        return Err(format!(
+            "busy.steal is {}, not a share from 0 to 1",
+            shown_number(steal)
+        ));
     }
     Ok(())
+}
+
+/// `x` as a message about a result shows it: in exponent form where its digits would run
+/// long, as `{}` writes 1e300 in 301 of them.
+fn shown_number(x: f64) -> String {
+    if x.is_finite() && x != 0.0 && !(1e-6..1e16).contains(&x.abs()) {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
+    }
 }

@@ -2735,3 +2735,34 @@ fn a_database_of_one_s_own_that_cannot_be_written_reads_and_leaves_nothing_behin
     assert_eq!(stdout(&o).lines().count(), 3, "{}", stdout(&o));
     nothing_beside("a read in a read-only directory");
 }
+
+/// A result's number far out of range was quoted in full: a rays per sample of 1e300 in a
+/// message of 422 bytes, 301 of them its digits. It is shown as 1e300 now.
+#[test]
+fn a_number_far_out_of_range_is_quoted_short() {
+    let dir = temp_dir("results-far-numbers");
+    let db = dir.join("r.db");
+    let base = json(&root().join("fuzz/corpus/result/quick-one-thread.json"));
+    type Edit = fn(&mut Value);
+    let cases: [(&str, Edit, &str); 2] = [
+        (
+            "many-rays",
+            |v| v["result"]["rays_per_sample"] = Value::from(1e300),
+            "rays per sample is 1e300, more than any run makes",
+        ),
+        (
+            "time-before-time",
+            |v| v["result"]["wall_s"]["min"] = Value::from(-1e300),
+            "wall time is -1e300, not a positive number",
+        ),
+    ];
+    for (name, edit, reason) in cases {
+        let mut v = base.clone();
+        edit(&mut v);
+        write_json(&dir.join(format!("{name}.json")), &v);
+        let o = results(&dir, &db, &["import", &format!("{name}.json")]);
+        assert_eq!(o.status.code(), Some(2), "{name}: {}", stderr(&o));
+        assert!(stderr(&o).contains(reason), "{name}: {}", stderr(&o));
+        assert!(stderr(&o).len() < 200, "{name}: {}", stderr(&o));
+    }
+}
