@@ -305,6 +305,14 @@ impl BenchResult {
         }
         let text = std::str::from_utf8(bytes)
             .map_err(|_| anyhow::anyhow!("{what}: not UTF-8 text: not a tessera bench result"))?;
+        // A byte order mark, which an editor may save before the text, is no JSON: said so,
+        // where serde_json said only "expected value at line 1 column 1".
+        if text.starts_with('\u{feff}') {
+            bail!(
+                "{what}: starts with a byte order mark (EF BB BF), which JSON does not have: \
+                 not read (save it without one)"
+            );
+        }
         // serde_json refuses nesting deeper than 128 before it could exhaust the stack.
         let value: serde_json::Value =
             serde_json::from_str(text).map_err(|e| anyhow::anyhow!("{what}: not JSON: {e}"))?;

@@ -2766,3 +2766,27 @@ fn a_number_far_out_of_range_is_quoted_short() {
         assert!(stderr(&o).len() < 200, "{name}: {}", stderr(&o));
     }
 }
+
+/// A result saved with a byte order mark before it (as some editors save text) was refused
+/// as "not JSON: expected value at line 1 column 1", which names nothing there to fix. The
+/// mark is named now, in a file and in a line of JSON lines, and nothing is added.
+#[test]
+fn a_result_after_a_byte_order_mark_is_refused_naming_it() {
+    let dir = temp_dir("results-bom");
+    let db = dir.join("r.db");
+    let v = json(&root().join("fuzz/corpus/result/quick-one-thread.json"));
+    let text = serde_json::to_string(&v).unwrap();
+    std::fs::write(dir.join("bom.json"), format!("\u{feff}{text}")).unwrap();
+    std::fs::write(dir.join("bom.jsonl"), format!("\u{feff}{text}\n")).unwrap();
+    for name in ["bom.json", "bom.jsonl"] {
+        let o = results(&dir, &db, &["import", name]);
+        assert_eq!(o.status.code(), Some(2), "{name}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains("starts with a byte order mark (EF BB BF)"),
+            "{name}: {}",
+            stderr(&o)
+        );
+        assert!(stderr(&o).contains(name), "{name}: {}", stderr(&o));
+    }
+    assert!(!db.exists() || listed(&dir, &db, &[]).is_empty());
+}
