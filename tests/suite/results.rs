@@ -2681,22 +2681,7 @@ fn a_database_of_one_s_own_that_cannot_be_written_reads_and_leaves_nothing_behin
     if std::os::unix::fs::chown(&db, Some(65534), Some(65534)).is_err() {
         return skip(test, "changing a file's owner needs root");
     }
-    let binary = dir.join("tessera");
-    std::fs::copy(env!("CARGO_BIN_EXE_tessera"), &binary).unwrap();
-    // A test beside this one that starts a process while the copy is open to write hands
-    // it the copy's descriptor, and the copy cannot run ("text file busy") until that
-    // process has run its own program: it is tried until it runs.
-    for tries in 1.. {
-        match Command::new(&binary).arg("--version").output() {
-            Err(e) if e.raw_os_error() == Some(26) && tries < 100 => {
-                std::thread::sleep(std::time::Duration::from_millis(50));
-            }
-            ran => {
-                ran.unwrap();
-                break;
-            }
-        }
-    }
+    let binary = binary_for_others(&dir);
     let mode = |path: &Path, mode: u32| {
         std::fs::set_permissions(path, std::fs::Permissions::from_mode(mode)).unwrap();
     };
@@ -2789,4 +2774,70 @@ fn a_result_after_a_byte_order_mark_is_refused_naming_it() {
         assert!(stderr(&o).contains(name), "{name}: {}", stderr(&o));
     }
     assert!(!db.exists() || listed(&dir, &db, &[]).is_empty());
+}
+
+/// A copy of tessera in `dir`, where another user may run it. A test beside this one that
+/// starts a process while the copy is open to write hands it the copy's descriptor, and the
+/// copy cannot run ("text file busy") until that process has run its own program: it is
+/// tried until it runs.
+fn binary_for_others(dir: &Path) -> PathBuf {
+    let binary = dir.join("tessera");
+    std::fs::copy(env!("CARGO_BIN_EXE_tessera"), &binary).unwrap();
+    for tries in 1.. {
+        match Command::new(&binary).arg("--version").output() {
+            Err(e) if e.raw_os_error() == Some(26) && tries < 100 => {
+                std::thread::sleep(std::time::Duration::from_millis(50));
+            }
+            ran => {
+                ran.unwrap();
+                break;
+            }
+        }
+    }
+    binary
+}
+
+/// Another user's database, readable by all, whose -wal and -shm files (its owner's, made
+/// with a umask of 077) this user may not read, was refused as "the database or its
+/// directory is read-only (unable to open database file)", which it is not. The file this
+/// user may not read is named now, and nothing is made beside it. Two other users (65533
+/// and 65534) are needed: elsewhere the test is skipped.
+#[test]
+fn another_user_s_database_whose_wal_this_user_may_not_read_says_so() {
+    use std::os::unix::process::CommandExt;
+    let test = "another_user_s_database_whose_wal_this_user_may_not_read_says_so";
+    let dir = temp_dir("results-strangers-wal-unread");
+    let (db, _) = database_of_one_run(&dir);
+    // Held open, as its owner's process in use holds it: its -wal and -shm are there.
+    let conn = rusqlite::Connection::open(&db).unwrap();
+    conn.query_row("SELECT count(*) FROM runs", [], |r| r.get::<_, i64>(0))
+        .unwrap();
+    for name in ["r.db", "r.db-wal", "r.db-shm"] {
+        let path = dir.join(name);
+        if std::os::unix::fs::chown(&path, Some(65533), Some(65533)).is_err() {
+            return skip(test, "changing a file's owner needs root");
+        }
+        let mode = if name == "r.db" { 0o644 } else { 0o600 };
+        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(mode)).unwrap();
+    }
+    let binary = binary_for_others(&dir);
+    let o = output_within_a_minute(
+        Command::new(&binary)
+            .args(["results", "list"])
+            .env("TESSERA_DB", &db)
+            .current_dir(&dir)
+            .uid(65534)
+            .gid(65534),
+        "results list, as another user",
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stdout(&o));
+    assert!(
+        stderr(&o).contains(
+            "r.db: another user's database (uid 65533) whose -wal file this user may not read"
+        ),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!stderr(&o).contains("read-only"), "{}", stderr(&o));
+    drop(conn);
 }

@@ -1113,7 +1113,25 @@ fn read_as_immutable(path: &Path) -> Result<bool> {
         return Ok(no_changes && companion("-shm").is_none() && companions_cannot_last(&real));
     }
     match (companion("-wal"), companion("-shm")) {
-        (Some(_), Some(_)) => Ok(false),
+        (Some(_), Some(_)) => {
+            // Its owner's, in use, and read through SQLite only where this user may read
+            // them: one made with its owner's umask (0600) failed as "the database or its
+            // directory is read-only (unable to open database file)", which it is not.
+            for suffix in ["-wal", "-shm"] {
+                let mut name = real.as_os_str().to_owned();
+                name.push(suffix);
+                if rustix::fs::access(name.as_os_str(), rustix::fs::Access::READ_OK).is_err() {
+                    bail!(
+                        "{}: another user's database (uid {owner}) whose {suffix} file this \
+                         user may not read, and SQLite reads the database through it; left \
+                         as it is (read it once its owner has closed it, or ask \
+                         them for an export: `tessera results export --jsonl`)",
+                        path.display()
+                    );
+                }
+            }
+            Ok(false)
+        }
         (Some(wal), None) if wal.len() > 0 => bail!(
             "{}: another user's database (uid {owner}) whose -wal file holds changes but \
              has no -shm file: reading them would leave a -shm file of this user's beside \
