@@ -531,6 +531,54 @@ fn an_interrupted_render_whose_checkpoint_cannot_be_written_tells_its_viewer_it_
     assert!(last["download"].is_null(), "{last}");
 }
 
+/// A watched render without `--checkpoint` had no signal handler: Ctrl-C or SIGTERM ended
+/// it at once, and its page said "connection lost" where the docs promise "interrupted". It
+/// now stops, tells its viewer it was interrupted, writes no image and exits 130.
+#[test]
+fn a_watched_render_without_a_checkpoint_tells_its_viewer_it_was_interrupted() {
+    for signal in ["INT", "TERM"] {
+        let dir = temp_dir(&format!("preview-interrupted-{signal}"));
+        let mut args = cover_args(400, 256);
+        args.extend(["--threads", "1", "-o", "out.png", "--preview"].map(String::from));
+        let mut viewer = Viewer::start(&strs(&args), &dir);
+        viewer.wait_for("the second pass", |s| s["spp_done"].as_u64() >= Some(4));
+        let mut stream = TcpStream::connect(viewer.addr).unwrap();
+        stream.set_read_timeout(Some(PATIENCE)).unwrap();
+        write!(
+            stream,
+            "GET /{}/events HTTP/1.1\r\nHost: {}\r\n\r\n",
+            viewer.key, viewer.addr
+        )
+        .unwrap();
+        let _ = std::process::Command::new("kill")
+            .args([&format!("-{signal}"), &viewer.child.id().to_string()])
+            .status();
+        let mut seen = Vec::new();
+        let _ = stream.read_to_end(&mut seen);
+        let code = viewer.wait();
+        let stderr = viewer.stderr.lock().unwrap().clone();
+        if code == 0 {
+            return skip(
+                "a_watched_render_without_a_checkpoint_tells_its_viewer",
+                "the render ended before the signal",
+            );
+        }
+        assert_eq!(code, 130, "SIG{signal}: {stderr}");
+        assert!(stderr.contains("interrupted at"), "{stderr}");
+        assert!(stderr.contains("nothing is saved"), "{stderr}");
+        assert!(!dir.join("out.png").exists(), "SIG{signal}");
+        let text = String::from_utf8_lossy(&seen);
+        let last = text
+            .rsplit("event: status\ndata: ")
+            .next()
+            .and_then(|data| data.lines().next())
+            .expect("a status");
+        let last: serde_json::Value = serde_json::from_str(last).expect("a status is JSON");
+        assert_eq!(last["state"], "interrupted", "SIG{signal}: {text}");
+        assert!(last["download"].is_null(), "{last}");
+    }
+}
+
 /// A scene file's name and an output's are text a stranger may choose (a scene handed over
 /// under its name): a right-to-left override (U+202E) in them reached the viewer's page raw
 /// and reversed what it showed of the scene, the title, the output and the download's name

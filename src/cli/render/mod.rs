@@ -218,9 +218,11 @@ pub fn run(args: Args) -> Result<ExitCode> {
         _ => JobState::new(job, options.tile),
     };
     let stop = Arc::new(AtomicBool::new(false));
-    if checkpoint.is_some() {
-        // The first Ctrl-C or SIGTERM stops the render, which saves its checkpoint; a second
-        // ends the process at once (exit 130), where the first finds it waiting on what no
+    if checkpoint.is_some() || preview.is_on() {
+        // The first Ctrl-C or SIGTERM stops the render, which saves its checkpoint and tells
+        // its viewer and preview file it was interrupted (unwatched and without a checkpoint,
+        // the signal's default ends it at once, as nothing is left to tell); a second ends
+        // the process at once (exit 130), where the first finds it waiting on what no
         // signal interrupts (an output that is this user's pipe with no reader: once deaf to
         // every signal but SIGKILL). Registered first, the exit looks at the flag before the
         // first signal sets it.
@@ -297,6 +299,16 @@ pub fn run(args: Args) -> Result<ExitCode> {
             ));
             return Ok(ExitCode::from(output::INTERRUPTED));
         }
+    }
+    // A watched render stopped by a signal with no checkpoint to keep its progress: its
+    // viewer was told above; no image is written (an output is whole or absent).
+    if !state.is_complete() {
+        note(format_args!(
+            "tessera: interrupted at {:.1}%; nothing is saved (with --checkpoint FILE, the same \
+             command resumes)",
+            state.percent_done()
+        ));
+        return Ok(ExitCode::from(output::INTERRUPTED));
     }
     let what = describe(&scene, &state, &output);
     // The output first, so that a viewer told the render has finished finds it written, and
