@@ -190,6 +190,13 @@ fn is_special(path: &Path) -> bool {
     }
 }
 
+/// Whether `write_atomically` writes `path` in place rather than replacing it with a new
+/// file: a device, a pipe, or one of this process's open files (`/dev/stdout` redirected to
+/// a file), as `is_special` says.
+pub fn written_in_place(path: &Path) -> bool {
+    is_special(path)
+}
+
 /// Symbolic links followed, at most, to see where a path leads (the kernel's own limit).
 const MAX_LINKS: usize = 40;
 

@@ -579,6 +579,62 @@ fn a_watched_render_without_a_checkpoint_tells_its_viewer_it_was_interrupted() {
     }
 }
 
+/// A preview file that leads to standard output redirected to a file (a link `p.png` to
+/// `/dev/stdout`, `> shown.png`) was written in place: each frame was added after the last,
+/// and a 200x133 render left four PNGs one after another (203,460 bytes) in a file that
+/// showed only the first. It is refused before the render, as `/dev/stdout` named itself
+/// is, by its extension.
+#[test]
+fn a_preview_file_that_leads_to_redirected_standard_output_is_refused() {
+    let dir = temp_dir("preview-file-stdout");
+    std::os::unix::fs::symlink("/dev/stdout", dir.join("p.png")).unwrap();
+    let shown = dir.join("shown.png");
+    let o = tessera()
+        .args([
+            "render",
+            &cover(),
+            "--width",
+            "32",
+            "--spp",
+            "4",
+            "-o",
+            "out.png",
+            "--preview-file",
+            "p.png",
+        ])
+        .current_dir(&dir)
+        .stdout(std::fs::File::create(&shown).unwrap())
+        .output()
+        .unwrap();
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("--preview-file: p.png is not a file of its own"),
+        "{err}"
+    );
+    assert_eq!(std::fs::metadata(&shown).unwrap().len(), 0);
+    assert!(!dir.join("out.png").exists());
+    let o = run(
+        &[
+            "render",
+            &cover(),
+            "--width",
+            "32",
+            "-o",
+            "out.png",
+            "--preview-file",
+            "/dev/stdout",
+        ],
+        &dir,
+    );
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("--preview-file must name a .png file, not /dev/stdout"),
+        "{err}"
+    );
+}
+
 /// A scene file's name and an output's are text a stranger may choose (a scene handed over
 /// under its name): a right-to-left override (U+202E) in them reached the viewer's page raw
 /// and reversed what it showed of the scene, the title, the output and the download's name

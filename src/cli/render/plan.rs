@@ -68,11 +68,17 @@ impl PreviewSettings {
     fn new(args: &PreviewArgs) -> Result<Self> {
         let file = match &args.preview_file {
             Some(path) => {
-                if Format::from_path(path)? != Format::Png {
-                    bail!("--preview-file must name a .png file");
+                // Any other extension, none included, gets this one answer: the advice for
+                // `-o` (".png, .ppm or .exr") names formats a preview is not written in.
+                if !matches!(Format::from_path(path), Ok(Format::Png)) {
+                    bail!(
+                        "--preview-file must name a .png file, not {}",
+                        path_safe(path)
+                    );
                 }
                 check_output("--preview-file", path)?;
                 refuse_pipe(path)?;
+                refuse_in_place(path)?;
                 let every = seconds(
                     "--preview-every",
                     args.preview_every.unwrap_or(PREVIEW_EVERY_SECS),
@@ -113,6 +119,23 @@ fn refuse_pipe(path: &Path) -> Result<()> {
         bail!(
             "--preview-file: {} is a pipe (FIFO), which would hold tessera until something \
              reads it; the preview is a file rewritten every few seconds: name a file",
+            path_safe(path)
+        );
+    }
+    Ok(())
+}
+
+/// Refuses a preview file that is written in place (`atomic_file::written_in_place`): a
+/// device, or one of this process's open files (a link `p.png` to `/dev/stdout` with the
+/// output redirected to a file). Each frame was added after the last, so a redirected
+/// output grew by a PNG every 2 s and showed only the first frame, and a terminal was sent
+/// PNG bytes. The preview is a file rewritten whole.
+fn refuse_in_place(path: &Path) -> Result<()> {
+    if tessera::atomic_file::written_in_place(path) {
+        bail!(
+            "--preview-file: {} is not a file of its own (a device, or standard output or \
+             another file this process has open): each frame would be added after the last; \
+             the preview is a file rewritten every few seconds: name a file",
             path_safe(path)
         );
     }
