@@ -28,7 +28,7 @@ pub fn check_output(flag: &str, path: &Path) -> Result<()> {
                  directory of yours there; {}",
                 path.display(),
                 dir.display(),
-                mount_advice(c, &dir)
+                mount_advice(c, &dir, flag, path)
             ),
             None => format!(
                 "{}: the directory {} does not exist; create it first (mkdir -p {})",
@@ -52,7 +52,7 @@ pub fn check_output(flag: &str, path: &Path) -> Result<()> {
                     "{}: {what}. In this {c} container, write to a mounted directory that \
                      you own, running as yourself; {}",
                     path.display(),
-                    mount_advice(c, &dir)
+                    mount_advice(c, &dir, flag, path)
                 ),
                 None => format!(
                     "{}: {what}; choose another directory with {flag}",
@@ -65,9 +65,9 @@ pub fn check_output(flag: &str, path: &Path) -> Result<()> {
     Err(anyhow!(why))
 }
 
-/// How to give a container a writable directory for its output, for the runtime `container`
-/// names.
-fn mount_advice(container: &str, dir: &Path) -> String {
+/// How to give a container a writable directory for its output `path`, given with `flag`,
+/// for the runtime `container` names.
+fn mount_advice(container: &str, dir: &Path, flag: &str, path: &Path) -> String {
     if container == "kubernetes" {
         return format!(
             "mount a volume at {} (deploy/k8s/render-job.yaml shows one, with the pod's fsGroup \
@@ -75,7 +75,17 @@ fn mount_advice(container: &str, dir: &Path) -> String {
             mount_point(dir)
         );
     }
-    run_example(dir)
+    run_example(&command_typed(), dir, flag, path)
+}
+
+/// The subcommand this process runs (`render`, `merge`, …), as the example command line
+/// names it.
+fn command_typed() -> String {
+    const COMMANDS: [&str; 5] = ["render", "merge", "reproduce", "results", "bench"];
+    std::env::args()
+        .nth(1)
+        .filter(|c| COMMANDS.contains(&c.as_str()))
+        .unwrap_or_else(|| "render".to_owned())
 }
 
 /// Where the example mounts the output directory: `dir` when it is absolute and not the
@@ -96,13 +106,18 @@ fn directory_of(path: &Path) -> PathBuf {
     }
 }
 
-/// The command lines that run the image with a writable output directory mounted.
-fn run_example(dir: &Path) -> String {
+/// The command lines that run the image's `command` with a writable output directory
+/// mounted, the output `path` given with `flag` there: the flag that gave the path, with
+/// its file name (`--checkpoint /out/c.ckpt`), not always `-o` and an image's name.
+fn run_example(command: &str, dir: &Path, flag: &str, path: &Path) -> String {
     let mount = mount_point(dir);
+    let name = path
+        .file_name()
+        .map_or("NAME".into(), |n| tessera::text::path_safe(Path::new(n)));
     format!(
         "mkdir -p out && podman run --rm --network none --userns=keep-id --user \"$(id -u):$(id -g)\" -v \
-         \"$PWD/out:{mount}\" IMAGE render -o {mount}/NAME.png (Docker, or Podman as root: \
-         the same without --userns=keep-id)"
+         \"$PWD/out:{mount}\" IMAGE {command} … {flag} {mount}/{name} (Docker, or Podman as \
+         root: the same without --userns=keep-id)"
     )
 }
 
@@ -153,4 +168,28 @@ pub fn names_database_file(output: &Path, db: &Path) -> Option<String> {
                 })
             })
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The container's advice named `render -o …/NAME.png` whatever flag gave the path: a
+    /// checkpoint that could not be written was to be fixed with `-o`, which moves the image.
+    #[test]
+    fn the_container_s_advice_names_the_flag_that_gave_the_path() {
+        let said = run_example(
+            "render",
+            Path::new("/app"),
+            "--checkpoint",
+            Path::new("/app/c.ckpt"),
+        );
+        assert!(
+            said.contains("IMAGE render … --checkpoint /out/c.ckpt"),
+            "{said}"
+        );
+        assert!(!said.contains("-o "), "{said}");
+        let said = run_example("merge", Path::new("/data"), "-o", Path::new("/data/x.png"));
+        assert!(said.contains("IMAGE merge … -o /data/x.png"), "{said}");
+    }
 }
