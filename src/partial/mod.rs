@@ -135,8 +135,12 @@ impl Part {
             || job.region.area() == 0
         {
             return fail(format!(
-                "has an impossible region {:?} for window {:?} of a {}x{} image",
-                job.region, r.window, r.width, r.height
+                "has an impossible region: state.job.region {} in render.window {} of a {}x{} \
+                 image",
+                pixels(job.region),
+                pixels(r.window),
+                r.width,
+                r.height
             ));
         }
         // The film is written with the header's gamma, so it must be one a scene takes.
@@ -147,18 +151,36 @@ impl Part {
             ));
         }
         let s = &self.state;
-        let len = job.samples.len();
+        let (start, end) = (job.samples.start, job.samples.end);
         // A part holds at least one sample of each pixel of its region, within the image's
-        // samples per pixel: an empty range once merged into a "0 spp" image.
-        if job.samples.end <= job.samples.start
-            || job.samples.end > r.target
-            || s.tile == 0
-            || s.done.len() as u64 != job.region.tile_count(s.tile)
-            || s.done.iter().any(|&d| d > len)
-        {
-            return fail("has an inconsistent header (samples, tiles or progress)".to_owned());
-        }
-        Ok(())
+        // samples per pixel: an empty range once merged into a "0 spp" image. Each refusal
+        // names the field at fault: one message for all five said nothing of which.
+        let inconsistent = if end <= start {
+            format!("state.job.samples {start}..{end} holds no sample")
+        } else if end > r.target {
+            format!(
+                "state.job.samples {start}..{end} goes past render.target, the image's {} \
+                 samples per pixel",
+                r.target
+            )
+        } else if s.tile == 0 {
+            "state.tile is 0".to_owned()
+        } else if s.done.len() as u64 != job.region.tile_count(s.tile) {
+            format!(
+                "state.done lists {} tiles, where state.job.region in tiles of {} has {}",
+                s.done.len(),
+                s.tile,
+                job.region.tile_count(s.tile)
+            )
+        } else if let Some((i, d)) = (s.done.iter().enumerate()).find(|&(_, &d)| d > end - start) {
+            format!(
+                "state.done[{i}] is {d} samples, more than the {} of state.job.samples",
+                end - start
+            )
+        } else {
+            return Ok(());
+        };
+        fail(format!("has an inconsistent header: {inconsistent}"))
     }
 
     /// Refuses a part made from another scene or other settings than `scene`'s.
@@ -220,6 +242,11 @@ impl Part {
     }
 }
 
+/// A rectangle of pixels as messages give one: `pixels 16x9 at (0, 0)`.
+fn pixels(r: PixelRect) -> String {
+    format!("pixels {}x{} at ({}, {})", r.width, r.height, r.x0, r.y0)
+}
+
 /// Why a part of format `version`, another than this build's, is refused.
 fn another_version(version: u32) -> String {
     let whose = if version < VERSION {
@@ -273,6 +300,49 @@ pub(crate) mod tests {
                 recipe: None,
             },
             state,
+        }
+    }
+
+    /// A header's inconsistent claims were refused all in one message, "has an inconsistent
+    /// header (samples, tiles or progress)", and its impossible region in Rust's debug form
+    /// (`PixelRect { x0: 4294967295, … }`): each refusal now names its field, in words.
+    #[test]
+    fn an_inconsistent_header_names_the_field_at_fault() {
+        let path = Path::new("p.part");
+        type Edit = dyn Fn(&mut Part);
+        let refused = |edit: &Edit| {
+            let mut p = part(PixelRect::full(8, 6), [0, 9]);
+            edit(&mut p);
+            p.check_claims(path).unwrap_err().to_string()
+        };
+        let cases: [(&Edit, &str); 6] = [
+            (
+                &|p| p.state.job.samples.end = 0,
+                "state.job.samples 0..0 holds no sample",
+            ),
+            (
+                &|p| p.state.job.samples.end = 10,
+                "state.job.samples 0..10 goes past render.target, the image's 9",
+            ),
+            (&|p| p.state.tile = 0, "state.tile is 0"),
+            (
+                &|p| p.state.done.push(0),
+                "state.done lists 5 tiles, where state.job.region in tiles of 4 has 4",
+            ),
+            (
+                &|p| p.state.done[2] = 10,
+                "state.done[2] is 10 samples, more than the 9 of state.job.samples",
+            ),
+            (
+                &|p| p.state.job.region.x0 = u32::MAX,
+                "state.job.region pixels 8x6 at (4294967295, 0) in render.window pixels 8x6 \
+                 at (0, 0) of a 8x6 image",
+            ),
+        ];
+        for (edit, says) in cases {
+            let said = refused(edit);
+            assert!(said.starts_with("p.part: has a"), "{said}");
+            assert!(said.contains(says), "{said}");
         }
     }
 }
