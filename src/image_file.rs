@@ -434,10 +434,15 @@ pub fn read_pixels(path: &Path, header: &ImageHeader) -> Result<Pixels> {
             let info = reader.info();
             let layout = (info.color_type, info.bit_depth);
             if layout != (png::ColorType::Rgb, png::BitDepth::Eight) {
-                return Ok(Pixels::Other(format!(
-                    "{:?} {:?}-bit",
-                    layout.0, layout.1 as u8
-                )));
+                // Said in words ("16-bit RGB", "8-bit palette"), not the decoder's names.
+                let colour = match layout.0 {
+                    png::ColorType::Grayscale => "grey",
+                    png::ColorType::GrayscaleAlpha => "grey and alpha",
+                    png::ColorType::Rgb => "RGB",
+                    png::ColorType::Rgba => "RGBA",
+                    png::ColorType::Indexed => "palette",
+                };
+                return Ok(Pixels::Other(format!("{}-bit {colour}", layout.1 as u8)));
             }
             let size = reader
                 .output_buffer_size()
@@ -568,6 +573,56 @@ mod tests {
         std::fs::write(&path, [&png[..33], &actl[..], &png[33..]].concat()).unwrap();
         let e = read_pixels(&path, &header).unwrap_err().to_string();
         assert!(e.contains("changed while it was checked"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A tessera PNG re-saved by another program as 16-bit samples or a palette, its
+    /// recipe kept, is said to be stored so in words ("16-bit RGB"), where the decoder's
+    /// names were shown ("Rgb 16-bit", "Indexed 8-bit").
+    #[test]
+    fn a_png_stored_in_another_layout_is_said_so_in_words() {
+        use crate::scene::{Overrides, Scene};
+        let dir = std::env::temp_dir().join(format!("tessera-layout-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let film = Film::new(2, 1, 1);
+        let text = "[image]\nwidth = 2\nheight = 1\nsamples_per_pixel = 1\nmax_depth = 1\n";
+        let scene = Scene::parse(text, Path::new("s.toml"), &Overrides::default()).unwrap();
+        let source = recipe::Source::new(Path::new("s.toml"), text, Overrides::default());
+        let path = dir.join("a.png");
+        film.save(&path, 2.0, Some(&Recipe::new(&source, &scene, &film)))
+            .unwrap();
+        let recipe = read_header(&path).unwrap().recipe.unwrap();
+        for (colour, depth, data, said) in [
+            (
+                png::ColorType::Rgb,
+                png::BitDepth::Sixteen,
+                vec![0; 12],
+                "16-bit RGB",
+            ),
+            (
+                png::ColorType::Grayscale,
+                png::BitDepth::Eight,
+                vec![0; 2],
+                "8-bit grey",
+            ),
+        ] {
+            let mut file = Vec::new();
+            let mut encoder = png::Encoder::new(&mut file, 2, 1);
+            encoder.set_color(colour);
+            encoder.set_depth(depth);
+            encoder
+                .add_itxt_chunk(recipe::KEY.to_owned(), recipe.clone())
+                .unwrap();
+            let mut writer = encoder.write_header().unwrap();
+            writer.write_image_data(&data).unwrap();
+            writer.finish().unwrap();
+            std::fs::write(&path, file).unwrap();
+            let header = read_header(&path).unwrap();
+            match read_pixels(&path, &header) {
+                Ok(Pixels::Other(layout)) => assert_eq!(layout, said),
+                _ => panic!("{said}: not said to be stored otherwise"),
+            }
+        }
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
