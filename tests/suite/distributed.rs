@@ -556,21 +556,17 @@ fn this_build() -> tessera::recipe::Maker {
 /// `part` as if rendered by the build of `commit`: its header's commit replaced, its length
 /// and checksum made right.
 fn made_by(part: &[u8], commit: &str) -> Vec<u8> {
-    let len = u64::from_le_bytes(part[16..24].try_into().unwrap()) as usize;
-    let header = std::str::from_utf8(&part[24..24 + len]).unwrap();
-    let ours = format!("\"commit\":\"{}\"", this_build().commit);
-    assert!(
-        header.contains(&ours),
-        "the header names no build: {header}"
-    );
-    let header = header.replace(&ours, &format!("\"commit\":\"{commit}\""));
-    let mut bytes = part[..16].to_vec();
-    bytes.extend_from_slice(&(header.len() as u64).to_le_bytes());
-    bytes.extend_from_slice(header.as_bytes());
-    bytes.extend_from_slice(&part[24 + len..part.len() - 8]);
-    let sum = xxhash_rust::xxh3::xxh3_64(&bytes);
-    bytes.extend_from_slice(&sum.to_le_bytes());
-    bytes
+    with_part_header(part, |header| {
+        let header = std::str::from_utf8(header).unwrap();
+        let ours = format!("\"commit\":\"{}\"", this_build().commit);
+        assert!(
+            header.contains(&ours),
+            "the header names no build: {header}"
+        );
+        header
+            .replace(&ours, &format!("\"commit\":\"{commit}\""))
+            .into_bytes()
+    })
 }
 
 /// Builds of other commits may render other sums for one scene and settings, and parts

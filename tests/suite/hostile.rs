@@ -2289,19 +2289,10 @@ fn merge_s_warning_on_a_stranger_s_recipe_is_of_bounded_length() {
         &[&args[..], &["--samples", "0..2", "-o", "a.part"]].concat(),
         &dir,
     );
-    let bytes = std::fs::read(dir.join("a.part")).unwrap();
-    let header_len = u64::from_le_bytes(bytes[16..24].try_into().unwrap()) as usize;
-    let mut header: serde_json::Value =
-        serde_json::from_slice(&bytes[24..24 + header_len]).unwrap();
-    let text = &mut header["render"]["recipe"]["scene"]["text"];
-    *text = format!("{}\n{} = 1\n", text.as_str().unwrap(), "k".repeat(1 << 20)).into();
-    let json = serde_json::to_vec(&header).unwrap();
-    let mut part = bytes[..16].to_vec();
-    part.extend((json.len() as u64).to_le_bytes());
-    part.extend(&json);
-    part.extend(&bytes[24 + header_len..bytes.len() - 8]);
-    part.extend(xxhash_rust::xxh3::xxh3_64(&part).to_le_bytes());
-    std::fs::write(dir.join("b.part"), part).unwrap();
+    part_edited(&dir, "a.part", "b.part", |header| {
+        let text = &mut header["render"]["recipe"]["scene"]["text"];
+        *text = format!("{}\n{} = 1\n", text.as_str().unwrap(), "k".repeat(1 << 20)).into();
+    });
     let o = run(&["merge", "b.part", "-o", "m.png"], &dir);
     assert!(o.status.success(), "{}", stderr(&o));
     let err = stderr(&o);
@@ -2322,16 +2313,11 @@ fn part_with_gamma(dir: &Path, from: &str, to: &str, gamma: f64) {
 /// written as `to`: what anyone can make, the checksum being no secret.
 fn part_edited(dir: &Path, from: &str, to: &str, edit: impl Fn(&mut serde_json::Value)) {
     let bytes = std::fs::read(dir.join(from)).unwrap();
-    let header_len = u64::from_le_bytes(bytes[16..24].try_into().unwrap()) as usize;
-    let mut header: serde_json::Value =
-        serde_json::from_slice(&bytes[24..24 + header_len]).unwrap();
-    edit(&mut header);
-    let json = serde_json::to_vec(&header).unwrap();
-    let mut part = bytes[..16].to_vec();
-    part.extend((json.len() as u64).to_le_bytes());
-    part.extend(&json);
-    part.extend(&bytes[24 + header_len..bytes.len() - 8]);
-    part.extend(xxhash_rust::xxh3::xxh3_64(&part).to_le_bytes());
+    let part = with_part_header(&bytes, |header| {
+        let mut header: serde_json::Value = serde_json::from_slice(header).unwrap();
+        edit(&mut header);
+        serde_json::to_vec(&header).unwrap()
+    });
     std::fs::write(dir.join(to), part).unwrap();
 }
 

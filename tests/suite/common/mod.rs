@@ -209,6 +209,19 @@ pub fn remove_ended_runs_files(tmp: &Path) {
     }
 }
 
+/// The part or checkpoint file `part` (its bytes) with its JSON header as `edit` makes it,
+/// its length and checksum made to agree: what a stranger who edits one by hand hands over.
+pub fn with_part_header(part: &[u8], edit: impl FnOnce(&[u8]) -> Vec<u8>) -> Vec<u8> {
+    let len = u64::from_le_bytes(part[16..24].try_into().unwrap()) as usize;
+    let header = edit(&part[24..24 + len]);
+    let mut edited = part[..16].to_vec();
+    edited.extend((header.len() as u64).to_le_bytes());
+    edited.extend(&header);
+    edited.extend(&part[24 + len..part.len() - 8]);
+    edited.extend(xxhash_rust::xxh3::xxh3_64(&edited).to_le_bytes());
+    edited
+}
+
 /// A fresh temporary directory holding `text` as `scene.toml`.
 pub fn dir_with_scene(name: &str, text: impl AsRef<[u8]>) -> PathBuf {
     let dir = temp_dir(name);
