@@ -353,6 +353,13 @@ impl RgbImage {
         let format = reader.format();
         let decoder = reader.into_decoder().map_err(|e| fail(e.to_string()))?;
         let (width, height) = decoder.dimensions();
+        // A PNM may claim a width or height of 0 (PNG and EXR cannot): two such files
+        // were `identical` (RMSE 0, PSNR inf), a verdict on no pixels at all.
+        if width == 0 || height == 0 {
+            return Err(fail(format!(
+                "is {width}x{height}: an image to compare has at least one pixel"
+            )));
+        }
         if u64::from(width) * u64::from(height) > MAX_COMPARED_PIXELS {
             return Err(fail(format!(
                 "{width}x{height} is more than the {MAX_COMPARED_PIXELS} pixels (4096x4096) \

@@ -139,10 +139,6 @@ fn a_png_whose_iend_crc_is_wrong_is_listed() {
     assert!(listed("png-iend-whole", ("a.png", &whole), ("b.png", &whole)).is_empty());
 }
 
-/// compare measures the colour channels only: an image with an alpha channel (a PNG of
-/// colour type 4 or 6, an EXR with an `A` channel, a PAM of tuple type RGB_ALPHA) once
-/// compared `identical` with an opaque one of the same colours, though a viewer shows
-/// it transparent. It is listed, as a PNG's tRNS chunk is.
 /// A PPM whose samples go past its maxval (200 where it is 100) was measured as white
 /// and called identical with a white PPM, though Netpbm refuses it; it is listed now.
 #[test]
@@ -156,6 +152,33 @@ fn a_pnm_sample_past_its_maxval_is_listed() {
     assert!(listed("pnm-within", ("white.ppm", white), ("within.ppm", within)).is_empty());
 }
 
+/// A PNM of a width or height of 0 (which PNG and EXR cannot be): two such files compared
+/// `identical` (RMSE 0, PSNR inf), a verdict on no pixels. Each is refused by its size.
+#[test]
+fn an_image_of_no_pixels_is_refused() {
+    let dir = std::env::temp_dir().join(format!("tessera-no-pixels-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for (name, bytes, size) in [
+        ("wide.pgm", &b"P5\n2 0\n255\n"[..], "2x0"),
+        ("none.ppm", b"P6\n0 0\n255\n", "0x0"),
+    ] {
+        let path = dir.join(name);
+        std::fs::write(&path, bytes).unwrap();
+        let e = difference_of_files(&path, &path).unwrap_err().to_string();
+        assert!(
+            e.contains(&format!(
+                "is {size}: an image to compare has at least one pixel"
+            )),
+            "{name}: {e}"
+        );
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// compare measures the colour channels only: an image with an alpha channel (a PNG of
+/// colour type 4 or 6, an EXR with an `A` channel, a PAM of tuple type RGB_ALPHA) once
+/// compared `identical` with an opaque one of the same colours, though a viewer shows
+/// it transparent. It is listed, as a PNG's tRNS chunk is.
 #[test]
 fn an_alpha_channel_is_listed_not_called_identical() {
     let opaque = png(png::ColorType::Rgb, &[200, 100, 50, 200, 100, 50]);
