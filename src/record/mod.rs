@@ -9,4 +9,5 @@ pub mod host;
 pub mod measure;
 pub mod result;
 pub mod stats;
+pub mod unique_json;
 pub mod workload;

@@ -313,9 +313,13 @@ impl BenchResult {
                  not read (save it without one)"
             );
         }
-        // serde_json refuses nesting deeper than 128 before it could exhaust the stack.
-        let value: serde_json::Value =
-            serde_json::from_str(text).map_err(|e| anyhow::anyhow!("{what}: not JSON: {e}"))?;
+        // serde_json refuses nesting deeper than 128 before it could exhaust the stack; a
+        // key given twice in one object is refused (`UniqueKeys`), not its last value kept.
+        let value = match serde_json::from_str::<super::unique_json::UniqueKeys>(text) {
+            Ok(value) => value.0,
+            Err(e) if e.classify() == serde_json::error::Category::Data => bail!("{what}: {e}"),
+            Err(e) => bail!("{what}: not JSON: {e}"),
+        };
         match value.get("schema").and_then(|s| s.as_str()) {
             Some(s) if READS.contains(&s) => {}
             Some(other) => bail!(

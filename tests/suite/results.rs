@@ -334,6 +334,13 @@ fn hostile_imports_are_refused_with_the_reason() {
             edited(&|v| v["surprise"] = Value::from(1)),
             "not a valid result",
         ),
+        // serde_json kept the last of two, where other readers keep the first: imported.
+        (
+            "key-twice",
+            text.replacen('{', "{\"schema\": \"something-else\", ", 1)
+                .into_bytes(),
+            "the key `schema` twice in one object",
+        ),
         (
             "future",
             edited(&|v| v["schema"] = Value::from("tessera-bench/99")),
