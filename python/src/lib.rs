@@ -416,6 +416,9 @@ enum Failed {
     Other(String),
     /// The process was forked while the work ran, and this is the child, without its thread.
     Forked,
+    /// The work was told to stop and had not ended `LOOKS_TO_STOP` looks later: it ends on
+    /// its own thread, unwaited for, and what stopped it is raised.
+    Unwaited,
 }
 
 /// Loads `scene` and renders it. `kind` says what `scene` is: "file" (a path), "toml" (a
@@ -464,6 +467,10 @@ fn render(
     let watching = on_pass.is_some();
     interruptible(py, on_pass.as_ref(), move |stop, show| {
         let (scene, source) = input.load(overrides).map_err(Failed::Tessera)?;
+        // Stopped while the scene was built (its raise not waited for): no pool is started.
+        if stop.load(Ordering::Relaxed) {
+            return Err(Failed::Interrupted);
+        }
         let mut watcher = watching.then(|| PassWatcher {
             show,
             scene: &scene,
@@ -524,6 +531,12 @@ fn render_whole<'a>(
 
 /// How often the caller's thread runs Python's signal handlers while `work` runs.
 const SIGNAL_LOOK: Duration = Duration::from_millis(20);
+/// The looks the caller's thread waits for `work` to end once it is told to stop, before it
+/// raises without it: what no stop reaches (a scene's parsing and building, seconds of a
+/// cloud of 2^20 spheres; a results database's reading; rays among a million spheres in
+/// one place) goes on to its end on its own thread, and Ctrl-C was raised only then (9 s
+/// after it, of such a cloud on a 2-core machine).
+const LOOKS_TO_STOP: u32 = 4;
 /// The stack of the thread `work` runs on.
 const WORK_STACK: usize = 8 << 20;
 
@@ -582,8 +595,10 @@ fn interruptible<T: Send + 'static>(
     let (done, raised) = match worker {
         Ok(worker) => {
             let (done, raised) = watch_work(py, on_pass, &stop, interrupts, received);
-            if matches!(done, Err(Failed::Forked)) {
-                // The thread is the parent's: this process has nothing of it to wait for.
+            if matches!(done, Err(Failed::Forked | Failed::Unwaited)) {
+                // The thread is the parent's: this process has nothing of it to wait for. Or
+                // it is still at what no stop reaches: it ends there on its own, its result
+                // dropped (its `Done` finds no one to take it), and holds nothing of Python's.
                 std::mem::forget(worker);
             } else {
                 // It has sent `Done` as its last word.
@@ -619,6 +634,8 @@ where
 {
     let pid = std::process::id();
     let mut raised: Option<PyErr> = None;
+    // The looks since `stop` was set.
+    let mut since_stop = 0u32;
     loop {
         let (event, back) = py.detach(move || (received.recv_timeout(SIGNAL_LOOK), received));
         received = back;
@@ -654,6 +671,12 @@ where
         }
         if std::process::id() != pid {
             return (Err(Failed::Forked), None);
+        }
+        if stop.load(Ordering::Relaxed) {
+            since_stop += 1;
+            if since_stop > LOOKS_TO_STOP {
+                return (Err(Failed::Unwaited), raised);
+            }
         }
     }
 }
@@ -713,8 +736,9 @@ impl Failed {
             Failed::Panicked(message) => TesseraError::new_err(safe(&format!(
                 "internal error (a bug of tessera's; please report it): {message}"
             ))),
-            // Ctrl-C off the main thread (the main thread's handler raises there too).
-            Failed::Interrupted => py
+            // Ctrl-C off the main thread (the main thread's handler raises there too); or
+            // the work, so stopped, unwaited for.
+            Failed::Interrupted | Failed::Unwaited => py
                 .check_signals()
                 .err()
                 .unwrap_or_else(|| PyKeyboardInterrupt::new_err("the render was interrupted")),
