@@ -77,6 +77,29 @@ impl JobState {
         }
     }
 
+    /// `new`, its sums reserved first and any failure to have them returned: a scene's
+    /// size is a stranger's to choose (2^28 pixels claim 6 GiB of sums), and a failed
+    /// allocation otherwise ends the process, interpreter and all where tessera is a
+    /// Python module.
+    pub fn try_new(job: Job, tile: u32) -> Result<Self, std::collections::TryReserveError> {
+        let tile = tile.max(1);
+        let area = job.region.area() as usize;
+        let tiles = job.region.tiles(tile).len();
+        // Zeroed as `film::zeroed_sums` zeroes them: written now, not left to zero pages.
+        let mut sums = Vec::new();
+        sums.try_reserve_exact(area)?;
+        sums.resize(area, [0; 3]);
+        let mut done = Vec::new();
+        done.try_reserve_exact(tiles)?;
+        done.resize(tiles, 0);
+        Ok(JobState {
+            done,
+            sums,
+            job,
+            tile,
+        })
+    }
+
     pub fn is_complete(&self) -> bool {
         self.done.iter().all(|&d| d >= self.job.samples.len())
     }

@@ -414,6 +414,8 @@ enum Failed {
     Panicked(String),
     /// What else stops the work, in words: a refusal of its cost.
     Other(String),
+    /// Memory the work needs and could not have, in words: a `MemoryError`.
+    Memory(String),
     /// The process was forked while the work ran, and this is the child, without its thread.
     Forked,
     /// The work was told to stop and had not ended `LOOKS_TO_STOP` looks later: it ends on
@@ -513,7 +515,17 @@ fn render_whole<'a>(
     stop: &'a AtomicBool,
     watch: Option<&'a mut dyn Watch>,
 ) -> Result<(Film, RenderStats), Failed> {
-    let mut state = JobState::new(Job::whole(scene), options.tile);
+    let job = Job::whole(scene);
+    let (width, height) = (job.region.width, job.region.height);
+    // Reserved, not assumed: a scene of 16384x16384 pixels claims 6 GiB of sums, and a
+    // failed allocation ended the interpreter (abort, under a memory limit).
+    let mut state = JobState::try_new(job, options.tile).map_err(|e| {
+        let bytes = u64::from(width) * u64::from(height) * 24;
+        Failed::Memory(format!(
+            "the image's {width}x{height} pixels need {bytes} bytes for their sums, which \
+             this process could not have ({e})"
+        ))
+    })?;
     let control = Control {
         stop,
         on_samples: &|_| {},
@@ -728,6 +740,7 @@ impl Failed {
                 TesseraError::new_err(format!("could not start the thread pool: {e}"))
             }
             Failed::Other(message) => TesseraError::new_err(safe(&message)),
+            Failed::Memory(message) => PyMemoryError::new_err(safe(&message)),
             Failed::Forked => TesseraError::new_err(
                 "this process was forked during the render (by on_pass or a signal handler): \
                  the render goes on in the parent, and the child holds none of its threads; \

@@ -409,3 +409,32 @@ def test_a_save_into_a_missing_directory_names_the_directory(tmp_path):
     said = str(e.value)
     assert f"could not create a file in {missing}: " in said, said
     assert ".tmp" not in said and ".out.png" not in said, said
+
+
+# A scene of 16384x16384 pixels (a few lines of text) claims 6 GiB for its sums: under a
+# memory limit the allocation failed and ended the interpreter (abort, a negative return
+# code). It is a MemoryError, and the interpreter goes on to render.
+CLAIMS_MEMORY = textwrap.dedent(
+    """
+    import resource, tessera
+    scene = {"image": {"width": 16384, "height": 16384, "samples_per_pixel": 1, "max_depth": 2},
+             "camera": {"lookfrom": [0.0, 0.0, 1.0], "lookat": [0.0, 0.0, 0.0], "vfov_deg": 40.0}}
+    limit = 2 << 30
+    resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+    try:
+        tessera.render(scene, threads=1)
+        print("rendered")
+    except MemoryError as e:
+        print("MemoryError:", e)
+    print(tessera.render("scenes/cover.toml", width=8, spp=1, threads=1).width)
+    """
+)
+
+
+def test_a_scene_too_large_for_memory_is_a_memory_error():
+    done = subprocess.run([sys.executable, "-c", CLAIMS_MEMORY], cwd=ROOT, capture_output=True,
+                          text=True, timeout=120)
+    assert done.returncode == 0, (done.returncode, done.stderr[-2000:])
+    said, rendered = done.stdout.splitlines()
+    assert said.startswith("MemoryError: the image's 16384x16384 pixels need 6442450944 bytes"), said
+    assert rendered == "8"
