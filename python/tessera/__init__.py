@@ -167,7 +167,11 @@ def _json_value(value: Any) -> Any:
 def _plain_scalar(value: np.generic) -> Any:
     """A NumPy number, boolean or string as the Python one it holds. ``item()`` leaves a
     long double NumPy's, which JSON handed back to be made plain until a RecursionError: it
-    is the float64 a scene file holds (a complex one is none of a scene's values)."""
+    is the float64 a scene file holds (a complex one is none of a scene's values). A date or
+    a time span is none either, as in an array: ``item()`` of one in nanoseconds is an
+    ``int``, and ``np.datetime64(8, "ns")`` was taken as the number 8."""
+    if value.dtype.kind not in "biufU":
+        _not_a_value(value)
     item = value.item()
     if isinstance(item, np.floating):
         return float(item)

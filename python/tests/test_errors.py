@@ -87,6 +87,9 @@ def test_a_missing_or_odd_scene_is_refused(tmp_path):
         ({"image": {"width": 1e400}}, "Out of range float"),
         ({1: 2}, "a dict's keys must be strings"),
         ({"image": {"width": object()}}, "object is none of them"),
+        # A NumPy date or time span in nanoseconds, whose `item()` is an int, was that int.
+        ({"image": {"width": np.datetime64(8, "ns")}}, "datetime64 is none of them"),
+        ({"image": {"width": np.timedelta64(8, "ns")}}, "timedelta64 is none of them"),
         ({"spheres": "many"}, "spheres"),
         ({"image": {"width": 10**30, "height": 2}}, "image.width"),
         # Beyond TOML's whole numbers: named by the keys, not by a place in JSON.
