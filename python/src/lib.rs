@@ -311,6 +311,9 @@ impl NativeImage {
     fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         let format = Format::from_path(&path).map_err(|e| to_py(py, e))?;
         let recipe = self.carried(py, format)?;
+        // Held open until the image is written, so that the reader it waited for is there
+        // when the save opens the pipe again.
+        let _reader_there = reader_of_pipe(py, &path)?;
         py.detach(|| self.film.save(&path, self.gamma, recipe))
             .map_err(|e| to_py(py, e))
     }
@@ -329,6 +332,37 @@ impl NativeImage {
         d.set_item("samples_per_second", s.samples_per_sec())?;
         d.set_item("rays_per_sample", s.rays_per_sample())?;
         Ok(Some(d))
+    }
+}
+
+/// Where `path` is a pipe (FIFO) of this user's (or root's), which a save writes in place:
+/// waits for a reader, running Python's signal handlers every `SIGNAL_LOOK`, and returns a
+/// write end of it, open. A save's own open of a pipe with no reader waits in the kernel,
+/// where no Ctrl-C reaches: `Image.save` of one hung until killed. Another user's pipe is
+/// left alone (the save refuses it), as is anything else.
+fn reader_of_pipe(py: Python<'_>, path: &Path) -> PyResult<Option<std::fs::File>> {
+    use std::os::unix::fs::{FileTypeExt, MetadataExt, OpenOptionsExt};
+    let Ok(meta) = std::fs::metadata(path) else {
+        return Ok(None);
+    };
+    if !meta.file_type().is_fifo() || tessera::owner::is_another_users(meta.uid(), &[]) {
+        return Ok(None);
+    }
+    loop {
+        let opened = std::fs::OpenOptions::new()
+            .write(true)
+            .custom_flags(libc::O_NONBLOCK)
+            .open(path);
+        match opened {
+            Ok(file) => return Ok(Some(file)),
+            // No reader yet.
+            Err(e) if e.raw_os_error() == Some(libc::ENXIO) => {
+                py.detach(|| std::thread::sleep(SIGNAL_LOOK));
+                py.check_signals()?;
+            }
+            // The save says what is wrong, in its words.
+            Err(_) => return Ok(None),
+        }
     }
 }
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import tessera
-from conftest import ROOT
+from conftest import ROOT, as_at_a_terminal
 
 
 def test_a_scene_error_says_file_line_column_and_field(tmp_path):
@@ -441,3 +441,45 @@ def test_a_scene_too_large_for_memory_is_a_memory_error():
     said, rendered = done.stdout.splitlines()
     assert said.startswith("MemoryError: the image's 16384x16384 pixels need 6442450944 bytes"), said
     assert rendered == "8"
+
+
+# A save to a pipe (FIFO) of this user's writes the image into it, for its reader; with no
+# reader, the save's open waited in the kernel, where Ctrl-C does not reach: the interpreter
+# hung until killed. It waits for a reader where Ctrl-C stops it, and a reader gets the image.
+SAVED_TO_A_PIPE = textwrap.dedent(
+    """
+    import os, signal, sys, threading, tessera
+    pipe = os.path.join(sys.argv[1], "out.png")
+    os.mkfifo(pipe)
+    image = tessera.render("scenes/cover.toml", width=8, spp=1)
+    threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT)).start()
+    try:
+        image.save(pipe)
+        print("saved with no reader")
+    except KeyboardInterrupt:
+        print("interrupted")
+    read = []
+    def reader():
+        with open(pipe, "rb") as f:
+            read.append(f.read())
+    thread = threading.Thread(target=reader)
+    thread.start()
+    image.save(pipe)
+    thread.join()
+    print(read == [image.png()])
+    """
+)
+
+
+def test_a_save_to_a_pipe_waits_for_its_reader_where_ctrl_c_stops_it(tmp_path):
+    done = subprocess.run(
+        [sys.executable, "-c", SAVED_TO_A_PIPE, str(tmp_path)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        preexec_fn=as_at_a_terminal,
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.splitlines() == ["interrupted", "True"], done.stdout
+
