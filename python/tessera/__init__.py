@@ -410,8 +410,13 @@ def _fspath(path: Union[str, bytes, "os.PathLike[Any]"]) -> str:
     functions take: the bytes of a name that is not UTF-8 as surrogates, which the native
     side turns back into those bytes. A path given as bytes once raised "'bytes' object is
     not an instance of 'str'", and a scene file's name that is not UTF-8 a
-    UnicodeEncodeError."""
-    return os.fsdecode(os.fspath(path))
+    UnicodeEncodeError. A NUL, which no path holds, is a ValueError, as Python's own file
+    functions raise: ``save`` and ``reproduce`` raised an OSError of a file that could not
+    be created, naming the directory."""
+    text = os.fsdecode(os.fspath(path))
+    if "\0" in text:
+        raise ValueError(f"{_escaped(text)}: a path cannot hold a NUL character")
+    return text
 
 
 def _escaped(text: Any) -> str:

@@ -483,3 +483,20 @@ def test_a_save_to_a_pipe_waits_for_its_reader_where_ctrl_c_stops_it(tmp_path):
     assert done.returncode == 0, done.stderr
     assert done.stdout.splitlines() == ["interrupted", "True"], done.stdout
 
+
+# A path with a NUL is a bad argument, as Python's own `open` says: `save` and `reproduce`
+# raised an OSError, "could not create a file in DIR: file name contained an unexpected NUL
+# byte", as if the directory were at fault.
+def test_a_path_with_a_nul_is_a_value_error(tmp_path):
+    image = tessera.render("scenes/cover.toml", width=8, spp=1)
+    for path in (f"{tmp_path}/a\0b.png", os.fsencode(f"{tmp_path}/a\0b.png")):
+        with pytest.raises(ValueError, match=r"a\\x00b.png: a path cannot hold a NUL character"):
+            image.save(path)
+        with pytest.raises(ValueError, match="a path cannot hold a NUL character"):
+            tessera.reproduce(path)
+    image.save(tmp_path / "ok.png")
+    with pytest.raises(ValueError, match="a path cannot hold a NUL character"):
+        tessera.reproduce(tmp_path / "ok.png", textures=f"{tmp_path}/t\0")
+    with pytest.raises(ValueError, match="a path cannot hold a NUL character"):
+        tessera.results(f"{tmp_path}/r\0.db")
+    assert os.listdir(tmp_path) == ["ok.png"]
