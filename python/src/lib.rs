@@ -402,6 +402,10 @@ struct PassWatcher<'a> {
     source: &'a Source,
     simd: &'static str,
     passes_seen: usize,
+    /// Set where a pass's image could not be had, which stops the render.
+    stop: &'a AtomicBool,
+    /// Why a pass's image could not be had: the memory for its copy of the sums.
+    failed: Option<String>,
 }
 
 impl Watch for PassWatcher<'_> {
@@ -414,11 +418,27 @@ impl Watch for PassWatcher<'_> {
         self.passes_seen = progress.pass;
         let spp = progress.passes[progress.pass - 1];
         let region = state.job.region;
+        // Reserved, not assumed: the copy is as large as the render's own sums (6 GiB of a
+        // 16384x16384 image), and a failed allocation ended the interpreter (abort).
+        let mut sums = Vec::new();
+        if let Err(e) = sums.try_reserve_exact(state.sums.len()) {
+            self.failed = Some(format!(
+                "the image of pass {} ({}x{} pixels) needs {} bytes for its copy of the \
+                 sums, which this process could not have ({e})",
+                progress.pass,
+                region.width,
+                region.height,
+                std::mem::size_of_val(state.sums.as_slice())
+            ));
+            self.stop.store(true, Ordering::Relaxed);
+            return;
+        }
+        sums.extend_from_slice(&state.sums);
         let film = Film {
             width: region.width,
             height: region.height,
             samples_per_pixel: spp,
-            sums: state.sums.clone(),
+            sums,
         };
         (self.show)(pass_image(film, self.scene, self.source, self.simd));
     }
@@ -513,9 +533,15 @@ fn render(
             source: &source,
             simd: path.name(),
             passes_seen: 0,
+            stop,
+            failed: None,
         });
         let watch = watcher.as_mut().map(|w| w as &mut dyn Watch);
-        let (film, stats) = render_whole(&scene, &options, stop, watch)?;
+        let rendered = render_whole(&scene, &options, stop, watch);
+        if let Some(failed) = watcher.and_then(|w| w.failed) {
+            return Err(Failed::Memory(failed));
+        }
+        let (film, stats) = rendered?;
         let recipe = Recipe::new(&source, &scene, &film);
         Ok(NativeImage {
             film,

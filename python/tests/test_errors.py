@@ -443,6 +443,46 @@ def test_a_scene_too_large_for_memory_is_a_memory_error():
     assert rendered == "8"
 
 
+# Each pass's image given to `on_pass` is a copy of the render's sums: of 2048x2048 pixels,
+# 100663296 bytes, whose allocation, failed under a memory limit, ended the interpreter
+# (abort). It is a MemoryError, and the interpreter goes on to render.
+PASS_CLAIMS_MEMORY = textwrap.dedent(
+    """
+    import resource, tessera
+    def scene(size):
+        return {"image": {"width": size, "height": size, "samples_per_pixel": 4, "max_depth": 1},
+                "camera": {"lookfrom": [0.0, 0.0, 1.0], "lookat": [0.0, 0.0, 0.0], "vfov_deg": 40.0}}
+    def vm_size():
+        with open("/proc/self/status") as status:
+            for line in status:
+                if line.startswith("VmSize:"):
+                    return int(line.split()[1]) * 1024
+    # Every thread and arena the render below takes, at a size that needs no memory to speak of.
+    tessera.render(scene(64), threads=1, on_pass=lambda image: None)
+    sums = 2048 * 2048 * 24
+    limit = vm_size() + sums + sums // 2
+    resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+    try:
+        tessera.render(scene(2048), threads=1, on_pass=lambda image: None)
+        print("rendered")
+    except MemoryError as e:
+        print("MemoryError:", e)
+    print(tessera.render(scene(64), threads=1).width)
+    """
+)
+
+
+def test_a_pass_image_too_large_for_memory_is_a_memory_error():
+    done = subprocess.run([sys.executable, "-c", PASS_CLAIMS_MEMORY], cwd=ROOT,
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, (done.returncode, done.stderr[-2000:])
+    said, rendered = done.stdout.splitlines()
+    assert said.startswith(
+        "MemoryError: the image of pass 1 (2048x2048 pixels) needs 100663296 bytes"
+    ), said
+    assert rendered == "64"
+
+
 # A save to a pipe (FIFO) of this user's writes the image into it, for its reader; with no
 # reader, the save's open waited in the kernel, where Ctrl-C does not reach: the interpreter
 # hung until killed. It waits for a reader where Ctrl-C stops it, and a reader gets the image.
