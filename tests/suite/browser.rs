@@ -469,6 +469,54 @@ fn a_page_keeps_the_final_image_after_the_viewer_has_gone() {
     );
 }
 
+/// A page in a tab in the background shows only its title. A render stopped by Ctrl-C, or
+/// whose process was killed, left it at the percent reached ("12% · cover · tessera") as if
+/// the render still ran, while the page said "interrupted" or "connection lost". The title
+/// now says how the render ended: "interrupted at 12% · cover · tessera", "connection lost
+/// at 8% · cover · tessera".
+#[test]
+fn a_page_s_title_says_how_its_render_ended() {
+    let Some(binary) = browser_for("a_page_s_title_says_how_its_render_ended") else {
+        return;
+    };
+    let dir = temp_dir("browser-title");
+    for (signal, said) in [
+        ("-INT", "interrupted at "),
+        ("-KILL", "connection lost at "),
+    ] {
+        let flags = [
+            "--width",
+            "64",
+            "--spp",
+            "16384",
+            "--threads",
+            "1",
+            "-o",
+            "t.png",
+        ];
+        let (mut viewer, url, _) = watched_render(&dir, &flags);
+        let mut browser = Browser::open(&binary, &url, dir.join(format!("profile{signal}")));
+        browser.wait_for(
+            "the first frame",
+            "document.getElementById('image').width",
+            |v| *v == 64,
+        );
+        let running = browser.eval("document.title");
+        let running = running.as_str().unwrap();
+        assert!(running.ends_with("% · cover · tessera"), "{running}");
+        Command::new("kill")
+            .args([signal, &viewer.0.id().to_string()])
+            .status()
+            .unwrap();
+        let _ = viewer.0.wait();
+        let title = browser.wait_for("the title to say how it ended", "document.title", |v| {
+            v.as_str().is_some_and(|t| t.starts_with(said))
+        });
+        let title = title.as_str().unwrap();
+        assert!(title.ends_with("% · cover · tessera"), "{title}");
+    }
+}
+
 /// A render whose process dies (killed, out of memory) leaves its page asking the port, key
 /// and all, and another local user's program can take the port at once. Its answers, a
 /// forged "finished" with a frame and a download of its own, were taken: the page showed
