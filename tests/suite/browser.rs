@@ -517,6 +517,53 @@ fn a_page_s_title_says_how_its_render_ended() {
     }
 }
 
+/// The page shows the output's path, a stranger's text of any length. A path of 40
+/// directories of 40 letters (1,650 characters, no space) ran off the right edge of the
+/// header, cut mid-word with no way to read the rest. It now breaks anywhere, stops at a few
+/// lines (the whole in its tooltip), and the header keeps the window's width.
+#[test]
+fn a_long_output_path_keeps_the_page_s_header_in_the_window() {
+    let Some(binary) = browser_for("a_long_output_path_keeps_the_page_s_header") else {
+        return;
+    };
+    let dir = temp_dir("browser-long-path");
+    let deep = vec!["d".repeat(40); 40].join("/");
+    std::fs::create_dir_all(dir.join(&deep)).unwrap();
+    let output = format!("{deep}/out.png");
+    let flags = [
+        "--width",
+        "64",
+        "--spp",
+        "16384",
+        "--threads",
+        "1",
+        "-o",
+        &output,
+    ];
+    let (_viewer, url, _) = watched_render(&dir, &flags);
+    let mut browser = Browser::open(&binary, &url, dir.join("profile"));
+    let layout = "(() => { const box = (id) => document.getElementById(id).getBoundingClientRect(); \
+                  const s = document.getElementById('settings'); \
+                  return { width: window.innerWidth, height: window.innerHeight, \
+                  settings: box('settings').right, scene: box('scene').right, \
+                  state: box('state').right, stage: box('stage').height, \
+                  tip: s.title, text: s.textContent.length }; })()";
+    let v = browser.wait_for("the settings", layout, |v| v["text"].as_u64() > Some(1600));
+    let width = v["width"].as_f64().unwrap();
+    for part in ["settings", "scene", "state"] {
+        assert!(
+            v[part].as_f64().unwrap() <= width,
+            "{part} runs off the window: {v}"
+        );
+    }
+    let height = v["height"].as_f64().unwrap();
+    assert!(
+        v["stage"].as_f64().unwrap() > height / 2.0,
+        "the image lost its room: {v}"
+    );
+    assert!(v["tip"].as_str().unwrap().ends_with(&output), "{v}");
+}
+
 /// A render whose process dies (killed, out of memory) leaves its page asking the port, key
 /// and all, and another local user's program can take the port at once. Its answers, a
 /// forged "finished" with a frame and a download of its own, were taken: the page showed

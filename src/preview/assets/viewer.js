@@ -174,6 +174,9 @@ function showText(status) {
     `${a.width}×${a.height} · ${a.spp} spp · depth ${a.max_depth} · seed ${a.seed} · ` +
     `${a.shading} · ${a.threads} thread${a.threads === 1 ? "" : "s"} · ${a.simd}${job} → ` +
     a.output;
+  // Cut to a few lines by the style sheet: the whole text is the tooltip.
+  $("scene").title = a.scene;
+  $("settings").title = $("settings").textContent;
   const state = $("state");
   state.textContent = status.state;
   state.className = `state ${status.state}`;
