@@ -66,31 +66,36 @@ pub struct JobState {
 }
 
 impl JobState {
-    /// The state of `job` before anything is rendered, in tiles of edge `tile`.
+    /// The state of `job` before anything is rendered, in tiles of edge `tile`; for jobs
+    /// whose size is this program's own (tests, a part's few tiles). A stranger's job is
+    /// `try_new`.
     pub fn new(job: Job, tile: u32) -> Self {
-        let tile = tile.max(1);
-        JobState {
-            done: vec![0; job.region.tiles(tile).len()],
-            sums: crate::film::zeroed_sums(job.region.area() as usize),
-            job,
-            tile,
-        }
+        Self::try_new(job, tile).unwrap_or_else(|why| panic!("{why}"))
     }
 
-    /// `new`, its sums reserved first and any failure to have them returned: a scene's
-    /// size is a stranger's to choose (2^28 pixels claim 6 GiB of sums), and a failed
-    /// allocation otherwise ends the process, interpreter and all where tessera is a
-    /// Python module.
-    pub fn try_new(job: Job, tile: u32) -> Result<Self, std::collections::TryReserveError> {
+    /// The state of `job` before anything is rendered, its sums reserved first and a failure
+    /// to have them said in words: a scene's size is a stranger's to choose (2^28 pixels
+    /// claim 6 GiB of sums), and a failed allocation otherwise ends the process (an abort,
+    /// "memory allocation failed"), the interpreter and all where tessera is a Python
+    /// module.
+    pub fn try_new(job: Job, tile: u32) -> Result<Self, String> {
         let tile = tile.max(1);
         let area = job.region.area() as usize;
         let tiles = job.region.tiles(tile).len();
+        let refused = |e: std::collections::TryReserveError| {
+            let (width, height) = (job.region.width, job.region.height);
+            let bytes = area as u64 * std::mem::size_of::<[u64; 3]>() as u64;
+            format!(
+                "the image's {width}x{height} pixels need {bytes} bytes for their sums, which \
+                 this process could not have ({e})"
+            )
+        };
         // Zeroed as `film::zeroed_sums` zeroes them: written now, not left to zero pages.
         let mut sums = Vec::new();
-        sums.try_reserve_exact(area)?;
+        sums.try_reserve_exact(area).map_err(refused)?;
         sums.resize(area, [0; 3]);
         let mut done = Vec::new();
-        done.try_reserve_exact(tiles)?;
+        done.try_reserve_exact(tiles).map_err(refused)?;
         done.resize(tiles, 0);
         Ok(JobState {
             done,

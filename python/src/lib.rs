@@ -576,16 +576,9 @@ fn render_whole<'a>(
     watch: Option<&'a mut dyn Watch>,
 ) -> Result<(Film, RenderStats), Failed> {
     let job = Job::whole(scene);
-    let (width, height) = (job.region.width, job.region.height);
     // Reserved, not assumed: a scene of 16384x16384 pixels claims 6 GiB of sums, and a
     // failed allocation ended the interpreter (abort, under a memory limit).
-    let mut state = JobState::try_new(job, options.tile).map_err(|e| {
-        let bytes = u64::from(width) * u64::from(height) * 24;
-        Failed::Memory(format!(
-            "the image's {width}x{height} pixels need {bytes} bytes for their sums, which \
-             this process could not have ({e})"
-        ))
-    })?;
+    let mut state = JobState::try_new(job, options.tile).map_err(Failed::Memory)?;
     let control = Control {
         stop,
         on_samples: &|_| {},

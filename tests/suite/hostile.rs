@@ -2766,3 +2766,23 @@ fn a_scene_spelling_one_texture_file_many_ways_lists_each_name_once() {
     let o = run(&["info", "many.png"], &dir);
     assert!(stderr(&o).contains("no recipe"), "{}", stderr(&o));
 }
+
+/// A scene's size is the scene file's to choose: 16384x16384 pixels claim 6 GiB of sums,
+/// and where the system could not give them (a cap on memory) the allocation aborted
+/// tessera ("memory allocation of 6442450944 bytes failed", signal 6). It is refused in
+/// words, exit 2, before a ray is traced.
+#[test]
+fn a_scene_whose_sums_memory_cannot_hold_is_refused_in_words() {
+    let dir = dir_with_scene(
+        "hostile-huge-sums",
+        "[image]\nwidth = 16384\nheight = 16384\nsamples_per_pixel = 1\nmax_depth = 1\n",
+    );
+    let o = run_capped(&["render", "scene.toml", "-q", "-o", "a.png"], &dir, 1024);
+    refused(
+        &o,
+        "the image's 16384x16384 pixels need 6442450944 bytes for their sums, which this \
+         process could not have",
+        "16384x16384 under 1 GiB",
+    );
+    assert!(!dir.join("a.png").exists());
+}

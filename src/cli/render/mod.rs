@@ -215,7 +215,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
     } = RenderPlan::new(args)?;
     let mut state = match &checkpoint {
         Some(c) if c.path.exists() => resume(&scene, &c.path, job, quiet)?,
-        _ => JobState::new(job, options.tile),
+        // Reserved, not assumed: a scene of 16384x16384 pixels claims 6 GiB of sums, and a
+        // failed allocation aborted tessera ("memory allocation of … bytes failed").
+        _ => JobState::try_new(job, options.tile).map_err(|why| anyhow::anyhow!("{why}"))?,
     };
     let stop = Arc::new(AtomicBool::new(false));
     if checkpoint.is_some() || preview.is_on() {
