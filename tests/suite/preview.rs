@@ -389,14 +389,7 @@ fn the_page_its_assets_and_the_event_stream_are_served() {
     assert_eq!(head.code, 200);
     assert!(head.body.is_empty(), "HEAD has no body");
     // The event stream sends the latest status at once.
-    let mut stream = TcpStream::connect(viewer.addr).unwrap();
-    stream.set_read_timeout(Some(PATIENCE)).unwrap();
-    write!(
-        stream,
-        "GET /{}/events HTTP/1.1\r\nHost: {}\r\n\r\n",
-        viewer.key, viewer.addr
-    )
-    .unwrap();
+    let mut stream = events_of(&viewer);
     let mut seen = Vec::new();
     let mut buf = [0u8; 4096];
     while !String::from_utf8_lossy(&seen).contains("\"state\":\"finished\"") {
@@ -444,24 +437,11 @@ fn a_render_whose_output_cannot_be_written_tells_its_viewer_it_failed() {
             args.extend(["--shard", "0/1"].map(String::from));
         }
         let mut viewer = Viewer::start_command(with_no_room_to_write(&args), &dir);
-        let mut stream = TcpStream::connect(viewer.addr).unwrap();
-        stream.set_read_timeout(Some(PATIENCE)).unwrap();
-        write!(
-            stream,
-            "GET /{}/events HTTP/1.1\r\nHost: {}\r\n\r\n",
-            viewer.key, viewer.addr
-        )
-        .unwrap();
+        let mut stream = events_of(&viewer);
         // The stream to its end: the server goes after the last status.
         let mut seen = Vec::new();
         let _ = stream.read_to_end(&mut seen);
-        let text = String::from_utf8_lossy(&seen);
-        let last = text
-            .rsplit("event: status\ndata: ")
-            .next()
-            .and_then(|data| data.lines().next())
-            .expect("a status");
-        let last: serde_json::Value = serde_json::from_str(last).expect("a status is JSON");
+        let (text, last) = last_status(&seen);
         assert_eq!(last["state"], "failed", "{output}: {text}");
         assert_eq!(last["percent"], 100.0, "{output}");
         assert!(last["download"].is_null(), "{output}: {last}");
@@ -471,6 +451,31 @@ fn a_render_whose_output_cannot_be_written_tells_its_viewer_it_failed() {
         assert!(stderr.contains("File too large"), "{output}: {stderr}");
         assert!(!dir.join(output).exists(), "{output}");
     }
+}
+
+/// A stream of `viewer`'s events, opened: what a page reads.
+fn events_of(viewer: &Viewer) -> TcpStream {
+    let mut stream = TcpStream::connect(viewer.addr).unwrap();
+    stream.set_read_timeout(Some(PATIENCE)).unwrap();
+    write!(
+        stream,
+        "GET /{}/events HTTP/1.1\r\nHost: {}\r\n\r\n",
+        viewer.key, viewer.addr
+    )
+    .unwrap();
+    stream
+}
+
+/// The text of an event stream read to its end, and the last status it gave.
+fn last_status(seen: &[u8]) -> (String, serde_json::Value) {
+    let text = String::from_utf8_lossy(seen).into_owned();
+    let last = text
+        .rsplit("event: status\ndata: ")
+        .next()
+        .and_then(|data| data.lines().next())
+        .expect("a status");
+    let last = serde_json::from_str(last).expect("a status is JSON");
+    (text, last)
 }
 
 /// An interrupted render whose checkpoint cannot be written has lost its progress: its page
@@ -496,14 +501,7 @@ fn an_interrupted_render_whose_checkpoint_cannot_be_written_tells_its_viewer_it_
     );
     let mut viewer = Viewer::start_command(with_no_room_to_write(&args), &dir);
     viewer.wait_for("the second pass", |s| s["spp_done"].as_u64() >= Some(4));
-    let mut stream = TcpStream::connect(viewer.addr).unwrap();
-    stream.set_read_timeout(Some(PATIENCE)).unwrap();
-    write!(
-        stream,
-        "GET /{}/events HTTP/1.1\r\nHost: {}\r\n\r\n",
-        viewer.key, viewer.addr
-    )
-    .unwrap();
+    let mut stream = events_of(&viewer);
     let _ = std::process::Command::new("kill")
         .args(["-INT", &viewer.child.id().to_string()])
         .status();
@@ -520,13 +518,7 @@ fn an_interrupted_render_whose_checkpoint_cannot_be_written_tells_its_viewer_it_
     }
     assert_eq!(code, 2, "{stderr}");
     assert!(stderr.contains("could not be saved"), "{stderr}");
-    let text = String::from_utf8_lossy(&seen);
-    let last = text
-        .rsplit("event: status\ndata: ")
-        .next()
-        .and_then(|data| data.lines().next())
-        .expect("a status");
-    let last: serde_json::Value = serde_json::from_str(last).expect("a status is JSON");
+    let (text, last) = last_status(&seen);
     assert_eq!(last["state"], "failed", "{text}");
     assert!(last["download"].is_null(), "{last}");
 }
@@ -542,14 +534,7 @@ fn a_watched_render_without_a_checkpoint_tells_its_viewer_it_was_interrupted() {
         args.extend(["--threads", "1", "-o", "out.png", "--preview"].map(String::from));
         let mut viewer = Viewer::start(&strs(&args), &dir);
         viewer.wait_for("the second pass", |s| s["spp_done"].as_u64() >= Some(4));
-        let mut stream = TcpStream::connect(viewer.addr).unwrap();
-        stream.set_read_timeout(Some(PATIENCE)).unwrap();
-        write!(
-            stream,
-            "GET /{}/events HTTP/1.1\r\nHost: {}\r\n\r\n",
-            viewer.key, viewer.addr
-        )
-        .unwrap();
+        let mut stream = events_of(&viewer);
         let _ = std::process::Command::new("kill")
             .args([&format!("-{signal}"), &viewer.child.id().to_string()])
             .status();
@@ -567,13 +552,7 @@ fn a_watched_render_without_a_checkpoint_tells_its_viewer_it_was_interrupted() {
         assert!(stderr.contains("interrupted at"), "{stderr}");
         assert!(stderr.contains("nothing is saved"), "{stderr}");
         assert!(!dir.join("out.png").exists(), "SIG{signal}");
-        let text = String::from_utf8_lossy(&seen);
-        let last = text
-            .rsplit("event: status\ndata: ")
-            .next()
-            .and_then(|data| data.lines().next())
-            .expect("a status");
-        let last: serde_json::Value = serde_json::from_str(last).expect("a status is JSON");
+        let (text, last) = last_status(&seen);
         assert_eq!(last["state"], "interrupted", "SIG{signal}: {text}");
         assert!(last["download"].is_null(), "{last}");
     }
