@@ -469,54 +469,6 @@ fn a_page_keeps_the_final_image_after_the_viewer_has_gone() {
     );
 }
 
-/// A page in a tab in the background shows only its title. A render stopped by Ctrl-C, or
-/// whose process was killed, left it at the percent reached ("12% · cover · tessera") as if
-/// the render still ran, while the page said "interrupted" or "connection lost". The title
-/// now says how the render ended: "interrupted at 12% · cover · tessera", "connection lost
-/// at 8% · cover · tessera".
-#[test]
-fn a_page_s_title_says_how_its_render_ended() {
-    let Some(binary) = browser_for("a_page_s_title_says_how_its_render_ended") else {
-        return;
-    };
-    let dir = temp_dir("browser-title");
-    for (signal, said) in [
-        ("-INT", "interrupted at "),
-        ("-KILL", "connection lost at "),
-    ] {
-        let flags = [
-            "--width",
-            "64",
-            "--spp",
-            "16384",
-            "--threads",
-            "1",
-            "-o",
-            "t.png",
-        ];
-        let (mut viewer, url, _) = watched_render(&dir, &flags);
-        let mut browser = Browser::open(&binary, &url, dir.join(format!("profile{signal}")));
-        browser.wait_for(
-            "the first frame",
-            "document.getElementById('image').width",
-            |v| *v == 64,
-        );
-        let running = browser.eval("document.title");
-        let running = running.as_str().unwrap();
-        assert!(running.ends_with("% · cover · tessera"), "{running}");
-        Command::new("kill")
-            .args([signal, &viewer.0.id().to_string()])
-            .status()
-            .unwrap();
-        let _ = viewer.0.wait();
-        let title = browser.wait_for("the title to say how it ended", "document.title", |v| {
-            v.as_str().is_some_and(|t| t.starts_with(said))
-        });
-        let title = title.as_str().unwrap();
-        assert!(title.ends_with("% · cover · tessera"), "{title}");
-    }
-}
-
 /// The page shows the output's path, a stranger's text of any length. A path of 40
 /// directories of 40 letters (1,650 characters, no space) ran off the right edge of the
 /// header, cut mid-word with no way to read the rest. It now breaks anywhere, stops at a few

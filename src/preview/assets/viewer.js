@@ -161,14 +161,7 @@ function show(status) {
 function showText(status) {
   const a = status.about;
   $("scene").textContent = a.scene;
-  // The tab's title is all a person sees of a page in the background: a render that has
-  // stopped says how it ended there, not the percent it reached as if still under way.
-  const percent = `${status.percent.toFixed(0)}%`;
-  const how =
-    status.state === "rendering" ? percent
-    : status.state === "finished" ? "finished"
-    : `${status.state} at ${percent}`;
-  document.title = `${how} · ${a.scene} · tessera`;
+  document.title = `${status.percent.toFixed(0)}% · ${a.scene} · tessera`;
   const job = a.job === "whole image" ? "" : ` · ${a.job}`;
   $("settings").textContent =
     `${a.width}×${a.height} · ${a.spp} spp · depth ${a.max_depth} · seed ${a.seed} · ` +
@@ -253,9 +246,6 @@ function lost() {
   } else {
     state.textContent = "connection lost";
     state.className = "state lost";
-    // The title says so too, where a tab in the background shows only its title.
-    const at = last ? ` at ${last.percent.toFixed(0)}% · ${last.about.scene}` : "";
-    document.title = `connection lost${at} · tessera`;
   }
 }
 
