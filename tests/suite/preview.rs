@@ -466,6 +466,21 @@ fn events_of(viewer: &Viewer) -> TcpStream {
     stream
 }
 
+/// Sends the signal `signal` ("INT", "TERM") to `viewer`'s render while its event stream
+/// is read to its end (the server goes after the last status): the render's exit status,
+/// what it said, and the stream.
+fn signalled(viewer: &mut Viewer, signal: &str) -> (i32, String, Vec<u8>) {
+    let mut stream = events_of(viewer);
+    let _ = std::process::Command::new("kill")
+        .args([&format!("-{signal}"), &viewer.child.id().to_string()])
+        .status();
+    let mut seen = Vec::new();
+    let _ = stream.read_to_end(&mut seen);
+    let code = viewer.wait();
+    let stderr = viewer.stderr.lock().unwrap().clone();
+    (code, stderr, seen)
+}
+
 /// The text of an event stream read to its end, and the last status it gave.
 fn last_status(seen: &[u8]) -> (String, serde_json::Value) {
     let text = String::from_utf8_lossy(seen).into_owned();
@@ -501,15 +516,7 @@ fn an_interrupted_render_whose_checkpoint_cannot_be_written_tells_its_viewer_it_
     );
     let mut viewer = Viewer::start_command(with_no_room_to_write(&args), &dir);
     viewer.wait_for("the second pass", |s| s["spp_done"].as_u64() >= Some(4));
-    let mut stream = events_of(&viewer);
-    let _ = std::process::Command::new("kill")
-        .args(["-INT", &viewer.child.id().to_string()])
-        .status();
-    // The stream to its end: the server goes after the last status.
-    let mut seen = Vec::new();
-    let _ = stream.read_to_end(&mut seen);
-    let code = viewer.wait();
-    let stderr = viewer.stderr.lock().unwrap().clone();
+    let (code, stderr, seen) = signalled(&mut viewer, "INT");
     if code == 0 {
         return skip(
             "an_interrupted_render_whose_checkpoint_cannot_be_written",
@@ -534,14 +541,7 @@ fn a_watched_render_without_a_checkpoint_tells_its_viewer_it_was_interrupted() {
         args.extend(["--threads", "1", "-o", "out.png", "--preview"].map(String::from));
         let mut viewer = Viewer::start(&strs(&args), &dir);
         viewer.wait_for("the second pass", |s| s["spp_done"].as_u64() >= Some(4));
-        let mut stream = events_of(&viewer);
-        let _ = std::process::Command::new("kill")
-            .args([&format!("-{signal}"), &viewer.child.id().to_string()])
-            .status();
-        let mut seen = Vec::new();
-        let _ = stream.read_to_end(&mut seen);
-        let code = viewer.wait();
-        let stderr = viewer.stderr.lock().unwrap().clone();
+        let (code, stderr, seen) = signalled(&mut viewer, signal);
         if code == 0 {
             return skip(
                 "a_watched_render_without_a_checkpoint_tells_its_viewer",
